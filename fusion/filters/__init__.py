@@ -1,0 +1,1 @@
+"""Filters batched over many tracks/components: states ``(n, d)``, covariances ``(n, d, d)``."""

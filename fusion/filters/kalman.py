@@ -1,0 +1,72 @@
+"""Linear Kalman filter, batched over n states (tracks or mixture components).
+
+Implements spec 02 §2 (thesis 2.21-2.27) with the Joseph-form covariance update of
+spec 02 §7 step 10 (5.14):
+
+* predict:     x⁻ = F x,  P⁻ = F P Fᵀ + Q
+* innovation:  ẑ = H x⁻,  S = H P⁻ Hᵀ + R
+* gain:        K = P⁻ Hᵀ S⁻¹
+* update:      x = x⁻ + K (z − ẑ),  P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
+
+Shapes: x (n, d); P (n, d, d); F, Q either (d, d) shared or (n, d, d) per state;
+H (m, d); R (m, m) shared or (n, m, m); z (n, m). Units are whatever the model uses
+(metres and m/s in skyfuse).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def predict(
+    x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Predict states and covariances: x⁻ = F x, P⁻ = F P Fᵀ + Q."""
+    x_pred = np.einsum("...ij,...j->...i", F, x)
+    P_pred = F @ P @ np.swapaxes(F, -1, -2) + Q
+    return x_pred, 0.5 * (P_pred + np.swapaxes(P_pred, -1, -2))
+
+
+def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """S = H P Hᵀ + R, shape (n, m, m)."""
+    S = H @ P @ H.T + R
+    return 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def gain(P: np.ndarray, H: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """K = P Hᵀ S⁻¹, shape (n, d, m), computed by a solve rather than an inverse."""
+    PHt = P @ H.T  # (n, d, m)
+    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric.
+    return np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
+
+
+def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetric and positive semi-definite by construction."""
+    d = P.shape[-1]
+    A = np.eye(d) - K @ H
+    P_new = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+    return 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+
+
+def update(
+    x: np.ndarray, P: np.ndarray, z: np.ndarray, H: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Kalman update of n predicted states with n measurements.
+
+    Returns ``(x_upd, P_upd, nu, S)`` where ``nu = z − H x`` is the innovation and ``S``
+    its covariance (both useful for gating and likelihoods)."""
+    S = innovation_covariance(P, H, R)
+    K = gain(P, H, S)
+    nu = z - x @ H.T
+    x_new = x + np.einsum("...ij,...j->...i", K, nu)
+    return x_new, joseph_covariance(P, K, H, R), nu, S
+
+
+def gaussian_log_likelihood(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """log N(nu; 0, S) for innovations nu (..., m) with covariances S (..., m, m)."""
+    m = nu.shape[-1]
+    L = np.linalg.cholesky(S)
+    sol = np.linalg.solve(L, nu[..., None])[..., 0]
+    d2 = np.einsum("...i,...i->...", sol, sol)
+    logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(-1)
+    return -0.5 * (d2 + logdet + m * np.log(2.0 * np.pi))

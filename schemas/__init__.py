@@ -1,0 +1,67 @@
+"""skyfuse wire contract: pydantic v2 models for every message on Zenoh and in MCAP.
+
+Payloads are compact JSON (``model.to_json_bytes()`` / ``Model.from_json_bytes()``).
+The key space is in :mod:`schemas.keys`; each key's payload model is
+:func:`model_for_key`.
+"""
+
+from __future__ import annotations
+
+from . import keys
+from .base import SCHEMA_VERSION, WireModel
+from .plots import PlotBatch
+from .site import RadarKind, RadarSite
+from .status import LatencyStats, RadarHealth, Status
+from .tracks import (
+    FrameKind,
+    FrameSpec,
+    Track,
+    TrackBatch,
+    TrackEvent,
+    TrackEventKind,
+    TrackStatus,
+)
+from .truth import Truth
+
+MODELS: dict[str, type[WireModel]] = {
+    "site": RadarSite,
+    "plots": PlotBatch,
+    "tracks": TrackBatch,
+    "events": TrackEvent,
+    "status": Status,
+    "snapshot": TrackBatch,
+    "truth": Truth,
+    "service-status": Status,
+}
+
+
+def model_for_key(key: str) -> type[WireModel]:
+    """The payload model of a concrete v1 key (``ValueError`` for liveliness/unknown keys)."""
+    info = keys.parse(key)
+    try:
+        return MODELS[info.kind]
+    except KeyError:
+        raise ValueError(f"key {key!r} ({info.kind}) carries no message payload") from None
+
+
+__all__ = [
+    "MODELS",
+    "SCHEMA_VERSION",
+    "FrameKind",
+    "FrameSpec",
+    "LatencyStats",
+    "PlotBatch",
+    "RadarHealth",
+    "RadarKind",
+    "RadarSite",
+    "Status",
+    "Track",
+    "TrackBatch",
+    "TrackEvent",
+    "TrackEventKind",
+    "TrackStatus",
+    "Truth",
+    "WireModel",
+    "keys",
+    "model_for_key",
+]

@@ -1,0 +1,84 @@
+"""Validation of columnar arrays carried in wire messages.
+
+Every check names the field, the offending index and value, and the reason, so a
+rejected message can be reported precisely ("range[17] = -3.0: must be >= 0 m").
+Checks run in NumPy so a 500-plot batch validates in microseconds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+
+def as_float_array(
+    name: str, values: list[float] | list[float | None], *, allow_nan: bool = False
+) -> np.ndarray:
+    """Return ``values`` as float64 and reject inf (and NaN unless ``allow_nan``).
+
+    ``None`` entries (JSON null, "not measured") become NaN and need ``allow_nan``."""
+    arr = np.asarray(values, dtype=np.float64)
+    bad = np.isinf(arr) if allow_nan else ~np.isfinite(arr)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        what = "infinite" if allow_nan else "not finite (NaN or inf)"
+        raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: value is {what}")
+    return arr
+
+
+def check_range(
+    name: str,
+    values: list[float],
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    hi_open: bool = False,
+    allow_nan: bool = False,
+    unit: str = "",
+) -> None:
+    """Reject values outside ``[lo, hi]`` (or ``[lo, hi)`` with ``hi_open``)."""
+    arr = as_float_array(name, values, allow_nan=allow_nan)
+    with np.errstate(invalid="ignore"):
+        if lo is not None:
+            bad = arr < lo
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: must be >= {lo} {unit}".rstrip())
+        if hi is not None:
+            bad = arr >= hi if hi_open else arr > hi
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                op = "<" if hi_open else "<="
+                raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: must be {op} {hi} {unit}".rstrip())
+
+
+def check_non_decreasing(name: str, values: list[int]) -> None:
+    """Reject a time column that goes backwards."""
+    if len(values) < 2:
+        return
+    arr = np.asarray(values, dtype=np.int64)
+    back = np.diff(arr) < 0
+    if back.any():
+        i = int(np.flatnonzero(back)[0]) + 1
+        raise ValueError(
+            f"{name}[{i}] = {int(arr[i])} is earlier than {name}[{i - 1}] = {int(arr[i - 1])}:"
+            " times must be in non-decreasing order"
+        )
+
+
+def check_equal_lengths(columns: dict[str, list | None]) -> int:
+    """Return the common length of the present columns or name the mismatch."""
+    lengths = {k: len(v) for k, v in columns.items() if v is not None}
+    if not lengths:
+        return 0
+    ref_name, ref_len = next(iter(lengths.items()))
+    for k, n in lengths.items():
+        if n != ref_len:
+            raise ValueError(
+                f"column {k!r} has {n} values but {ref_name!r} has {ref_len}:"
+                " all columns must have one value per plot"
+            )
+    return ref_len

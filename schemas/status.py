@@ -1,0 +1,44 @@
+"""``Status``: service health and counters, published periodically by every service."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from .base import WireModel
+from .keys import ID_PATTERN
+
+
+class RadarHealth(WireModel):
+    radar_id: str = Field(pattern=ID_PATTERN)
+    alive: bool = Field(description="Liveliness token present")
+    site_known: bool = Field(description="A RadarSite has been received or configured")
+    batches: int = Field(0, ge=0)
+    plots: int = Field(0, ge=0)
+    plots_per_s: float = Field(0.0, ge=0.0, description="Plot rate over the last window, 1/s")
+    last_time: int | None = Field(None, description="Last plot batch time_end, ns UTC")
+
+
+class LatencyStats(WireModel):
+    """Latency from plot time (batch time_end) to track publication, milliseconds."""
+
+    count: int = Field(0, ge=0)
+    p50: float | None = None
+    p90: float | None = None
+    p99: float | None = None
+    max: float | None = None
+
+
+class Status(WireModel):
+    service: str = Field(description="Service kind: sensor, fusion, recorder, replay")
+    service_id: str = Field(pattern=ID_PATTERN)
+    time: int = Field(ge=0, description="Wall-clock time of this report, ns UTC")
+    uptime_s: float = Field(ge=0.0)
+    counters: dict[str, int] = Field(default_factory=dict, description="Monotonic counters")
+    rejected: dict[str, int] = Field(
+        default_factory=dict, description="Rejected inputs by reason"
+    )
+    radars: list[RadarHealth] = Field(default_factory=list)
+    latency_ms: LatencyStats | None = None
+    tracks_confirmed: int | None = Field(None, ge=0)
+    tracks_total: int | None = Field(None, ge=0)
+    message: str = ""

@@ -1,0 +1,40 @@
+"""``Truth``: simulated ground truth of all targets alive at one instant, columnar."""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from . import columns as col
+from .base import WireModel
+
+_COLUMNS = ("target_id", "lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "x", "y")
+
+
+class Truth(WireModel):
+    """Positions and velocities of the simulated targets at ``time``.
+
+    ``x``/``y`` are given for planar scenarios: metres east/north in the scenario plane,
+    the frame the planar (thesis) scenarios are defined in."""
+
+    time: int = Field(ge=0, description="Time, ns UTC")
+    target_id: list[int] = Field(default_factory=list, description="Target ids")
+    lat: list[float] = Field(default_factory=list, description="Latitude, WGS-84, degrees")
+    lon: list[float] = Field(default_factory=list, description="Longitude, WGS-84, degrees")
+    alt: list[float] = Field(default_factory=list, description="Height above the ellipsoid, m")
+    vel_east: list[float] = Field(default_factory=list, description="Velocity east, m/s")
+    vel_north: list[float] = Field(default_factory=list, description="Velocity north, m/s")
+    vel_up: list[float] = Field(default_factory=list, description="Velocity up, m/s")
+    x: list[float] | None = Field(None, description="Planar scenarios: east, m, scenario plane")
+    y: list[float] | None = Field(None, description="Planar scenarios: north, m, scenario plane")
+
+    @model_validator(mode="after")
+    def _check(self) -> Truth:
+        col.check_equal_lengths({k: getattr(self, k) for k in _COLUMNS})
+        col.check_range("lat", self.lat, -90.0, 90.0, unit="deg")
+        col.check_range("lon", self.lon, -180.0, 180.0, unit="deg")
+        for k in ("alt", "vel_east", "vel_north", "vel_up", "x", "y"):
+            if getattr(self, k) is not None:
+                col.as_float_array(k, getattr(self, k))
+        if len(set(self.target_id)) != len(self.target_id):
+            raise ValueError("target_id values must be unique within one Truth message")
+        return self

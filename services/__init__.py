@@ -1,0 +1,1 @@
+"""skyfuse services: simulator/recording commands, sensors, fusion, recorder, replay, CLI."""

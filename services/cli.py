@@ -1,0 +1,70 @@
+"""The ``skyfuse`` command line.
+
+Each sub-command lives in its own module exposing ``register(subparsers)``; the module
+adds its parser with ``set_defaults(func=run)`` where ``run(args) -> int`` is the exit
+code. Exit codes: 0 success, 1 the job failed, 2 bad usage or configuration,
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from .config import ConfigError
+
+# Sub-command modules, in the order `skyfuse --help` lists them.
+COMMAND_MODULES = [
+    "services.cmd_simulate",
+    "services.cmd_inspect",
+    "services.cmd_schemas",
+]
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="skyfuse",
+        description="Distributed multi-radar fusion: simulate, track, record and replay.",
+    )
+    parser.add_argument(
+        "--log-level",
+        default="INFO",
+        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+        help="Log level of messages on stderr (default: INFO)",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def setup_logging(level: str) -> None:
+    logging.basicConfig(
+        level=getattr(logging, level),
+        format="%(asctime)s %(levelname)-7s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        code = args.func(args)
+    except ConfigError as e:
+        print(f"skyfuse {args.command}: configuration error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"skyfuse {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return int(code or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
