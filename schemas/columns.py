@@ -46,13 +46,15 @@ def check_range(
             bad = arr < lo
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: must be >= {lo} {unit}".rstrip())
+                msg = f"{name}[{i}] = {float(arr[i])!r}: must be >= {lo} {unit}"
+                raise ValueError(msg.rstrip())
         if hi is not None:
             bad = arr >= hi if hi_open else arr > hi
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 op = "<" if hi_open else "<="
-                raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: must be {op} {hi} {unit}".rstrip())
+                msg = f"{name}[{i}] = {float(arr[i])!r}: must be {op} {hi} {unit}"
+                raise ValueError(msg.rstrip())
 
 
 def check_non_decreasing(name: str, values: list[int]) -> None:

@@ -118,7 +118,9 @@ class PlotBatch(WireModel):
                 "elevation", self.elevation, -math.pi / 2, math.pi / 2, allow_nan=True, unit="rad"
             )
         if self.altitude is not None:
-            col.check_range("altitude", self.altitude, -1_000.0, 100_000.0, allow_nan=True, unit="m")
+            col.check_range(
+                "altitude", self.altitude, -1_000.0, 100_000.0, allow_nan=True, unit="m"
+            )
         for name in ("x", "y"):
             if getattr(self, name) is not None:
                 col.as_float_array(name, getattr(self, name))

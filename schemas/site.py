@@ -7,7 +7,7 @@ the fusion service needs it to convert that radar's plots into the system frame.
 from __future__ import annotations
 
 import math
-from enum import Enum
+from enum import StrEnum
 
 from pydantic import Field, field_validator, model_validator
 
@@ -15,7 +15,7 @@ from .base import WireModel
 from .keys import ID_PATTERN
 
 
-class RadarKind(str, Enum):
+class RadarKind(StrEnum):
     """``2d``: range and azimuth, altitude from Mode C / flight level;
     ``3d``: range, azimuth and elevation;
     ``cartesian``: a planar test sensor measuring (x east, y north) in metres in the

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -12,13 +12,13 @@ from .base import WireModel
 from .keys import ID_PATTERN
 
 
-class TrackStatus(str, Enum):
+class TrackStatus(StrEnum):
     TENTATIVE = "tentative"
     CONFIRMED = "confirmed"
     TERMINATED = "terminated"
 
 
-class FrameKind(str, Enum):
+class FrameKind(StrEnum):
     """System frame of track states: a stereographic plane (x east, y north, metres,
     PROJ ``+proj=sterea`` at lat0/lon0 on WGS-84), a local NED tangent plane at
     lat0/lon0/alt0 (x north, y east, z down), or a planar scenario plane (x east,
@@ -96,7 +96,7 @@ class TrackBatch(WireModel):
         return self
 
 
-class TrackEventKind(str, Enum):
+class TrackEventKind(StrEnum):
     CONFIRMED = "confirmed"
     TERMINATED = "terminated"
     MERGED = "merged"

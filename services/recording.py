@@ -99,7 +99,10 @@ class RecordingWriter:
     ) -> None:
         """Write one message (a model, or its JSON bytes) at ``log_time`` (ns)."""
         if model is None:
-            model = type(message) if isinstance(message, WireModel) else schemas.model_for_key(topic)
+            if isinstance(message, WireModel):
+                model = type(message)
+            else:
+                model = schemas.model_for_key(topic)
         data = message.to_json_bytes() if isinstance(message, WireModel) else bytes(message)
         cid = self.channel_for(
             topic, schema_name=SCHEMA_PREFIX + model.__name__, schema_data=json_schema_bytes(model)
