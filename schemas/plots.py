@@ -32,11 +32,15 @@ class PlotBatch(WireModel):
     scan: int = Field(ge=0, description="Antenna revolution number, from 0")
     seq: int = Field(ge=0, description="Batch sequence number from this radar, +1 per batch")
     sector_start: float = Field(
-        0.0, ge=0.0, lt=2 * math.pi,
+        0.0,
+        ge=0.0,
+        lt=2 * math.pi,
         description="Azimuth where the sector sweep starts, rad clockwise from north",
     )
     sector_width: float = Field(
-        2 * math.pi, gt=0.0, le=2 * math.pi,
+        2 * math.pi,
+        gt=0.0,
+        le=2 * math.pi,
         description="Azimuth extent of the sector swept clockwise from sector_start, rad",
     )
     time_start: int = Field(ge=0, description="Time the beam entered the sector, ns UTC")

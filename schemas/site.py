@@ -47,11 +47,15 @@ class RadarSite(WireModel):
         0.004, gt=0.0, le=0.5, description="Elevation noise standard deviation (3d only), rad"
     )
     sigma_altitude: float = Field(
-        30.0, gt=0.0, le=10_000.0,
+        30.0,
+        gt=0.0,
+        le=10_000.0,
         description="Altitude (flight level) noise standard deviation (2d only), m",
     )
     sigma_cartesian: float = Field(
-        5.0, gt=0.0, le=10_000.0,
+        5.0,
+        gt=0.0,
+        le=10_000.0,
         description="Per-axis position noise standard deviation (cartesian only), m",
     )
     scan_period: float = Field(4.0, gt=0.0, le=600.0, description="Antenna revolution period, s")
@@ -61,7 +65,9 @@ class RadarSite(WireModel):
         250_000.0, gt=0.0, le=2_000_000.0, description="Maximum instrumented range, m"
     )
     clutter_density: float = Field(
-        0.0, ge=0.0, le=1.0,
+        0.0,
+        ge=0.0,
+        le=1.0,
         description="Nominal false-plot density over the coverage, plots per m² per scan",
     )
     n_sectors: int = Field(

@@ -34,9 +34,7 @@ class Status(WireModel):
     time: int = Field(ge=0, description="Wall-clock time of this report, ns UTC")
     uptime_s: float = Field(ge=0.0)
     counters: dict[str, int] = Field(default_factory=dict, description="Monotonic counters")
-    rejected: dict[str, int] = Field(
-        default_factory=dict, description="Rejected inputs by reason"
-    )
+    rejected: dict[str, int] = Field(default_factory=dict, description="Rejected inputs by reason")
     radars: list[RadarHealth] = Field(default_factory=list)
     latency_ms: LatencyStats | None = None
     tracks_confirmed: int | None = Field(None, ge=0)

@@ -1,9 +1,9 @@
 """The ``skyfuse`` command line.
 
-Each sub-command lives in its own module exposing ``register(subparsers)``; the module
-adds its parser with ``set_defaults(func=run)`` where ``run(args) -> int`` is the exit
-code. Exit codes: 0 success, 1 the job failed, 2 bad usage or configuration,
-130 interrupted.
+Each sub-command lives in its own module ``services/cmd_<name>.py`` exposing
+``register(subparsers)``; the module adds its parser with ``set_defaults(func=run)``
+where ``run(args) -> int`` is the exit code. Exit codes: 0 success, 1 the job failed,
+2 bad usage or configuration, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -12,15 +12,16 @@ import argparse
 import importlib
 import logging
 import sys
+from pathlib import Path
 
 from .config import ConfigError
 
-# Sub-command modules, in the order `skyfuse --help` lists them.
-COMMAND_MODULES = [
-    "services.cmd_simulate",
-    "services.cmd_inspect",
-    "services.cmd_schemas",
-]
+
+def command_modules() -> list[str]:
+    """Every ``services/cmd_*.py`` module, sorted: each registers one sub-command."""
+    here = Path(__file__).parent
+    return sorted(f"services.{p.stem}" for p in here.glob("cmd_*.py"))
+
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -38,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMAND_MODULES:
+    for name in command_modules():
         importlib.import_module(name).register(sub)
     return parser
 
