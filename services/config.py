@@ -49,7 +49,12 @@ def add_model_arguments(
         if name in skip:
             continue
         ann = _unwrap_optional(field.annotation)
-        default = field.default if field.default_factory is None else field.default_factory()
+        if field.is_required():
+            default = None
+        elif field.default_factory is not None:
+            default = field.default_factory()
+        else:
+            default = field.default
         if isinstance(default, Enum):
             default = default.value
         help_text = (field.description or "").rstrip(".")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,7 +57,7 @@ class RecordingWriter:
             self._file,
             chunk_size=chunk_size,
             compression=compression,
-            index_types=IndexType.CHUNK | IndexType.MESSAGE,
+            index_types=IndexType.CHUNK | IndexType.MESSAGE | IndexType.METADATA,
         )
         self._writer.start(profile="", library="skyfuse")
         self._schemas: dict[str, int] = {}
@@ -185,7 +186,7 @@ def iter_recording(
         try:
             reader = make_reader(f)
             summary = reader.get_summary()
-        except McapError as e:
+        except (McapError, struct.error, ValueError) as e:
             summary = None
             log.warning("%s: no readable summary (%s); reading chunks linearly", path, e)
         if summary is not None and summary.chunk_indexes:
@@ -213,7 +214,7 @@ def iter_recording(
                             continue
                 stats.messages += 1
                 yield rec
-        except (McapError, EOFError, ValueError) as e:
+        except (McapError, EOFError, ValueError, struct.error) as e:
             stats.truncated = True
             stats.errors.append(f"recording ends early: {e}")
             log.warning("%s ends early (%s): kept %d messages", path, e, stats.messages)

@@ -1,0 +1,76 @@
+"""Encode/decode rate of a 500-plot PlotBatch (JSON via pydantic), the wire format.
+
+    python benchmarks/schema_codec.py [--plots 500] [--seconds 2] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import time
+
+import numpy as np
+
+from schemas import PlotBatch
+
+
+def make_batch(n: int, seed: int = 0) -> PlotBatch:
+    rng = np.random.default_rng(seed)
+    t0 = 1_767_225_600_000_000_000
+    return PlotBatch(
+        radar_id="bench",
+        scan=10,
+        seq=160,
+        sector_start=0.0,
+        sector_width=2 * math.pi / 16,
+        time_start=t0,
+        time_end=t0 + 250_000_000,
+        time=np.sort(rng.integers(t0, t0 + 250_000_000, n)).tolist(),
+        range=rng.uniform(1e3, 2.5e5, n).tolist(),
+        azimuth=rng.uniform(0, 2 * math.pi / 16, n).tolist(),
+        altitude=rng.uniform(0, 1.2e4, n).tolist(),
+        amplitude=rng.uniform(0, 60, n).tolist(),
+        mode_s=[int(v) if v > 0.3 else None for v in rng.uniform(0, 1, n)],
+        target_id=rng.integers(-1, 100, n).tolist(),
+    )
+
+
+def rate(fn, seconds: float) -> float:
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        fn()
+        n += 1
+    return n / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--plots", type=int, default=500)
+    ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    b = make_batch(a.plots)
+    data = b.to_json_bytes()
+    enc = rate(b.to_json_bytes, a.seconds)
+    dec = rate(lambda: PlotBatch.from_json_bytes(data), a.seconds)
+    res = {
+        "plots_per_batch": a.plots,
+        "payload_bytes": len(data),
+        "encode_batches_per_s": round(enc, 1),
+        "decode_batches_per_s": round(dec, 1),
+        "encode_plots_per_s": round(enc * a.plots),
+        "decode_plots_per_s": round(dec * a.plots),
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+    }
+    for k, v in res.items():
+        print(f"{k:24s} {v}")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(res, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
