@@ -29,6 +29,7 @@ import logging
 import queue
 import re
 import socket
+import struct
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -154,17 +155,38 @@ def declare_publisher(session: zenoh.Session, key: str, *, express: bool = False
     )
 
 
+_STAMP = struct.Struct("<q")
+
+
+def wall_stamp(ns: int | None = None) -> bytes:
+    """An attachment carrying a wall-clock time in ns (default: now).
+
+    Sensors stamp each PlotBatch with the wall-clock instant its sector sweep ended, so
+    the fusion service can measure plot-to-track latency even when the plot times are
+    simulated (fixed epoch, accelerated) rather than wall-clock times."""
+    return _STAMP.pack(time.time_ns() if ns is None else int(ns))
+
+
+def read_wall_stamp(data: bytes) -> int | None:
+    """The time carried by :func:`wall_stamp`, or ``None`` for another attachment."""
+    if len(data) != _STAMP.size:
+        return None
+    return _STAMP.unpack(data)[0]
+
+
 @dataclass(slots=True)
 class Received:
     """One received sample: what ``tag`` the subscription was given, the concrete key,
-    the payload bytes, whether it is a PUT (liveliness: token appeared) or DELETE, and the
-    wall-clock receive time in ns."""
+    the payload bytes, whether it is a PUT (liveliness: token appeared) or DELETE, the
+    wall-clock receive time in ns and the sender's wall-clock stamp from the attachment
+    (see :func:`wall_stamp`), if any."""
 
     tag: str
     key: str
     payload: bytes
     put: bool
     recv_ns: int
+    sent_ns: int | None = None
 
 
 class Inbox:
@@ -181,12 +203,14 @@ class Inbox:
 
     def _push(self, tag: str) -> Callable[[zenoh.Sample], None]:
         def callback(sample: zenoh.Sample) -> None:
+            att = sample.attachment
             item = Received(
                 tag,
                 str(sample.key_expr),
                 sample.payload.to_bytes(),
                 sample.kind == zenoh.SampleKind.PUT,
                 time.time_ns(),
+                read_wall_stamp(att.to_bytes()) if att is not None else None,
             )
             while not self._closed.is_set():
                 try:
@@ -207,9 +231,7 @@ class Inbox:
         """Follow liveliness tokens under ``key_expr``: PUT when one appears (and, with
         ``history``, for those already alive), DELETE when it goes away."""
         self._handles.append(
-            session.liveliness().declare_subscriber(
-                key_expr, self._push(tag), history=history
-            )
+            session.liveliness().declare_subscriber(key_expr, self._push(tag), history=history)
         )
 
     def get(self, timeout: float | None = 0.1) -> Received | None:
@@ -262,6 +284,31 @@ def query(session: zenoh.Session, key_expr: str, timeout: float = 2.0) -> list[t
         if reply.ok is not None:
             out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
     return out
+
+
+def service_alive_key(name: str) -> str:
+    """Liveliness token of a running service: ``skyfuse/@v1/service/{name}/alive``."""
+    from schemas import keys
+
+    return f"{keys.PREFIX}/service/{keys.check_id(name, 'service name')}/alive"
+
+
+def wait_for_tokens(
+    session: zenoh.Session,
+    key_exprs: list[str],
+    timeout: float,
+    stop: threading.Event | None = None,
+) -> list[str]:
+    """Wait until a liveliness token is alive under every key expression; return the ones
+    still missing after ``timeout`` seconds (empty list: all present)."""
+    deadline = time.monotonic() + timeout
+    missing = list(key_exprs)
+    while missing:
+        missing = [k for k in missing if not alive_tokens(session, k, timeout=0.5)]
+        if not missing or time.monotonic() >= deadline or (stop is not None and stop.is_set()):
+            break
+        time.sleep(0.05)
+    return missing
 
 
 def free_port(host: str = "127.0.0.1") -> int:
