@@ -1,0 +1,61 @@
+"""WGS-84 helpers that pymap3d does not give directly (spec 01 §3).
+
+Geodetic ↔ ECEF ↔ ENU conversions themselves are pymap3d's (``geodetic2enu``,
+``enu2geodetic``, ``enu2uvw``, ``uvw2enu``); this module adds the pieces the plot
+conversion needs: radii of curvature of the ellipsoid and the rotation between two
+local ENU frames. Angles are degrees unless a name says ``_rad``; lengths metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+WGS84_A = 6_378_137.0
+"""WGS-84 semi-major axis, m."""
+WGS84_F = 1.0 / 298.257223563
+"""WGS-84 flattening."""
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+"""WGS-84 first eccentricity squared."""
+
+
+def meridian_radius(lat_deg) -> np.ndarray:
+    """Radius of curvature in the meridian M(φ), m."""
+    s = np.sin(np.radians(lat_deg))
+    return WGS84_A * (1.0 - WGS84_E2) / (1.0 - WGS84_E2 * s * s) ** 1.5
+
+
+def prime_vertical_radius(lat_deg) -> np.ndarray:
+    """Radius of curvature in the prime vertical N(φ), m."""
+    s = np.sin(np.radians(lat_deg))
+    return WGS84_A / np.sqrt(1.0 - WGS84_E2 * s * s)
+
+
+def normal_section_radius(lat_deg, azimuth_rad) -> np.ndarray:
+    """Euler's radius of curvature of the normal section at latitude φ in direction α
+    (clockwise from north): 1/R_α = cos²α/M + sin²α/N, m. The local Earth radius used to
+    solve a 2-D radar's elevation along the plot's azimuth (spec 01 §3)."""
+    c2 = np.cos(azimuth_rad) ** 2
+    return 1.0 / (c2 / meridian_radius(lat_deg) + (1.0 - c2) / prime_vertical_radius(lat_deg))
+
+
+def ecef_to_enu_rotation(lat_deg, lon_deg) -> np.ndarray:
+    """Rotation matrix (…, 3, 3) taking ECEF vector components to local (east, north, up)
+    components at geodetic (lat, lon)."""
+    phi = np.radians(np.asarray(lat_deg, float))
+    lam = np.radians(np.asarray(lon_deg, float))
+    sp, cp, sl, cl = np.sin(phi), np.cos(phi), np.sin(lam), np.cos(lam)
+    z = np.zeros_like(sp)
+    rows = [
+        [-sl, cl, z],
+        [-sp * cl, -sp * sl, cp],
+        [cp * cl, cp * sl, sp],
+    ]
+    return np.moveaxis(np.asarray(rows, dtype=float), (0, 1), (-2, -1))
+
+
+def enu_to_enu_rotation(lat_from, lon_from, lat_to, lon_to) -> np.ndarray:
+    """Rotation (…, 3, 3) taking ENU components at (lat_from, lon_from) to ENU components
+    at (lat_to, lon_to): R_to · R_fromᵀ."""
+    r_from = ecef_to_enu_rotation(lat_from, lon_from)
+    r_to = ecef_to_enu_rotation(lat_to, lon_to)
+    return r_to @ np.swapaxes(r_from, -1, -2)

@@ -1,0 +1,194 @@
+"""The system frame the tracker works in, chosen by configuration (spec 01 §1, §3).
+
+**Tracker coordinates (one convention for every kind):** x east, y north, z up, metres
+(velocities m/s along the same axes). What "east/north/up" means per kind:
+
+* ``stereographic`` — (x, y) on the oblique stereographic plane of WGS-84 tangent at
+  (lat0, lon0) (PROJ ``+proj=sterea``, k0 = 1, the FAA/NAS system plane); z is the
+  height above the ellipsoid. For deployments wider than ~30 km.
+* ``ned`` — the local tangent plane at the reference point (lat0, lon0, alt0):
+  (x, y, z) = (east, north, up) of pymap3d's ENU at that point, i.e. exactly the NED
+  frame of the wire convention (:class:`schemas.FrameKind`) with n = y, e = x, d = −z
+  (:meth:`SystemFrame.to_ned`). For deployments under ~30 km (spec 01 §1).
+* ``planar`` — planar test scenarios where the plane *is* the frame: a radar's local
+  (east, north) offsets are added to the site's position without curvature, and z is
+  the height. Site positions come from the tangent plane at (lat0, lon0, alt0);
+  geodetic output goes through that tangent plane and is for display only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pymap3d
+
+from schemas import FrameKind, FrameSpec
+
+from .geodesy import enu_to_enu_rotation
+from .stereographic import Stereographic
+
+_JACOBIAN_STEP_M = 1.0  # central-difference step for the ENU → plane Jacobian
+
+
+class SystemFrame:
+    """A configured system frame. Build with :meth:`stereographic`, :meth:`ned`,
+    :meth:`planar`, :meth:`from_spec` or :meth:`from_config`.
+
+    All methods are vectorised over NumPy arrays; angles in degrees, lengths in metres."""
+
+    def __init__(
+        self, kind: FrameKind | str, lat0: float = 0.0, lon0: float = 0.0, alt0: float = 0.0
+    ) -> None:
+        try:
+            self.kind = FrameKind(kind)
+        except ValueError:
+            choices = ", ".join(k.value for k in FrameKind)
+            raise ValueError(f"frame kind = {kind!r}: must be one of {choices}") from None
+        for name, v, lo, hi in (("lat0", lat0, -90.0, 90.0), ("lon0", lon0, -180.0, 180.0)):
+            if not (np.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"{name} = {v}: must be a finite value in [{lo}, {hi}] degrees")
+        if not np.isfinite(alt0):
+            raise ValueError(f"alt0 = {alt0}: must be finite metres")
+        self.lat0, self.lon0, self.alt0 = float(lat0), float(lon0), float(alt0)
+        self._sterea = (
+            Stereographic(self.lat0, self.lon0) if self.kind is FrameKind.STEREOGRAPHIC else None
+        )
+
+    # --- construction ------------------------------------------------------------------
+    @classmethod
+    def stereographic(cls, lat0: float, lon0: float) -> SystemFrame:
+        return cls(FrameKind.STEREOGRAPHIC, lat0, lon0, 0.0)
+
+    @classmethod
+    def ned(cls, lat0: float, lon0: float, alt0: float = 0.0) -> SystemFrame:
+        return cls(FrameKind.NED, lat0, lon0, alt0)
+
+    @classmethod
+    def planar(cls, lat0: float = 0.0, lon0: float = 0.0, alt0: float = 0.0) -> SystemFrame:
+        return cls(FrameKind.PLANAR, lat0, lon0, alt0)
+
+    @classmethod
+    def from_spec(cls, spec: FrameSpec) -> SystemFrame:
+        return cls(spec.kind, spec.lat0, spec.lon0, spec.alt0)
+
+    @classmethod
+    def from_config(
+        cls, kind: str, lat0: float = 0.0, lon0: float = 0.0, alt0: float = 0.0
+    ) -> SystemFrame:
+        """From configuration values (``frame = "stereographic" | "ned" | "planar"``)."""
+        return cls(kind, lat0, lon0, alt0)
+
+    def spec(self) -> FrameSpec:
+        """The wire description of this frame (published with every TrackBatch)."""
+        return FrameSpec(kind=self.kind, lat0=self.lat0, lon0=self.lon0, alt0=self.alt0)
+
+    def __repr__(self) -> str:
+        return (
+            f"SystemFrame({self.kind.value!r}, lat0={self.lat0}, lon0={self.lon0}, "
+            f"alt0={self.alt0})"
+        )
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, SystemFrame) and self.spec() == other.spec()
+
+    def __hash__(self) -> int:
+        return hash((self.kind, self.lat0, self.lon0, self.alt0))
+
+    # --- positions ---------------------------------------------------------------------
+    def from_geodetic(self, lat, lon, alt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Geodetic (deg, deg, m above the ellipsoid) → frame (x east, y north, z up), m."""
+        lat, lon, alt = (np.asarray(a, float) for a in (lat, lon, alt))
+        if self._sterea is not None:
+            x, y = self._sterea.forward(lat, lon)
+            return x, y, np.array(alt, dtype=float, copy=True)
+        e, n, u = pymap3d.geodetic2enu(lat, lon, alt, self.lat0, self.lon0, self.alt0)
+        e, n, u = (np.asarray(a, float) for a in (e, n, u))
+        if self.kind is FrameKind.PLANAR:
+            return e, n, u + self.alt0
+        return e, n, u
+
+    def to_geodetic(self, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Frame (x east, y north, z up), m → geodetic (lat deg, lon deg, alt m)."""
+        x, y, z = (np.asarray(a, float) for a in (x, y, z))
+        if self._sterea is not None:
+            lat, lon = self._sterea.inverse(x, y)
+            return lat, lon, np.array(z, dtype=float, copy=True)
+        u = z - self.alt0 if self.kind is FrameKind.PLANAR else z
+        lat, lon, alt = pymap3d.enu2geodetic(x, y, u, self.lat0, self.lon0, self.alt0)
+        return tuple(np.asarray(a, float) for a in (lat, lon, alt))
+
+    def to_ned(self, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Tracker (east, north, up) → the NED component order (north, east, down)."""
+        return np.asarray(y, float), np.asarray(x, float), -np.asarray(z, float)
+
+    def site_position(self, lat: float, lon: float, alt: float) -> np.ndarray:
+        """A radar site's position in the frame, shape (3,)."""
+        return np.array([float(v) for v in self.from_geodetic(lat, lon, alt)])
+
+    def enu_to_frame(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
+        """Points given in the local ENU frame of a site (m, 3) → frame positions (m, 3).
+
+        ``planar``: flat translation by the site position (no curvature);
+        ``ned``: exact affine map ENU(site) → ECEF → ENU(reference);
+        ``stereographic``: ENU(site) → geodetic (pymap3d) → sterea plane + height."""
+        enu = np.asarray(enu, float).reshape(-1, 3)
+        if self.kind is FrameKind.PLANAR:
+            return enu + self.site_position(lat_s, lon_s, alt_s)
+        lat, lon, alt = pymap3d.enu2geodetic(enu[:, 0], enu[:, 1], enu[:, 2], lat_s, lon_s, alt_s)
+        return np.stack(self.from_geodetic(lat, lon, alt), axis=-1)
+
+    def enu_jacobian(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
+        """∂(x, y, z)/∂(e, n, u) of :meth:`enu_to_frame` at the given site-ENU points, (m, 3, 3).
+
+        ``planar``: identity; ``ned``: the constant rotation R_ref R_siteᵀ (exact);
+        ``stereographic``: central differences (±1 m) through pymap3d and pyproj — to
+        first order a rotation by the grid convergence and a scale by the point scale
+        factor (spec 01 §3), with truncation error ~1e-13 relative."""
+        enu = np.asarray(enu, float).reshape(-1, 3)
+        m = enu.shape[0]
+        if self.kind is FrameKind.PLANAR:
+            return np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
+        if self.kind is FrameKind.NED:
+            rot = enu_to_enu_rotation(lat_s, lon_s, self.lat0, self.lon0)
+            return np.broadcast_to(rot, (m, 3, 3)).copy()
+        h = _JACOBIAN_STEP_M
+        steps = np.concatenate(
+            [enu + h * np.eye(3)[k] for k in range(3)] + [enu - h * np.eye(3)[k] for k in range(3)]
+        )
+        out = self.enu_to_frame(steps, lat_s, lon_s, alt_s).reshape(6, m, 3)
+        J = (out[:3] - out[3:]) / (2 * h)  # (3 = column k, m, 3 = row)
+        return np.transpose(J, (1, 2, 0))
+
+    # --- velocities --------------------------------------------------------------------
+    def velocity_to_enu(self, x, y, z, vx, vy, vz=None):
+        """Frame velocity at frame position (x, y, z) → local (east, north, up) m/s at the
+        target's own geodetic position — what a published Track carries.
+
+        ``planar``: identity; ``ned``: rotation from the reference ENU to the target's ENU;
+        ``stereographic``: inverse of the local plane Jacobian (central differences)."""
+        x, y, z, vx, vy = np.broadcast_arrays(*(np.asarray(a, float) for a in (x, y, z, vx, vy)))
+        vz = np.zeros_like(vx) if vz is None else np.broadcast_to(np.asarray(vz, float), vx.shape)
+        if self.kind is FrameKind.PLANAR:
+            return vx.copy(), vy.copy(), np.array(vz, copy=True)
+        lat, lon, alt = self.to_geodetic(x, y, z)
+        if self.kind is FrameKind.NED:
+            rot = enu_to_enu_rotation(self.lat0, self.lon0, lat, lon)
+            v = np.einsum("...ij,...j->...i", rot, np.stack([vx, vy, vz], axis=-1))
+            return v[..., 0], v[..., 1], v[..., 2]
+        J = self.local_plane_jacobian(lat, lon, alt).reshape((*np.shape(vx), 3, 3))
+        v = np.linalg.solve(J, np.stack([vx, vy, vz], axis=-1)[..., None])[..., 0]
+        return v[..., 0], v[..., 1], v[..., 2]
+
+    def local_plane_jacobian(self, lat, lon, alt) -> np.ndarray:
+        """∂(x, y, z)/∂(e, n, u) of the frame map at geodetic points, with (e, n, u) the
+        local ENU at each point itself, shape (m, 3, 3) (central differences, ±1 m)."""
+        lat, lon, alt = (np.ravel(np.asarray(a, float)) for a in (lat, lon, alt))
+        m = lat.size
+        h = _JACOBIAN_STEP_M
+        cols = []
+        for k in range(3):
+            d = np.zeros((3, m))
+            d[k] = h
+            plus = self.from_geodetic(*pymap3d.enu2geodetic(d[0], d[1], d[2], lat, lon, alt))
+            minus = self.from_geodetic(*pymap3d.enu2geodetic(-d[0], -d[1], -d[2], lat, lon, alt))
+            cols.append((np.stack(plus, -1) - np.stack(minus, -1)) / (2 * h))
+        return np.stack(cols, axis=-1)
