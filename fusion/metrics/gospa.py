@@ -211,8 +211,10 @@ def gospa_over_time(
         out["distance"][k], out["localisation"][k] = r.distance, r.localisation
         out["missed"][k], out["false"][k] = r.missed, r.false
         n_missed[k], n_false[k] = r.n_missed, r.n_false
-        got = np.where(r.assignment >= 0, eid[np.maximum(r.assignment, 0)], UNASSIGNED)
-        assigned_track.append(got if len(tid) else np.zeros(0, dtype=np.int64))
+        got = np.full(len(tid), UNASSIGNED, dtype=np.int64)
+        hit = r.assignment >= 0
+        got[hit] = eid[r.assignment[hit]]
+        assigned_track.append(got)
         for truth, track in zip(tid.tolist(), got.tolist()):
             if truth not in last:
                 if track != UNASSIGNED:
