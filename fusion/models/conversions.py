@@ -1,0 +1,103 @@
+"""State conversions to and from the common (Singer-format) state of the three-model
+IMM, spec 01 §4 (004 eq. 22), with covariances by the Jacobian of each conversion.
+
+Common format: [x, vx, ax, y, vy, ay(, z, vz, az)] (the Singer/CA layout).
+* CV [x, vx, y, vy(, z, vz)] → common: accelerations a = 0 with zero variance; back:
+  drop the accelerations (004: "CV states get a_x = a_y = 0").
+* CT (x, y, ψ, ω, v(, z, vz)) → common: v_x = v cosψ, v_y = v sinψ, a_x = −ω v_y,
+  a_y = ω v_x (004 eq. 22); back: ψ = atan2(v_y, v_x), v = |v|, ω = (v_x a_y − v_y a_x)/v².
+  The vertical channel (z, vz) maps to (z, vz, az = 0).
+* Singer/CA: identity.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ca import ConstantAcceleration
+from .coordinated_turn import CoordinatedTurn
+from .cv import ConstantVelocity
+from .singer import Singer
+
+_MIN_SPEED = 1e-3  # m/s, below it the course of a CT state is undefined
+
+
+def _sandwich(J, P):
+    out = J @ P @ np.swapaxes(J, -1, -2)
+    return 0.5 * (out + np.swapaxes(out, -1, -2))
+
+
+def common_dim(ndim: int) -> int:
+    return 3 * ndim
+
+
+def _cv_selector(ndim: int) -> np.ndarray:
+    """(common_dim, cv_dim) matrix embedding a CV state in the common format."""
+    S = np.zeros((3 * ndim, 2 * ndim))
+    for a in range(ndim):
+        S[3 * a, 2 * a] = 1.0
+        S[3 * a + 1, 2 * a + 1] = 1.0
+    return S
+
+
+def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Model-native states (n, d), covariances (n, d, d) → common format."""
+    if isinstance(model, (Singer, ConstantAcceleration)):
+        return x, P
+    if isinstance(model, ConstantVelocity):
+        S = _cv_selector(model.ndim)
+        return x @ S.T, _sandwich(S, P)
+    if isinstance(model, CoordinatedTurn):
+        n = x.shape[0]
+        ndim = model.ndim
+        psi, w, v = x[:, 2], x[:, 3], x[:, 4]
+        c, s = np.cos(psi), np.sin(psi)
+        vx, vy = v * c, v * s
+        xc = np.zeros((n, 3 * ndim))
+        xc[:, 0], xc[:, 1], xc[:, 2] = x[:, 0], vx, -w * vy
+        xc[:, 3], xc[:, 4], xc[:, 5] = x[:, 1], vy, w * vx
+        J = np.zeros((n, 3 * ndim, model.dim))
+        J[:, 0, 0] = 1.0
+        J[:, 1, 2], J[:, 1, 4] = -vy, c
+        J[:, 2, 2], J[:, 2, 3], J[:, 2, 4] = -w * vx, -vy, -w * s
+        J[:, 3, 1] = 1.0
+        J[:, 4, 2], J[:, 4, 4] = vx, s
+        J[:, 5, 2], J[:, 5, 3], J[:, 5, 4] = -w * vy, vx, w * c
+        if model.vertical:
+            xc[:, 6], xc[:, 7] = x[:, 5], x[:, 6]
+            J[:, 6, 5] = J[:, 7, 6] = 1.0
+        return xc, _sandwich(J, P)
+    raise TypeError(f"no common-format conversion for {type(model).__name__}")
+
+
+def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Common-format states/covariances → the model's native format (for re-initialising
+    each mode filter after IMM mixing)."""
+    if isinstance(model, (Singer, ConstantAcceleration)):
+        return xc, Pc
+    if isinstance(model, ConstantVelocity):
+        S = _cv_selector(model.ndim)
+        return xc @ S, _sandwich(S.T, Pc)
+    if isinstance(model, CoordinatedTurn):
+        n = xc.shape[0]
+        vx, ax, vy, ay = xc[:, 1], xc[:, 2], xc[:, 4], xc[:, 5]
+        v2 = np.maximum(vx * vx + vy * vy, _MIN_SPEED**2)
+        v = np.sqrt(v2)
+        cross = vx * ay - vy * ax
+        x = np.zeros((n, model.dim))
+        x[:, 0], x[:, 1] = xc[:, 0], xc[:, 3]
+        x[:, 2] = np.arctan2(vy, vx)
+        x[:, 3] = cross / v2
+        x[:, 4] = v
+        J = np.zeros((n, model.dim, xc.shape[1]))
+        J[:, 0, 0] = J[:, 1, 3] = 1.0
+        J[:, 2, 1], J[:, 2, 4] = -vy / v2, vx / v2
+        J[:, 3, 1] = ay / v2 - 2 * vx * cross / v2**2
+        J[:, 3, 4] = -ax / v2 - 2 * vy * cross / v2**2
+        J[:, 3, 2], J[:, 3, 5] = -vy / v2, vx / v2
+        J[:, 4, 1], J[:, 4, 4] = vx / v, vy / v
+        if model.vertical:
+            x[:, 5], x[:, 6] = xc[:, 6], xc[:, 7]
+            J[:, 5, 6] = J[:, 6, 7] = 1.0
+        return x, _sandwich(J, Pc)
+    raise TypeError(f"no common-format conversion for {type(model).__name__}")
