@@ -1,0 +1,137 @@
+"""Track mixtures in flat arrays: Singer N-scan merge, pruning, moment matching (spec 02 §7).
+
+Every track is a Gaussian mixture {ξ^c, x̂^c, P^c, h^c}. All components of all tracks
+live in one :class:`Mixture`: ``track`` (C,) says which track row a component belongs to,
+``hist`` (C, N) holds the ids of the plots the component used over the last N scans
+(0 = no plot), most recent first. Grouped sums run as one sparse-matrix product, so no
+Python loop touches a component.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+
+@dataclass
+class Mixture:
+    """Flat component store: track (C,), w (C,), x (C, d), P (C, d, d), hist (C, N)."""
+
+    track: np.ndarray
+    w: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    hist: np.ndarray
+
+    @classmethod
+    def empty(cls, dim: int, depth: int) -> Mixture:
+        return cls(
+            np.zeros(0, np.int64),
+            np.zeros(0),
+            np.zeros((0, dim)),
+            np.zeros((0, dim, dim)),
+            np.zeros((0, depth), np.int64),
+        )
+
+    def __len__(self) -> int:
+        return len(self.w)
+
+    def take(self, idx: np.ndarray) -> Mixture:
+        return Mixture(self.track[idx], self.w[idx], self.x[idx], self.P[idx], self.hist[idx])
+
+    @staticmethod
+    def concat(parts: list[Mixture]) -> Mixture:
+        return Mixture(
+            np.concatenate([p.track for p in parts]),
+            np.concatenate([p.w for p in parts]),
+            np.concatenate([p.x for p in parts]),
+            np.concatenate([p.P for p in parts]),
+            np.concatenate([p.hist for p in parts]),
+        )
+
+
+def group_matrix(group: np.ndarray, ngroups: int, weights: np.ndarray | None = None):
+    """Sparse (ngroups, C) matrix M with M[group[c], c] = weights[c] (1 by default)."""
+    C = len(group)
+    data = np.ones(C) if weights is None else weights
+    return sp.csr_matrix((data, (group, np.arange(C))), shape=(ngroups, C))
+
+
+def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
+    """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...)."""
+    flat = values.reshape(len(values), -1)
+    out = group_matrix(group, ngroups) @ flat
+    return np.asarray(out).reshape((ngroups, *values.shape[1:]))
+
+
+def moment_match(
+    w: np.ndarray, x: np.ndarray, P: np.ndarray, group: np.ndarray, ngroups: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge components with equal ``group`` (spec 02 §7 step 11 [LIT], 4.66-4.68):
+    ξ^μ = Σξ^n, x̂^μ = Σξ^n x̂^n / ξ^μ, P^μ = Σξ^n [P^n + (x̂^n−x̂^μ)(x̂^n−x̂^μ)ᵀ] / ξ^μ.
+
+    Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean."""
+    W = np.bincount(group, weights=w, minlength=ngroups)
+    zero = W <= 0.0
+    ww = w.copy()
+    if zero.any():  # fall back to equal weights inside weightless groups
+        ww[zero[group]] = 1.0
+        Wn = np.bincount(group, weights=ww, minlength=ngroups)
+    else:
+        Wn = W
+    xm = segment_sum(ww[:, None] * x, group, ngroups) / Wn[:, None]
+    dx = x - xm[group]
+    spread = P + dx[:, :, None] * dx[:, None, :]
+    Pm = segment_sum(ww[:, None, None] * spread, group, ngroups) / Wn[:, None, None]
+    Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+    return W, xm, Pm
+
+
+def singer_merge(mix: Mixture) -> Mixture:
+    """Singer N-scan memory (spec 02 §7 step 11): merge, per track, all components whose
+    last-N-scan plot histories are equal. Depth 0 (no history columns) merges every track
+    into one Gaussian, i.e. IPDA. Resulting counts: C_k = 1+m_k (N=1),
+    (1+m_k)(1+m_{k−1}) (N=2) when every component selects every plot (5.26, 5.1a)."""
+    if len(mix) == 0:
+        return mix
+    keys = np.column_stack([mix.track, mix.hist])
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    W, xm, Pm = moment_match(mix.w, mix.x, mix.P, inv, len(uniq))
+    return Mixture(uniq[:, 0].copy(), W, xm, Pm, uniq[:, 1:].copy())
+
+
+def normalise(mix: Mixture, ntracks: int) -> Mixture:
+    """Scale weights so they sum to 1 within each track (Σ_c ξ^c = 1, spec 02 §7)."""
+    if len(mix) == 0:
+        return mix
+    tot = np.bincount(mix.track, weights=mix.w, minlength=ntracks)
+    mix.w = mix.w / np.where(tot[mix.track] > 0, tot[mix.track], 1.0)
+    return mix
+
+
+def prune(mix: Mixture, threshold: float, max_per_track: int, ntracks: int) -> Mixture:
+    """Delete components with ξ < ``threshold`` (keeping each track's strongest), keep at
+    most ``max_per_track`` per track by weight, renormalise (spec 02 §7 step 11 [IMPL])."""
+    if len(mix) == 0:
+        return mix
+    mix = normalise(mix, ntracks)
+    order = np.lexsort((-mix.w, mix.track))
+    t_sorted = mix.track[order]
+    first = np.searchsorted(t_sorted, t_sorted, side="left")
+    rank = np.arange(len(order)) - first
+    keep_sorted = (rank < max_per_track) & ((mix.w[order] >= threshold) | (rank == 0))
+    keep = np.sort(order[keep_sorted])
+    return normalise(mix.take(keep), ntracks)
+
+
+def track_estimates(mix: Mixture, ntracks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Moment-matched track output x̂ = Σξ x̂^c, P = Σξ(P^c + spread) (4.66-4.68)."""
+    _, x, P = moment_match(mix.w, mix.x, mix.P, mix.track, ntracks)
+    return x, P
+
+
+def components_per_track(mix: Mixture, ntracks: int) -> np.ndarray:
+    return np.bincount(mix.track, minlength=ntracks)

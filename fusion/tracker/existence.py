@@ -1,0 +1,106 @@
+"""Target existence as a Markov chain (spec 02 §3; thesis 2.36, 3.40, 5.3, 5.18).
+
+The existence state of n tracks is held as an array ``(n, 2)`` of
+``[p_detectable, p_undetectable]``: the probabilities that the target exists and can be
+detected, and that it exists but cannot be (Markov chain two only; always 0 for Markov
+chain one). Existence ψ is their sum; the probability of non-existence is the rest.
+
+Association (IPDA, LM-IPDA, JIPDA) works with ψ_det = ``p_detectable``. It returns the
+posterior ψ_det' and :func:`ExistenceChain.update` applies it: for MC1 ψ' = ψ_det'; for
+MC2 (Musicki 1994, spec 02 §3 [LIT]) p_obs ← (1−δ)p_obs, p_unobs and p_non unchanged,
+then normalised by 1−δ p_obs, where δ follows from ψ_det' = (1−δ)ψ_det/(1−δψ_det)
+(2.41) as 1−δψ_det = (1−ψ_det)/(1−ψ_det').
+
+Chain probabilities refer to a period ``T``; a prediction over dt uses the matrix power
+Π^(dt/T) so that asynchronous batches compose exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class ExistenceChain:
+    """A Markov chain over {detectable, undetectable, non-existent} with period ``period`` s.
+
+    ``MarkovChainOne`` and ``MarkovChainTwo`` build the transition matrix Π (rows: from,
+    columns: to) and the prediction is p_{k|k−1} = Πᵀ p_{k−1|k−1} (row-vector p Π)."""
+
+    def __init__(self, Pi: np.ndarray, period: float) -> None:
+        Pi = np.asarray(Pi, dtype=np.float64)
+        if Pi.shape != (3, 3) or not np.allclose(Pi.sum(axis=1), 1.0) or (Pi < 0).any():
+            raise ValueError(f"transition matrix must be 3x3 row-stochastic, got {Pi!r}")
+        if not period > 0:
+            raise ValueError(f"period = {period}: must be > 0 s")
+        self.Pi = Pi
+        self.period = float(period)
+        lam, V = np.linalg.eig(Pi)
+        if np.abs(lam.imag).max() > 1e-12 or (lam.real < -1e-12).any():
+            raise ValueError(
+                f"transition matrix eigenvalues {lam}: must be real and non-negative so that "
+                "fractional periods are defined"
+            )
+        self._lam = np.clip(lam.real, 0.0, None)
+        self._V = V.real
+        self._Vinv = np.linalg.inv(self._V)
+
+    def power(self, dt: np.ndarray) -> np.ndarray:
+        """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
+        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
+        lam_t = self._lam[None, :] ** t[:, None]
+        M = np.einsum("ij,nj,jk->nik", self._V, lam_t, self._Vinv)
+        return np.clip(M, 0.0, 1.0)
+
+    def predict(self, state: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """Predict ``state`` (n, 2) over ``dt`` (n,) seconds (3.40, 5.3)."""
+        state = np.asarray(state, dtype=np.float64)
+        full = np.column_stack([state, 1.0 - state.sum(axis=1)])
+        out = np.einsum("ni,nij->nj", full, self.power(dt))
+        return np.clip(out[:, :2], 0.0, 1.0)
+
+    @staticmethod
+    def existence(state: np.ndarray) -> np.ndarray:
+        """ψ = p_detectable + p_undetectable."""
+        return np.clip(state[:, 0] + state[:, 1], 0.0, 1.0)
+
+    @staticmethod
+    def update(state_pred: np.ndarray, psi_det_post: np.ndarray) -> np.ndarray:
+        """Apply the association's posterior ψ_det' (2.41 / 5.18 / 6.7) to the chain state."""
+        p_obs = state_pred[:, 0]
+        p_unobs = state_pred[:, 1]
+        denom = 1.0 - p_obs
+        # 1 − δ p_obs = (1 − p_obs)/(1 − ψ_det'); p_unobs is renormalised by it.
+        scale = np.divide(1.0 - psi_det_post, denom, out=np.ones_like(denom), where=denom > 1e-300)
+        return np.column_stack([psi_det_post, np.clip(p_unobs * scale, 0.0, 1.0)])
+
+
+def markov_chain_one(delta11: float, delta21: float, period: float = 1.0) -> ExistenceChain:
+    """MC1: ψ_{k|k−1} = Δ11 ψ + Δ21 (1 − ψ) per period (2.36 corrected, 3.40)."""
+    Pi = np.array(
+        [
+            [delta11, 0.0, 1.0 - delta11],
+            [delta11, 0.0, 1.0 - delta11],  # unused state: maps like 'detectable'
+            [delta21, 0.0, 1.0 - delta21],
+        ]
+    )
+    return ExistenceChain(Pi, period)
+
+
+def markov_chain_two(
+    delta11: float,
+    delta21: float,
+    obs_to_unobs: float,
+    unobs_to_obs: float,
+    period: float = 1.0,
+) -> ExistenceChain:
+    """MC2 (spec 02 §3 [LIT]): a target that survives (Δ11) stays or becomes detectable
+    with the given per-period switching probabilities; a born target (Δ21) is detectable."""
+    a, b = obs_to_unobs, unobs_to_obs
+    Pi = np.array(
+        [
+            [delta11 * (1 - a), delta11 * a, 1.0 - delta11],
+            [delta11 * b, delta11 * (1 - b), 1.0 - delta11],
+            [delta21, 0.0, 1.0 - delta21],
+        ]
+    )
+    return ExistenceChain(Pi, period)

@@ -1,0 +1,66 @@
+"""ITS component update (spec 02 §7 step 10; thesis 5.12-5.15, 4.70-4.71; spec 03 §1.1 step 6).
+
+Every predicted component c spawns a "no plot" child (ξ^{c,0} = β_0 ξ^c, x̂ and P
+unchanged, 5.12) and one child per plot i it gated (ξ^{c,i} = β_i ξ^c p^c_i / p^τ_i with the
+Kalman update and Joseph covariance, 5.14). With IPDA/ITS β this is (5.15); with JIPDA or
+LM-IPDA β it is the multi-target update. The child's plot history is the new plot's id
+(0 for none) followed by the first N−1 entries of the parent's history (spec 02 §7 step 11).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fusion.filters.kalman import gain, joseph_covariance
+
+from .components import Mixture
+from .gating import GatedPairs
+
+
+def shift_history(hist: np.ndarray, new_ids: np.ndarray) -> np.ndarray:
+    """h' = (new id, h[0], …, h[N−2]); an (C, 0) history stays empty (N = 0)."""
+    if hist.shape[1] == 0:
+        return hist
+    return np.column_stack([new_ids, hist[:, :-1]])
+
+
+def component_update(
+    pred: Mixture,
+    loc: np.ndarray,
+    pairs: GatedPairs,
+    p_pair: np.ndarray,
+    row: np.ndarray,
+    p_track: np.ndarray,
+    beta0: np.ndarray,
+    beta: np.ndarray,
+    H: np.ndarray,
+    R: np.ndarray,
+    plot_uid: np.ndarray,
+) -> Mixture:
+    """Children of the predicted components ``pred`` (before merging).
+
+    loc (C,): each component's track in the association arrays; pairs: gated (component,
+    plot) pairs; p_pair: p^c_i = N(ν; 0, S)/P_G per pair; row: each pair's track–plot table
+    row; p_track: p^τ_i per row; beta0 per track; beta per row; H (k, d); R (m, k, k) plot
+    covariances; plot_uid (m,) the plots' history ids (≥ 1)."""
+    w0 = pred.w * beta0[loc]
+    null = Mixture(
+        pred.track,
+        w0,
+        pred.x,
+        pred.P,
+        shift_history(pred.hist, np.zeros(len(pred), np.int64)),
+    )
+    if len(pairs) == 0:
+        children = null
+    else:
+        c = pairs.comp
+        wi = pred.w[c] * beta[row] * p_pair / p_track[row]
+        P = pred.P[c]
+        K = gain(P, H, pairs.S)
+        x = pred.x[c] + np.einsum("pij,pj->pi", K, pairs.nu)
+        Pn = joseph_covariance(P, K, H, R[pairs.plot])
+        upd = Mixture(pred.track[c], wi, x, Pn, shift_history(pred.hist[c], plot_uid[pairs.plot]))
+        children = Mixture.concat([null, upd])
+    keep = children.w > 0.0
+    return children.take(np.flatnonzero(keep)) if not keep.all() else children

@@ -1,0 +1,77 @@
+"""Track management: confirmation, termination and duplicate removal (spec 02 §8, 03 §2).
+
+* Confirm when ψ_{k|k} ≥ τ_c (and the track had at least ``min_updates`` scans with a
+  plot); confirmation is kept until termination (hysteresis).
+* Terminate when ψ < τ_t.
+* Duplicates: two tracks that selected the same plot in this batch and whose state
+  estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target; the weaker is deleted
+  and logged as merged into the other. "Weaker" ranks confirmed tracks above tentative
+  ones (so a confirmed track's id survives), then by existence (spec: keep the largest ψ).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def to_confirm(
+    psi: np.ndarray, confirmed: np.ndarray, updates: np.ndarray, tau_c: float, min_updates: int
+) -> np.ndarray:
+    """Tentative tracks that reach confirmation now."""
+    return ~confirmed & (psi >= tau_c) & (updates >= min_updates)
+
+
+def to_terminate(psi: np.ndarray, tau_t: float) -> np.ndarray:
+    return psi < tau_t
+
+
+def shared_plot_pairs(tp_track: np.ndarray, tp_plot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct pairs (a, b), a < b, of tracks that gated a common plot."""
+    if len(tp_track) < 2:
+        e = np.zeros(0, np.int64)
+        return e, e
+    order = np.lexsort((tp_track, tp_plot))
+    t, p = tp_track[order], tp_plot[order]
+    end = np.searchsorted(p, p, side="right")
+    pos = np.arange(len(p))
+    count = end - pos - 1
+    total = int(count.sum())
+    if total == 0:
+        e = np.zeros(0, np.int64)
+        return e, e
+    i = np.repeat(pos, count)
+    j = i + 1 + (np.arange(total) - np.repeat(np.cumsum(count) - count, count))
+    a, b = t[i], t[j]
+    a, b = np.minimum(a, b), np.maximum(a, b)
+    keep = a != b
+    pairs = np.unique(np.column_stack([a[keep], b[keep]]), axis=0)
+    return pairs[:, 0], pairs[:, 1]
+
+
+def duplicates(
+    a: np.ndarray,
+    b: np.ndarray,
+    x: np.ndarray,
+    P: np.ndarray,
+    psi: np.ndarray,
+    confirmed: np.ndarray,
+    g_dup: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(loser, winner) rows among candidate pairs (a, b) whose estimates coincide."""
+    if len(a) == 0:
+        e = np.zeros(0, np.int64)
+        return e, e
+    dx = x[a] - x[b]
+    S = P[a] + P[b]
+    d2 = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
+    close = d2 < g_dup
+    a, b = a[close], b[close]
+    rank_a = confirmed[a] * 2.0 + psi[a]
+    rank_b = confirmed[b] * 2.0 + psi[b]
+    a_wins = rank_a >= rank_b
+    loser = np.where(a_wins, b, a)
+    winner = np.where(a_wins, a, b)
+    # one removal per loser: keep its strongest winner
+    order = np.lexsort((-(confirmed[winner] * 2.0 + psi[winner]), loser))
+    first = np.r_[True, loser[order][1:] != loser[order][:-1]] if len(order) else order
+    return loser[order][first], winner[order][first]

@@ -1,0 +1,145 @@
+"""Tracker input: :class:`MeasurementBatch` (one radar sector or scan in the system frame)
+and :class:`SectorCoverage` (which predicted positions that radar could have detected).
+
+Positions are in the system frame (metres); covariances in m²; times in integer ns UTC.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass
+class SectorCoverage:
+    """A rotating radar's view during one batch: site position, range interval and the
+    azimuth sector swept clockwise from ``sector_start`` over ``sector_width`` (rad, from
+    north of the system frame) between ``time_start`` and ``time_end`` (ns).
+
+    ``axes`` are the indices of the (east, north) coordinates in a position vector: (0, 1)
+    for the stereographic/planar frames (x east, y north), (1, 0) for NED (x north)."""
+
+    site: np.ndarray
+    min_range: float = 0.0
+    max_range: float = np.inf
+    sector_start: float = 0.0
+    sector_width: float = TWO_PI
+    time_start: int = 0
+    time_end: int = 0
+    axes: tuple[int, int] = (0, 1)
+
+    def _polar(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        e = pos[:, self.axes[0]] - self.site[self.axes[0]]
+        n = pos[:, self.axes[1]] - self.site[self.axes[1]]
+        return np.hypot(e, n), np.mod(np.arctan2(e, n), TWO_PI)
+
+    def sector_fraction(self, pos: np.ndarray) -> np.ndarray:
+        """Where in the sweep each position lies: 0 at sector_start, 1 at its end; values
+        outside [0, 1] are outside the sector (negative: before its start)."""
+        _, az = self._polar(pos)
+        off = np.mod(az - self.sector_start, TWO_PI)
+        # put offsets in the half-turn before the sector at negative values
+        off = np.where(off > 0.5 * (TWO_PI + self.sector_width), off - TWO_PI, off)
+        return off / self.sector_width
+
+    def contains(self, pos: np.ndarray, margin: np.ndarray | float = 0.0) -> np.ndarray:
+        """True where a position (within ``margin`` metres) is inside range and sector."""
+        pos = np.atleast_2d(pos)
+        r, _ = self._polar(pos)
+        margin = np.broadcast_to(np.asarray(margin, dtype=np.float64), r.shape)
+        ok = (r >= self.min_range - margin) & (r <= self.max_range + margin)
+        if self.sector_width < TWO_PI:
+            frac = self.sector_fraction(pos)
+            ang = np.minimum(margin / np.maximum(r, 1.0), np.pi) / self.sector_width
+            ok &= (frac >= -ang) & (frac <= 1.0 + ang)
+        return ok
+
+    def illumination_time(self, pos: np.ndarray) -> np.ndarray:
+        """Time (ns) the beam swept each position: linear in azimuth across the sector."""
+        frac = np.clip(self.sector_fraction(np.atleast_2d(pos)), 0.0, 1.0)
+        span = self.time_end - self.time_start
+        return self.time_start + np.round(frac * span).astype(np.int64)
+
+
+@dataclass
+class MeasurementBatch:
+    """One batch of plots in the system frame.
+
+    time_ns: batch time (ns UTC; the end of the sector sweep);
+    radar_id: the sensor; z (m, k): positions, m; R (m, k, k) or (k, k): covariances, m²;
+    p_detection: P_D of that sensor; clutter_density: false plots per m² (per m³ in 3-D)
+    per scan, scalar or (m,) per plot; coverage: which tracks could have been detected
+    (None: every track); plot_times (m,) ns (optional); plot_ids, target_ids (m,)
+    optional, for evaluation only (never used to associate)."""
+
+    time_ns: int
+    radar_id: str
+    z: np.ndarray
+    R: np.ndarray
+    p_detection: float
+    clutter_density: float | np.ndarray = 0.0
+    coverage: SectorCoverage | None = None
+    plot_times: np.ndarray | None = None
+    plot_ids: np.ndarray | None = None
+    target_ids: np.ndarray | None = None
+    rejected: dict[str, int] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.z)
+
+    def validated(self, ndim: int) -> MeasurementBatch:
+        """A copy with arrays in canonical shape and bad plots dropped; the reasons are
+        counted in ``rejected``. Raises ValueError for batch-level problems."""
+        if not 0.0 < float(self.p_detection) <= 1.0:
+            raise ValueError(f"p_detection = {self.p_detection}: must be in (0, 1]")
+        z = (
+            np.asarray(self.z, dtype=np.float64).reshape(-1, ndim)
+            if np.size(self.z)
+            else (np.zeros((0, ndim)))
+        )
+        m = len(z)
+        R = np.asarray(self.R, dtype=np.float64)
+        if R.shape == (ndim, ndim):
+            R = np.broadcast_to(R, (m, ndim, ndim)).copy()
+        if R.shape != (m, ndim, ndim):
+            raise ValueError(f"R has shape {R.shape}: expected ({m}, {ndim}, {ndim}) or 2-D")
+        rho = np.asarray(self.clutter_density, dtype=np.float64)
+        rho = np.broadcast_to(rho, (m,)).copy() if rho.ndim == 0 else rho
+        if rho.shape != (m,):
+            raise ValueError(f"clutter_density has shape {rho.shape}: expected () or ({m},)")
+        rejected = dict(self.rejected)
+        ok = np.ones(m, dtype=bool)
+
+        def reject(mask: np.ndarray, reason: str) -> None:
+            bad = mask & ok
+            if bad.any():
+                rejected[reason] = rejected.get(reason, 0) + int(bad.sum())
+                ok[bad] = False
+
+        reject(~np.isfinite(z).all(axis=1), "position not finite")
+        reject(~np.isfinite(R).all(axis=(1, 2)), "covariance not finite")
+        reject(~np.isfinite(rho) | (rho < 0), "clutter density negative or not finite")
+        Rs = np.where(ok[:, None, None], R, np.eye(ndim))
+        asym = np.abs(Rs - np.swapaxes(Rs, 1, 2)).max(axis=(1, 2)) > 1e-6 * (
+            1.0 + np.abs(Rs).max(axis=(1, 2))
+        )
+        reject(asym, "covariance not symmetric")
+        Rs = np.where(ok[:, None, None], Rs, np.eye(ndim))
+        reject(np.linalg.eigvalsh(Rs)[:, 0] <= 0.0, "covariance not positive definite")
+
+        def sel(a):
+            return None if a is None else np.asarray(a)[ok]
+
+        return replace(
+            self,
+            z=z[ok],
+            R=R[ok],
+            clutter_density=rho[ok],
+            plot_times=sel(self.plot_times),
+            plot_ids=sel(self.plot_ids),
+            target_ids=sel(self.target_ids),
+            rejected=rejected,
+        )
