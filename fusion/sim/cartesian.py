@@ -1,0 +1,57 @@
+"""The planar cartesian test sensor of the thesis scenarios (spec 02 §1, 03 §3, 04 A.4):
+z = H x + w, H picks (x, y), w ~ N(0, σ² I) (R = 25 I m² for σ = 5 m), one snapshot per
+scan at the scan time, detection probability P_D, Poisson clutter uniform over the
+coverage rectangle and over density rectangles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scan import ScanData
+from .sensor import RectRegion, SensorConfig
+from .trajectories import TargetSet
+
+
+def cartesian_scan(
+    cfg: SensorConfig,
+    k: int,
+    targets: TargetSet,
+    rng: np.random.Generator,
+    start_time_ns: int,
+    radar_index: int = 0,
+) -> ScanData:
+    """Plots of scan ``k`` (all at time ``cfg.scan_time(k)``), in random order so the
+    order never reveals which plot is a target. x/y in m in the scenario plane."""
+    site = cfg.site
+    t = cfg.scan_time(k)
+    idx = np.flatnonzero(targets.alive(t))
+    pos, _ = targets.state(t, idx)
+    u_det = rng.random(idx.size)
+    noise = rng.standard_normal((idx.size, 2))
+    det = u_det < site.p_detection
+    tx = pos[det, 0] + site.sigma_cartesian * noise[det, 0]
+    ty = pos[det, 1] + site.sigma_cartesian * noise[det, 1]
+    x0, x1, y0, y1 = cfg.coverage
+    regions = [RectRegion(x0, x1, y0, y1, site.clutter_density), *cfg.regions]
+    samples = [reg.sample(rng) for reg in regions]
+    cx = np.concatenate([s[0] for s in samples])
+    cy = np.concatenate([s[1] for s in samples])
+    x = np.concatenate([tx, cx])
+    y = np.concatenate([ty, cy])
+    tid = np.concatenate([targets.target_id[idx[det]], np.full(cx.size, -1, np.int64)])
+    perm = rng.permutation(x.size)
+    t_ns = start_time_ns + int(np.rint(t * 1e9))
+    return ScanData(
+        radar_id=site.radar_id,
+        radar_index=radar_index,
+        kind="cartesian",
+        scan=k,
+        time_start=t_ns,
+        time_end=t_ns,
+        sector_bounds=np.array([t_ns, t_ns], np.int64),
+        time=np.full(x.size, t_ns, np.int64),
+        target_id=tid[perm].astype(np.int64),
+        sector=np.zeros(x.size, np.int64),
+        x=x[perm],
+        y=y[perm],
+    )
