@@ -82,7 +82,8 @@ def plot_positions(batch: PlotBatch, site: RadarSite) -> tuple[np.ndarray, ...]:
     if batch.x is not None:
         e = batch.column("x")
         n = batch.column("y")
-        return pymap3d.enu2geodetic(e, n, np.zeros_like(e), site.lat, site.lon, site.alt)
+        lat, lon, h = pymap3d.enu2geodetic(e, n, np.zeros_like(e), site.lat, site.lon, site.alt)
+        return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
     r = batch.column("range")
     az = batch.column("azimuth")
     if batch.elevation is not None:
@@ -94,7 +95,10 @@ def plot_positions(batch: PlotBatch, site: RadarSite) -> tuple[np.ndarray, ...]:
         el = np.nan_to_num(np.arcsin(s), nan=0.0)
     else:
         el = np.zeros_like(r)
-    return pymap3d.aer2geodetic(az, el, r, site.lat, site.lon, site.alt, deg=False)
+    lat, lon, h = pymap3d.aer2geodetic(
+        np.degrees(az), np.degrees(el), r, site.lat, site.lon, site.alt, deg=True
+    )
+    return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
 
 
 def location_fixes(
@@ -239,7 +243,12 @@ class Recorder:
         pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
         self._write(item.key, item.payload, item.recv_ns, pub_time, model)
         if self.cfg.foxglove:
-            self._foxglove(msg, item.recv_ns)
+            try:
+                self._foxglove(msg, item.recv_ns)
+            except Exception as e:  # a display channel must never stop the recording
+                self.rejected["foxglove conversion failed"] += 1
+                if self.rejected["foxglove conversion failed"] <= 3:
+                    log.exception("foxglove conversion of %s failed: %s", item.key, e)
         elif isinstance(msg, RadarSite):
             self.sites[msg.radar_id] = (msg, item.payload)
         self.maybe_flush()

@@ -107,3 +107,26 @@ def test_killed_recorder_keeps_flushed_chunks_and_rotation(tmp_path):
         recovered += topics.count(keys.radar_plots("R1"))
         assert keys.radar_site("R1") in topics  # every file carries the site
     assert recovered == sent
+
+
+def test_foxglove_plot_positions_match_geodesic_range_and_bearing():
+    import numpy as np
+    from pyproj import Geod
+
+    from schemas import PlotBatch, RadarKind, RadarSite
+    from services.recorder import plot_positions
+
+    site = RadarSite(radar_id="R", lat=45.0, lon=20.0, alt=0.0, kind=RadarKind.THREE_D)
+    for n in (1, 3):  # a single plot must work too
+        az = [0.3, 2.0, 4.5][:n]
+        b = PlotBatch(
+            radar_id="R", scan=0, seq=0, time_start=0, time_end=1, time=[1] * n,
+            range=[20_000.0] * n, azimuth=az, elevation=[0.0] * n,
+        )  # fmt: skip
+        lat, lon, _ = plot_positions(b, site)
+        fwd, _, dist = Geod(ellps="WGS84").inv([site.lon] * n, [site.lat] * n, lon, lat)
+        assert len(lat) == n
+        # elevation 0 on a 20 km slant range: ground distance within 1 m of it
+        assert abs(dist - 20_000.0).max() < 1.0
+        dev = (np.asarray(fwd) - np.degrees(az) + 180) % 360 - 180
+        assert abs(dev).max() < 0.01
