@@ -3,8 +3,9 @@
 * Confirm when ψ_{k|k} ≥ τ_c (and the track had at least ``min_updates`` scans with a
   plot); confirmation is kept until termination (hysteresis).
 * Terminate when ψ < τ_t.
-* Duplicates: two tracks that selected the same plot in this batch and whose state
-  estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target; the weaker is deleted
+* Duplicates: two tracks whose most likely plot in this batch is the same one and whose
+  state estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target (targets in
+  formation keep their own plots and are not merged); the weaker is deleted
   and logged as merged into the other. "Weaker" ranks confirmed tracks above tentative
   ones (so a confirmed track's id survives), then by existence (spec: keep the largest ψ).
 """
@@ -26,7 +27,7 @@ def to_terminate(psi: np.ndarray, tau_t: float) -> np.ndarray:
 
 
 def shared_plot_pairs(tp_track: np.ndarray, tp_plot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct pairs (a, b), a < b, of tracks that gated a common plot."""
+    """Distinct pairs (a, b), a < b, of tracks with a common plot in ``tp_plot``."""
     if len(tp_track) < 2:
         e = np.zeros(0, np.int64)
         return e, e

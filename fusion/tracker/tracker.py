@@ -354,22 +354,10 @@ class Tracker:
             good = res.beta[best] > res.beta0[tp_track[best]]
             assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
 
-        # 7. management: confirmation
-        psi_sel = self.chain.existence(self.exist[sel]) if ns else np.zeros(0)
-        conf = to_confirm(
-            psi_sel,
-            self.confirmed[sel],
-            self.updates[sel],
-            cfg.tau_confirm,
-            cfg.confirm_min_updates,
-        )
-        for r in sel[conf]:
-            self.confirmed[r] = True
-            events.append(
-                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(self.existence()[r]))
-            )
-        # duplicates among tracks that shared a plot
-        a, c = shared_plot_pairs(tp_track, tp_plot)
+        # 7. management. Duplicates first, so that an established track keeps its id:
+        # tracks whose most likely plot of this batch is the same one
+        has_plot = np.flatnonzero(assigned[sel] >= 0)
+        a, c = shared_plot_pairs(has_plot, assigned[sel][has_plot])
         keep = np.ones(self.n, bool)
         if len(a):
             psi_all = self.existence()
@@ -390,6 +378,21 @@ class Tracker:
                         )
                     )
             stats["duplicates_removed"] = len(loser)
+        # confirmation of the surviving tracks (hysteresis: never revoked)
+        psi_sel = self.chain.existence(self.exist[sel]) if ns else np.zeros(0)
+        conf = to_confirm(
+            psi_sel,
+            self.confirmed[sel],
+            self.updates[sel],
+            cfg.tau_confirm,
+            cfg.confirm_min_updates,
+        )
+        psi_now_sel = self.existence()
+        for r in sel[conf & keep[sel]]:
+            self.confirmed[r] = True
+            events.append(
+                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_now_sel[r]))
+            )
         # termination (existence predicted to the batch time for every track)
         psi_now = self.chain.existence(
             self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
