@@ -1,0 +1,43 @@
+"""Batched Gaussian track states: ``x`` (n, d), ``P`` (n, d, d).
+
+A small container with the index operations a tracker needs (take a subset, write a
+subset back, concatenate), so that filters work on arrays over all tracks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class GaussianState:
+    """Means x (n, d) and covariances P (n, d, d) of n tracks, in the model's state order."""
+
+    x: np.ndarray
+    P: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.x = np.atleast_2d(np.asarray(self.x, float))
+        self.P = np.asarray(self.P, float).reshape(self.x.shape[0], self.x.shape[1], -1)
+        if self.P.shape[-1] != self.x.shape[1]:
+            raise ValueError(f"P has shape {self.P.shape} but x has shape {self.x.shape}")
+
+    def __len__(self) -> int:
+        return self.x.shape[0]
+
+    def take(self, idx) -> GaussianState:
+        return GaussianState(self.x[idx], self.P[idx])
+
+    def put(self, idx, other: GaussianState) -> None:
+        self.x[idx] = other.x
+        self.P[idx] = other.P
+
+    @staticmethod
+    def concat(states: list[GaussianState]) -> GaussianState:
+        return GaussianState(
+            np.concatenate([s.x for s in states]), np.concatenate([s.P for s in states])
+        )
+
+    def copy(self) -> GaussianState:
+        return GaussianState(self.x.copy(), self.P.copy())
