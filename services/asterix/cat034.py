@@ -1,0 +1,109 @@
+"""CAT034 (monoradar service messages) → plain values, with libasterix (edition 1.29).
+
+==========  ===============================================  ======================
+item        content                                          kept as
+==========  ===============================================  ======================
+I034/010    SAC/SIC                                          ``sac``, ``sic``
+I034/000    message type: 1 North marker, 2 sector crossing  ``message_type``
+I034/030    time of day, LSB 1/128 s                         ``tod``
+I034/020    sector azimuth, LSB 360/2^8 deg                  ``sector_deg``
+I034/041    antenna rotation period, LSB 1/128 s             ``period_s``
+I034/120    WGS-84 height (m), lat/lon LSB 180/2^23 deg      ``lat``, ``lon``, ``height``
+==========  ===============================================  ======================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import asterix.generated as gen
+
+from .records import quantity, sub_quantity, sub_uint
+
+SPEC = gen.Cat_034_1_29
+CATEGORY = 34
+NORTH_MARKER = 1
+SECTOR_CROSSING = 2
+TOD_WRAP = 86_400 * 128
+
+
+@dataclass(slots=True)
+class Cat034Message:
+    """One CAT034 service message in ASTERIX units (degrees, s of day, m)."""
+
+    sac: int
+    sic: int
+    message_type: int
+    tod: float | None
+    sector_deg: float | None
+    period_s: float | None
+    lat: float | None
+    lon: float | None
+    height: float | None
+
+
+def decode_record(rec: Any) -> Cat034Message | str:
+    """Values of one parsed CAT034 record, or a reject reason (count key)."""
+    i010 = rec.get_item("010")
+    if i010 is None:
+        return "cat034_no_data_source"
+    i000 = rec.get_item("000")
+    if i000 is None:
+        return "cat034_no_message_type"
+    tod = quantity(rec, "030", "s")
+    if tod is not None and not 0.0 <= tod < 86_401.0:
+        return "cat034_bad_time"
+    sector = quantity(rec, "020", "°")
+    period = quantity(rec, "041", "s")
+    lat = lon = height = None
+    i120 = rec.get_item("120")
+    if i120 is not None:
+        v = i120.variation
+        height = sub_quantity(v, "HGT", "m")
+        lat = sub_quantity(v, "LAT", "°")
+        lon = sub_quantity(v, "LON", "°")
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            lat = lon = height = None
+    return Cat034Message(
+        sub_uint(i010.variation, "SAC"),
+        sub_uint(i010.variation, "SIC"),
+        i000.as_uint(),
+        tod,
+        sector,
+        period,
+        lat,
+        lon,
+        height,
+    )
+
+
+def build_record(
+    *,
+    sac: int,
+    sic: int,
+    message_type: int,
+    tod: float,
+    sector_deg: float | None = None,
+    period_s: float | None = None,
+    position: tuple[float, float, float] | None = None,
+) -> Any:
+    """A libasterix CAT034 record; ``position`` is (lat deg, lon deg, height m)."""
+    items: dict[str, Any] = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "000": message_type,
+        "030": round(tod * 128.0) % TOD_WRAP,
+    }
+    if sector_deg is not None:
+        items["020"] = round(sector_deg * 256.0 / 360.0) % 256
+    if period_s is not None:
+        items["041"] = min(0xFFFF, max(0, round(period_s * 128.0)))
+    if position is not None:
+        lat, lon, hgt = position
+        scale = 2**23 / 180.0
+        items["120"] = (
+            ("HGT", max(-32768, min(32767, round(hgt))) & 0xFFFF),
+            ("LAT", round(lat * scale) & 0xFFFFFF),
+            ("LON", round(lon * scale) & 0xFFFFFF),
+        )
+    return SPEC.cv_record.create(items)

@@ -1,0 +1,174 @@
+"""CAT048 (monoradar target reports) → plain values, with libasterix (edition 1.32).
+
+Items used (LSBs from the CAT048 specification, as encoded in libasterix):
+
+==========  ===========================================  =============================
+item        content                                      kept as
+==========  ===========================================  =============================
+I048/010    SAC/SIC, data source                         ``sac``, ``sic``
+I048/140    time of day, LSB 1/128 s                     ``tod`` (s since midnight UTC)
+I048/020    target report descriptor: TYP, SIM, TST      ``typ``, ``sim``, ``tst``
+I048/040    RHO LSB 1/256 NM, THETA LSB 360/2^16 deg     ``rho_nm``, ``theta_deg``
+I048/070    Mode-3/A code (12 bits, octal digits), V, G  ``mode_3a`` (validated only)
+I048/090    flight level, LSB 1/4 FL, V, G               ``flight_level`` (validated)
+I048/130    plot characteristics: PAM, SAM (dBm)         ``amplitude_dbm`` (PAM, else SAM)
+I048/220    Mode-S 24-bit aircraft address               ``mode_s``
+==========  ===========================================  =============================
+
+A record that parses but is not a usable plot (no I010/I140/I040, TYP 0 "no
+detection", a time of day outside one day) is returned as a :class:`Cat048Reject`
+with the reason, so the caller can count it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import asterix.generated as gen
+
+from .records import quantity, sub_quantity, sub_uint
+
+SPEC = gen.Cat_048_1_32
+CATEGORY = 48
+DAY_S = 86_400.0
+TOD_WRAP = 86_400 * 128  # I048/140 counts of one day
+
+#: I048/020 TYP values (plot type).
+PLOT_TYPES = {
+    0: "no detection",
+    1: "single PSR detection",
+    2: "single SSR detection",
+    3: "SSR + PSR detection",
+    4: "single Mode S all-call",
+    5: "single Mode S roll-call",
+    6: "Mode S all-call + PSR",
+    7: "Mode S roll-call + PSR",
+}
+
+
+@dataclass(slots=True)
+class Cat048Plot:
+    """One CAT048 target report in ASTERIX units (NM, degrees, FL, s of day)."""
+
+    sac: int
+    sic: int
+    tod: float
+    rho_nm: float
+    theta_deg: float
+    typ: int
+    sim: bool
+    tst: bool
+    flight_level: float | None
+    mode_3a: int | None
+    mode_s: int | None
+    amplitude_dbm: float | None
+
+
+@dataclass(slots=True)
+class Cat048Reject:
+    """A parsed record that is not a usable plot; ``reason`` is a short count key."""
+
+    reason: str
+    detail: str
+    sac: int | None = None
+    sic: int | None = None
+
+
+def decode_record(rec: Any) -> Cat048Plot | Cat048Reject:
+    """Physical values of one parsed CAT048 record (libasterix ``Record``)."""
+    i010 = rec.get_item("010")
+    if i010 is None:
+        return Cat048Reject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)")
+    sac = sub_uint(i010.variation, "SAC")
+    sic = sub_uint(i010.variation, "SIC")
+    tod = quantity(rec, "140", "s")
+    if tod is None:
+        return Cat048Reject("cat048_no_time", "record has no I048/140 time of day", sac, sic)
+    if not 0.0 <= tod < DAY_S + 1.0:
+        return Cat048Reject(
+            "cat048_bad_time", f"I048/140 time of day = {tod} s is outside one day", sac, sic
+        )
+    typ, sim, tst = 0, False, False
+    i020 = rec.get_item("020")
+    if i020 is not None:
+        v = i020.variation
+        typ = sub_uint(v, "TYP")
+        sim = bool(sub_uint(v, "SIM"))
+        t = v.get_item("TST")
+        tst = bool(t.as_uint()) if t is not None else False
+        if typ == 0:
+            return Cat048Reject("cat048_no_detection", "I048/020 TYP = 0 (no detection)", sac, sic)
+    i040 = rec.get_item("040")
+    if i040 is None:
+        return Cat048Reject(
+            "cat048_no_position", "record has no I048/040 measured position", sac, sic
+        )
+    rho = sub_quantity(i040.variation, "RHO", "NM")
+    theta = sub_quantity(i040.variation, "THETA", "°")
+    fl = None
+    i090 = rec.get_item("090")
+    if i090 is not None:
+        v = i090.variation
+        if sub_uint(v, "V") == 0 and sub_uint(v, "G") == 0:
+            fl = sub_quantity(v, "FL", "FL")
+    code = None
+    i070 = rec.get_item("070")
+    if i070 is not None:
+        v = i070.variation
+        if sub_uint(v, "V") == 0 and sub_uint(v, "G") == 0:
+            code = sub_uint(v, "MODE3A")
+    addr = None
+    i220 = rec.get_item("220")
+    if i220 is not None:
+        addr = i220.as_uint()
+    amp = None
+    i130 = rec.get_item("130")
+    if i130 is not None:
+        v = i130.variation
+        for name in ("PAM", "SAM"):
+            sub = v.get_item(name)
+            if sub is not None:
+                amp = sub.variation.content.as_quantity("dBm")
+                break
+    return Cat048Plot(sac, sic, tod, rho, theta, typ, sim, tst, fl, code, addr, amp)
+
+
+def build_record(
+    *,
+    sac: int,
+    sic: int,
+    tod: float,
+    rho_nm: float,
+    theta_deg: float,
+    typ: int,
+    sim: bool = False,
+    flight_level: float | None = None,
+    mode_3a: int | None = None,
+    mode_s: int | None = None,
+    amplitude_dbm: float | None = None,
+) -> Any:
+    """A libasterix CAT048 record from physical values, each rounded to its item's LSB
+    (time of day wraps at midnight, THETA at 360°). Raises ``ValueError`` naming the
+    value when RHO or the flight level does not fit its item."""
+    rho_raw = round(rho_nm * 256.0)
+    if not 0 <= rho_raw <= 0xFFFF:
+        raise ValueError(f"RHO = {rho_nm} NM is outside I048/040 (0 .. 256 NM)")
+    items: dict[str, Any] = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "140": round(tod * 128.0) % TOD_WRAP,
+        "020": ((typ, int(sim), 0, 0, 0, None),),
+        "040": (("RHO", rho_raw), ("THETA", round(theta_deg * 65536.0 / 360.0) % 65536)),
+    }
+    if mode_3a is not None:
+        items["070"] = (0, 0, 0, 0, ("MODE3A", int(mode_3a)))
+    if flight_level is not None:
+        fl_raw = round(flight_level * 4.0)
+        if not -8192 <= fl_raw <= 8191:
+            raise ValueError(f"flight level {flight_level} FL is outside I048/090 (±2048 FL)")
+        items["090"] = (0, 0, ("FL", fl_raw & 0x3FFF))
+    if amplitude_dbm is not None:
+        items["130"] = {"PAM": max(-128, min(127, round(amplitude_dbm))) & 0xFF}
+    if mode_s is not None:
+        items["220"] = int(mode_s)
+    return SPEC.cv_record.create(items)
