@@ -134,3 +134,59 @@ def test_labeller_rejects_bad_input():
         lab.step(np.array([1]), np.zeros((1, 4)), np.array([-1]), np.zeros((1, 4)), np.array([-1]))
     with pytest.raises(ValueError, match="selected_targets"):
         lab.step(np.array([1]), np.zeros((1, 4)), np.array([0]), np.zeros((1, 4)), np.array([0.5]))
+
+
+def _reference_labels(scans, P_inv, threshold=20.0, retest_after=3):
+    """The four rules written as a plain per-track loop (dicts), as an independent check."""
+    state: dict[int, tuple[int, int]] = {}
+    out = []
+    for tids, xs, gids, gx, sel in scans:
+        new_state, labels = {}, []
+        for tid, x, s in zip(tids.tolist(), xs, sel.tolist()):
+            d2 = {g: float((x - y) @ P_inv @ (x - y)) for g, y in zip(gids.tolist(), gx)}
+            ok = {g: d for g, d in d2.items() if d < threshold}
+            nearest = min(ok, key=ok.get) if ok else FALSE
+            label, misses = state.get(tid, (FALSE, 0))
+            if label == FALSE:
+                label, misses = nearest, 0
+            elif s == label:
+                misses = 0
+            else:
+                misses += 1
+                if misses >= retest_after and label not in ok:
+                    label, misses = nearest, 0
+            new_state[tid] = (label, misses)
+            labels.append(label)
+        state = new_state
+        out.append(labels)
+    return out
+
+
+def test_vectorised_labeller_matches_plain_rules_on_random_histories():
+    rng = np.random.default_rng(11)
+    P_inv = np.linalg.inv(P22)
+    scans = []
+    for _ in range(80):
+        # Persistent ids (each present with probability 0.9) so that misses accumulate.
+        gids = np.flatnonzero(rng.random(4) < 0.9)
+        gx = rng.normal(0, 12, size=(len(gids), 4))
+        tids = np.flatnonzero(rng.random(5) < 0.9) + 10
+        xs = rng.normal(0, 12, size=(len(tids), 4))
+        sel = np.where(rng.random(len(tids)) < 0.6, -1, rng.integers(0, 4, size=len(tids)))
+        scans.append((tids, xs, gids, gx, sel))
+    lab = TruthLabeller(P22)
+    got = [lab.step(*s).tolist() for s in scans]
+    assert got == _reference_labels(scans, P_inv)
+    # The history exercises every transition: false->true, true->other target, true->false.
+    kinds = set()
+    for k in range(1, len(scans)):
+        prev = dict(zip(scans[k - 1][0].tolist(), got[k - 1]))
+        for t, now in zip(scans[k][0].tolist(), got[k]):
+            was = prev.get(t, FALSE)
+            if was == FALSE and now != FALSE:
+                kinds.add("found")
+            elif was != FALSE and now == FALSE:
+                kinds.add("lost")
+            elif was != FALSE and now != was:
+                kinds.add("switched")
+    assert kinds == {"found", "lost", "switched"}

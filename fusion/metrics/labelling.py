@@ -106,8 +106,9 @@ class TruthLabeller:
         self.P_inv = np.linalg.inv(P22)
         self.threshold = float(threshold)
         self.retest_after = int(retest_after)
-        self._label: dict[int, int] = {}
-        self._misses: dict[int, int] = {}
+        self._ids = np.zeros(0, dtype=np.int64)  # sorted track ids of the previous scan
+        self._labels = np.zeros(0, dtype=np.int64)
+        self._misses = np.zeros(0, dtype=np.int64)
 
     def step(
         self,
@@ -161,26 +162,38 @@ class TruthLabeller:
             j = np.argmin(np.where(passes, d2, np.inf), axis=1)
             nearest = np.where(passes.any(axis=1), gids[j], FALSE)
 
-        labels = np.full(m, FALSE, dtype=np.int64)
-        misses_now = np.zeros(m, dtype=np.int64)
-        for i, tid in enumerate(tids.tolist()):
-            label = self._label.get(tid, FALSE)
-            misses = self._misses.get(tid, 0)
-            if label == FALSE:  # rule 2: a false (or new) track is tested every scan
-                label, misses = int(nearest[i]), 0
-            elif np.any(sel[i] == label):  # rule 3: it selected its target's detection
-                misses = 0
-            else:  # rule 4: a missed scan
-                misses += 1
-                if misses >= self.retest_after:
-                    col = np.flatnonzero(gids == label)
-                    if not (len(col) and passes[i, col[0]]):
-                        label, misses = int(nearest[i]), 0
-            labels[i], misses_now[i] = label, misses
-        self._label = dict(zip(tids.tolist(), labels.tolist()))
-        self._misses = dict(zip(tids.tolist(), misses_now.tolist()))
-        return labels
+        # Previous label and miss count of each track (new tracks: false, 0).
+        label = np.full(m, FALSE, dtype=np.int64)
+        misses = np.zeros(m, dtype=np.int64)
+        if len(self._ids):
+            pos = np.minimum(np.searchsorted(self._ids, tids), len(self._ids) - 1)
+            known = self._ids[pos] == tids
+            label[known] = self._labels[pos[known]]
+            misses[known] = self._misses[pos[known]]
+        was_false = label == FALSE
+        # Rule 3: the track selected a detection of its target.
+        hit = ~was_false & np.any(sel == label[:, None], axis=1)
+        # Rule 4: a missed scan; re-test (7.1) once the misses reach retest_after.
+        missed = ~was_false & ~hit
+        misses = np.where(missed, misses + 1, 0)
+        own_pass = np.zeros(m, dtype=bool)
+        if m and len(gids):
+            g_order = np.argsort(gids)
+            col = np.searchsorted(gids[g_order], label)
+            col = np.minimum(col, len(gids) - 1)
+            present = gids[g_order][col] == label
+            own_pass = present & passes[np.arange(m), g_order[col]]
+        relabel = was_false | (missed & (misses >= self.retest_after) & ~own_pass)
+        # Rule 2 for false tracks, and the re-test outcome: nearest passing target or false.
+        label = np.where(relabel, nearest, label)
+        misses = np.where(relabel, 0, misses)
+        keep = np.argsort(tids)
+        self._ids, self._labels, self._misses = tids[keep], label[keep], misses[keep]
+        return label
 
     def label_of(self, track_id: int) -> int:
         """Current label of ``track_id`` (``FALSE`` if unknown)."""
-        return self._label.get(int(track_id), FALSE)
+        i = np.searchsorted(self._ids, int(track_id))
+        if i < len(self._ids) and self._ids[i] == int(track_id):
+            return int(self._labels[i])
+        return FALSE
