@@ -195,3 +195,25 @@ def test_retention_markdown_and_empty():
     assert lines[3].startswith("| its | 1 | 0 | – |")
     with pytest.raises(ValueError, match="k_start"):
         retention_counts(RET, *MERGED, k_start=38, k_end=14)
+
+
+def test_concat_of_per_run_histories_gives_the_same_measures():
+    parts = [
+        TrackHistory(
+            HIST.run[m],
+            HIST.scan[m],
+            HIST.track_id[m],
+            HIST.confirmed[m],
+            HIST.label[m],
+            HIST.position[m],
+        )
+        for m in (HIST.run == 0, HIST.run == 1)
+    ]
+    truth_parts = [
+        TruthHistory(TRUTH.run[m], TRUTH.scan[m], TRUTH.target_id[m], TRUTH.position[m])
+        for m in (TRUTH.run == 0, TRUTH.run == 1)
+    ]
+    h, g = TrackHistory.concat(parts), TruthHistory.concat(truth_parts)
+    np.testing.assert_allclose(ctt_rate(h, g, SCANS), [0, 50, 75, 100 / 3])
+    assert confirmed_false_tracks(h, SCANS).tolist() == [1, 2, 2, 3]
+    assert len(TrackHistory.concat([])) == 0 and len(TruthHistory.concat([])) == 0

@@ -74,6 +74,26 @@ class TrackHistory:
     def __len__(self) -> int:
         return len(self.run)
 
+    @classmethod
+    def concat(cls, parts: list[TrackHistory]) -> TrackHistory:
+        """Stack histories (e.g. one per scan or per run) into one."""
+        if not parts:
+            return cls(
+                *(np.zeros(0, np.int64),) * 3,
+                np.zeros(0, bool),
+                np.zeros(0, np.int64),
+                np.zeros((0, 2)),
+            )
+        return cls(
+            run=np.concatenate([h.run for h in parts]),
+            scan=np.concatenate([h.scan for h in parts]),
+            track_id=np.concatenate([h.track_id for h in parts]),
+            confirmed=np.concatenate([h.confirmed for h in parts]),
+            label=np.concatenate([h.label for h in parts]),
+            position=np.concatenate([h.position for h in parts]),
+            existence=np.concatenate([h.existence for h in parts]),
+        )
+
     @property
     def confirmed_true(self) -> np.ndarray:
         """Mask of rows with a confirmed track labelled true."""
@@ -100,6 +120,18 @@ class TruthHistory:
 
     def __len__(self) -> int:
         return len(self.run)
+
+    @classmethod
+    def concat(cls, parts: list[TruthHistory]) -> TruthHistory:
+        """Stack histories (e.g. one per scan or per run) into one."""
+        if not parts:
+            return cls(*(np.zeros(0, np.int64),) * 3, np.zeros((0, 2)))
+        return cls(
+            run=np.concatenate([h.run for h in parts]),
+            scan=np.concatenate([h.scan for h in parts]),
+            target_id=np.concatenate([h.target_id for h in parts]),
+            position=np.concatenate([h.position for h in parts]),
+        )
 
 
 def joint_keys(*columns: tuple[np.ndarray, ...]) -> list[np.ndarray]:

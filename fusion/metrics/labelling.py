@@ -59,7 +59,7 @@ def normalised_distance(
 ) -> np.ndarray:
     """d²[i, j] = (x̂_i − x_j)ᵀ P⁻¹ (x̂_i − x_j) for tracks (m, s) and targets (n, s): (m, n)."""
     diff = track_states[:, None, :] - truth_states[None, :, :]
-    return np.einsum("ijk,kl,ijl->ij", diff, P_inv, diff)
+    return np.einsum("ijk,ijk->ij", diff @ P_inv, diff)
 
 
 def _as_states(name: str, arr: np.ndarray, s: int) -> np.ndarray:
