@@ -48,21 +48,26 @@ def run(args: argparse.Namespace) -> int:
     stop = StopFlag().install()
     try:
         with open_session(tcfg) as session:
-            missing = wait_for_tokens(
-                session, [service_alive_key(n) for n in cfg.wait_for], cfg.wait_timeout, stop
-            )
-            if missing:
-                log.error("services not found after %.1f s: %s", cfg.wait_timeout, missing)
-                return EXIT_FAILED
-            if cfg.replay is not None:
-                from .replay import replay
+            radar = None
+            if cfg.replay is None:
+                radar = SimulatedRadar(session, cfg)  # declares the sensor's ready token
+            try:
+                missing = wait_for_tokens(
+                    session, [service_alive_key(n) for n in cfg.wait_for], cfg.wait_timeout, stop
+                )
+                if missing:
+                    log.error("services not found after %.1f s: %s", cfg.wait_timeout, missing)
+                    return EXIT_FAILED
+                if radar is None:
+                    from .replay import replay
 
-                res = replay(session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop)
-                log.info("radar %s: replayed %d plot batches", cfg.radar, res.plot_batches)
-                if res.plot_batches == 0:
-                    log.warning("%s has no plot batches of radar %s", cfg.replay, cfg.radar)
-            else:
-                radar = SimulatedRadar(session, cfg)
+                    res = replay(
+                        session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop
+                    )
+                    log.info("radar %s: replayed %d plot batches", cfg.radar, res.plot_batches)
+                    if res.plot_batches == 0:
+                        log.warning("%s has no plot batches of radar %s", cfg.replay, cfg.radar)
+                    return EXIT_OK
                 log.info(
                     "radar %s (%s, %s) of scenario %s at speed %g",
                     cfg.radar,
@@ -71,12 +76,9 @@ def run(args: argparse.Namespace) -> int:
                     cfg.scenario,
                     cfg.speed,
                 )
-                try:
-                    stats = radar.run(stop)
-                    if not stop.is_set():
-                        stop.wait(cfg.linger)
-                finally:
-                    radar.close()
+                stats = radar.run(stop)
+                if not stop.is_set():
+                    stop.wait(cfg.linger)
                 log.info(
                     "radar %s: published %d batches, %d plots%s (late by up to %.3f s)",
                     cfg.radar,
@@ -85,6 +87,9 @@ def run(args: argparse.Namespace) -> int:
                     " (stopped)" if stats.interrupted else "",
                     stats.late_s,
                 )
+            finally:
+                if radar is not None:
+                    radar.close()
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED

@@ -40,6 +40,9 @@ class SensorConfig(BaseModel):
     seed: int = Field(1, ge=0, description="Scenario seed (same seed as the other sensors)")
     duration: float | None = Field(None, gt=0, description="Scenario duration, s")
     targets: int | None = Field(None, ge=0, description="Number of targets")
+    param: list[str] = Field(
+        default_factory=list, description="Scenario parameter overrides KEY=VALUE,KEY=VALUE"
+    )
     speed: float = Field(1.0, gt=0, le=1000, description="Time scale: 10 = ten times faster")
     replay: Path | None = Field(None, description="Publish this radar's batches from an MCAP")
     truth: bool = Field(False, description="Also publish the simulation truth")
@@ -53,6 +56,13 @@ class SensorConfig(BaseModel):
         gt=0,
         description="Unix time (s) the scenario start maps to; sensors given the same value "
         "run in step (default: now)",
+    )
+    align: float | None = Field(
+        None,
+        gt=0,
+        le=3600,
+        description="Start at the next wall-clock multiple of this many s (>= 1 s ahead), "
+        "after --wait-for: sensors started apart then run in step",
     )
     status_interval: float = Field(2.0, gt=0, description="Status publication period, s")
     linger: float = Field(
@@ -69,9 +79,20 @@ def load_scenario(cfg: SensorConfig):
     """The scenario of ``cfg`` and this radar's site (``ConfigError`` if absent)."""
     from fusion.sim import build_scenario
 
+    from .cmd_simulate import parse_params
+
+    bad = [p for p in cfg.param if "=" not in p]
+    if bad:
+        raise ConfigError(f"param {bad[0]!r} is not KEY=VALUE")
     try:
-        sc = build_scenario(cfg.scenario, seed=cfg.seed, duration=cfg.duration, targets=cfg.targets)
-    except ValueError as e:
+        sc = build_scenario(
+            cfg.scenario,
+            seed=cfg.seed,
+            duration=cfg.duration,
+            targets=cfg.targets,
+            **parse_params(cfg.param),
+        )
+    except (ValueError, TypeError) as e:
         raise ConfigError(str(e)) from None
     ids = [s.radar_id for s in sc.sites]
     if cfg.radar not in ids:
@@ -80,6 +101,18 @@ def load_scenario(cfg: SensorConfig):
             + ", ".join(ids)
         )
     return sc, sc.sites[ids.index(cfg.radar)]
+
+
+def start_time_ns(cfg: SensorConfig, now_ns: int | None = None) -> int:
+    """The wall-clock instant (ns) the scenario start maps to: ``start_at``, else the next
+    multiple of ``align`` seconds at least 1 s ahead, else now."""
+    now_ns = time.time_ns() if now_ns is None else now_ns
+    if cfg.start_at is not None:
+        return round(cfg.start_at * 1e9)
+    if cfg.align is not None:
+        step = round(cfg.align * 1e9)
+        return -(-(now_ns + 1_000_000_000) // step) * step
+    return now_ns
 
 
 @dataclass
@@ -106,7 +139,7 @@ class SimulatedRadar:
         self._pub_status = declare_publisher(session, keys.service_status(f"sensor-{cfg.radar}"))
         self._queryable = session.declare_queryable(keys.radar_site(cfg.radar), self._answer_site)
         self._token = None
-        self._ready = None
+        self._ready = declare_liveliness(session, service_alive_key(f"sensor-{cfg.radar}"))
 
     def _answer_site(self, query) -> None:
         query.reply(keys.radar_site(self.cfg.radar), self._site_bytes)
@@ -141,8 +174,7 @@ class SimulatedRadar:
 
         cfg = self.cfg
         self.publish_site()
-        self._ready = declare_liveliness(self.session, service_alive_key(f"sensor-{cfg.radar}"))
-        start_ns = int(cfg.start_at * 1e9) if cfg.start_at is not None else time.time_ns()
+        start_ns = start_time_ns(cfg)
         if start_ns < time.time_ns() - 100_000_000:
             log.warning(
                 "start time is %.2f s in the past: the first batches will be late",

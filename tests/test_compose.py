@@ -1,0 +1,134 @@
+"""docker-compose.yml cannot run here (no Docker engine): check what it references.
+
+Every skyfuse service's command parses with the real CLI parser and its configuration
+(TOML mounted from deploy/, environment) validates; endpoints name the router service on
+the port the router listens on and publishes; sensors name radars of the scenario and
+wait for services that exist; the fusion frame is the scenario's frame."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+import pytest
+
+from services.cli import build_parser
+from services.config import build_config
+from services.transport import ENDPOINT_RE, transport_config
+
+yaml = pytest.importorskip("yaml")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def compose() -> dict:
+    return yaml.safe_load((ROOT / "docker-compose.yml").read_text())
+
+
+def skyfuse_services(compose: dict) -> dict[str, dict]:
+    return {
+        n: s for n, s in compose["services"].items() if s.get("image", "").startswith("skyfuse")
+    }
+
+
+def host_path(path: str) -> Path:
+    """Map a container path of the image to the repository (Dockerfile COPY deploy/*.toml)."""
+    assert path.startswith("/etc/skyfuse/"), path
+    return ROOT / "deploy" / Path(path).name
+
+
+def parse(service: dict, monkeypatch):
+    for k, v in (service.get("environment") or {}).items():
+        monkeypatch.setenv(k, str(v))
+    args = build_parser().parse_args(service["command"])
+    toml = getattr(args, "config", None)
+    if toml is not None:
+        args.config = str(host_path(toml))
+    return args
+
+
+def test_every_command_is_a_valid_skyfuse_invocation(compose, monkeypatch):
+    svcs = skyfuse_services(compose)
+    assert {"fusion", "recorder"} <= set(svcs)
+    assert sum(n.startswith("sensor-") for n in svcs) == 3
+    for name, svc in svcs.items():
+        with monkeypatch.context() as m:
+            args = parse(svc, m)
+            tcfg = transport_config(args, toml_path=getattr(args, "config", None))
+            assert tcfg.mode == "client" and tcfg.connect, name
+            module = args.func.__module__
+            if module.endswith("cmd_fusion"):
+                from services.cmd_fusion import _tracker_config_model
+                from services.fusion_service import FusionConfig
+
+                build_config(FusionConfig, args, toml_path=args.config, section="fusion",
+                             env_prefix="SKYFUSE_FUSION_")  # fmt: skip
+                build_config(_tracker_config_model(), args, toml_path=args.config,
+                             section="tracker")  # fmt: skip
+            elif module.endswith("cmd_record"):
+                from services.recorder import RecorderConfig
+
+                rc = build_config(RecorderConfig, args, toml_path=args.config, section="record")
+                data_volumes = [v.split(":")[1] for v in svc.get("volumes", [])]
+                assert any(str(rc.out).startswith(d) for d in data_volumes), rc.out
+            elif module.endswith("cmd_sensor"):
+                from services.sensor import SensorConfig, load_scenario
+
+                sc_cfg = build_config(SensorConfig, args)
+                # the radar exists in the scenario (a short one: the ids do not depend on it)
+                _, site = load_scenario(sc_cfg.model_copy(update={"duration": 30.0}))
+                assert name == f"sensor-{site.radar_id.lower()}"
+                others = {
+                    f"sensor-{n.split('-', 1)[1].upper()}" for n in svcs if n.startswith("sensor-")
+                }
+                assert set(sc_cfg.wait_for) == {"fusion", "recorder"} | (
+                    others - {f"sensor-{site.radar_id}"}
+                )
+            else:
+                pytest.fail(f"unexpected command {module} in {name}")
+
+
+def test_endpoints_and_ports_agree(compose, monkeypatch):
+    router = compose["services"]["zenohd"]
+    conf_mount = next(v for v in router["volumes"] if "zenohd.json5" in v)
+    host_file, container_file = conf_mount.split(":")[:2]
+    assert container_file in router["command"]
+    zconf = json.loads((ROOT / host_file).read_text())
+    assert zconf["mode"] == "router"
+    assert zconf["scouting"]["multicast"]["enabled"] is False
+    listen_ports = {int(ENDPOINT_RE.match(e).group(3)) for e in zconf["listen"]["endpoints"]}
+    published = {int(p.split(":")[1]) for p in router["ports"]}
+    assert published <= listen_ports
+    for name, svc in skyfuse_services(compose).items():
+        with monkeypatch.context() as m:
+            args = parse(svc, m)
+            tcfg = transport_config(args, toml_path=getattr(args, "config", None))
+        for ep in tcfg.connect:
+            host, port = ENDPOINT_RE.match(ep).group(2, 3)
+            assert host == "zenohd" and int(port) in listen_ports, (name, ep)
+            assert "zenohd" in svc["depends_on"]
+
+
+def test_fusion_frame_is_the_scenario_frame(compose):
+    import tomllib
+
+    from fusion.sim import build_scenario
+
+    fusion_toml = tomllib.loads((ROOT / "deploy" / "fusion.toml").read_text())["fusion"]
+    radars = {n for n in skyfuse_services(compose) if n.startswith("sensor-")}
+    sc = build_scenario("regional", seed=1, radars=len(radars))
+    assert fusion_toml["frame_kind"] == sc.frame.kind.value
+    assert abs(fusion_toml["frame_lat0"] - sc.frame.lat0) < 1e-3
+    assert abs(fusion_toml["frame_lon0"] - sc.frame.lon0) < 1e-3
+
+
+def test_dockerfile_copies_what_exists_and_runs_skyfuse():
+    text = (ROOT / "Dockerfile").read_text()
+    for src in re.findall(r"^COPY\s+(.+?)\s+\S+$", text, flags=re.M):
+        for part in src.split():
+            assert list(ROOT.glob(part)), f"Dockerfile copies {part} which does not exist"
+    assert 'ENTRYPOINT ["skyfuse"]' in text
+    assert os.path.isfile(ROOT / "pyproject.toml")
