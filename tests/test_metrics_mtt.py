@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from fusion.metrics.history import TrackHistory, TruthHistory
-from fusion.metrics.mtt_measures import confirmed_false_tracks, ctt_rate, rmse_confirmed_true
+from fusion.metrics.mtt_measures import (
+    confirmed_false_tracks,
+    ctt_rate,
+    gospa_curves,
+    rmse_confirmed_true,
+)
 from fusion.metrics.retention import ROW_KEYS, RetentionCounts, retention_counts, retention_markdown
 
 F = -1  # false label
@@ -217,3 +222,26 @@ def test_concat_of_per_run_histories_gives_the_same_measures():
     np.testing.assert_allclose(ctt_rate(h, g, SCANS), [0, 50, 75, 100 / 3])
     assert confirmed_false_tracks(h, SCANS).tolist() == [1, 2, 2, 3]
     assert len(TrackHistory.concat([])) == 0 and len(TruthHistory.concat([])) == 0
+
+
+def test_gospa_curves_scripted():
+    # c = 10, p = 2, gamma = 4, confirmed tracks only (track 2 at scan 2 is left out).
+    # run 0: scan 1 no tracks: 2 missed = 100.
+    #        scan 2 truth0-track1 d=5 (25); truth1 vs track3 (50,50) d=70.7 > c: 50 + 50 = 125
+    #        scan 3 truth0-track1 (4) + truth1-track2 (1); tracks 4 and 3 false: 105
+    #        scan 4 truth0-track1 (0); truth1 vs track2 at 50 m: 50 + 50 = 100; truth 1 goes
+    #               from track 2 to unassigned: half switch, gamma^2/2 * 1/2 = 4
+    # run 1: scan 1 tracks 3, 5 far from both truths: 100 + 100 = 200
+    #        scans 2, 3 truth1-track6 (36) + truth0 missed (50) = 86
+    #        scan 4 truth0 only, track 6 far: 50 + 50 = 100 (absent truth 1: no switch)
+
+    g = gospa_curves(HIST, TRUTH, SCANS, c=10, p=2, switch_penalty=4)
+    r0 = np.sqrt([100, 125, 105, 100])
+    r1 = np.sqrt([200, 86, 86, 100])
+    np.testing.assert_allclose(g.distance, (r0 + r1) / 2)
+    np.testing.assert_allclose(g.missed, [100, 50, 25, 50])
+    np.testing.assert_allclose(g.false, [50, 25, 50, 50])
+    np.testing.assert_allclose(g.switching, [0, 0, 0, 2])
+    assert g.half_switches.tolist() == [0, 0, 0, 1] and g.full_switches.tolist() == [0, 0, 0, 0]
+    assert g.runs == 2
+    assert g.total == pytest.approx((math.sqrt(434) + math.sqrt(472)) / 2)
