@@ -544,6 +544,9 @@ class AsterixStreamDecoder:
     ) -> None:
         """Emit the sector from the last emitted boundary to (end_az, end_t) with the plots
         timed up to ``end_t`` (plots older than the sector start are late: counted)."""
+        if radar.e_az is None and not any(t <= end_t for t in radar.times):
+            radar.e_az, radar.e_t = end_az % TWO_PI, end_t  # the first boundary opens
+            return
         if radar.e_az is None:  # the first sector of this radar: cover its plots
             w0 = width or TWO_PI / self.sector_count
             for t, a in zip(radar.times, radar.az):

@@ -1,0 +1,169 @@
+"""Fused tracks (:class:`schemas.Track` / :class:`schemas.TrackBatch`) → CAT062.
+
+Items written per track (edition 1.20 layout, in UAP order):
+
+==========  ===================================================================
+I062/010    SAC/SIC of this tracker (constructor arguments)
+I062/015    service identification (``service_id``)
+I062/070    time of track information: ``track.time`` → time of day, LSB 1/128 s
+I062/105    WGS-84 ``lat``/``lon``, LSB 180/2^25 deg
+I062/100    system Cartesian x/y (LSB 0.5 m), only for a stereographic batch frame
+            (the system plane of I100 is a stereographic projection)
+I062/185    velocity VX = ``vel_east``, VY = ``vel_north``, LSB 0.25 m/s
+I062/040    track number = ``track_id`` mod 65536 (I040 has 16 bits)
+I062/080    status: MON (1 = one radar updated the track), CNF (0 confirmed /
+            1 tentative), SIM, TSB (first message of the track from this writer),
+            TSE (last message: status terminated)
+I062/136    measured flight level where the altitude is known:
+            ``alt`` / 30.48 m (the inverse of the reader's FL → altitude; pressure
+            altitude taken as height, see docs/asterix.md), LSB 1/4 FL
+I062/500    accuracies from the state covariance: APC σx, σy (m, LSB 0.5), COV
+            sign(Cxy)·√|Cxy| (m), APW σlat, σlon (deg, via the WGS-84 radii of
+            curvature), ATV σvx, σvy (m/s, LSB 0.25); each clipped to its item's range
+==========  ===================================================================
+
+Position/velocity axes of the covariance: the state labels ``x``, ``y``, ``vx``,
+``vy`` of the batch; x east / y north for stereographic and planar frames, x north /
+y east for NED (swapped to east/north here).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from typing import Any
+
+import numpy as np
+
+from schemas import FrameKind, Track, TrackBatch, TrackStatus
+
+from . import cat062
+from .reader import altitude_to_flight_level
+from .writer import datablocks, time_ticks
+
+WGS84_A = 6_378_137.0
+WGS84_E2 = 6.694_379_990_14e-3
+LSB_DEG_105 = 180.0 / 2**25
+
+
+def metres_per_degree(lat_deg: float) -> tuple[float, float]:
+    """(m per degree of latitude, m per degree of longitude) on WGS-84 at ``lat_deg``:
+    meridional radius M and prime-vertical radius N·cos φ, times π/180."""
+    s = math.sin(math.radians(lat_deg))
+    w = math.sqrt(1.0 - WGS84_E2 * s * s)
+    m = WGS84_A * (1.0 - WGS84_E2) / w**3
+    n = WGS84_A / w
+    k = math.pi / 180.0
+    return m * k, n * math.cos(math.radians(lat_deg)) * k
+
+
+def _clip_raw(value: float, lsb: float, lo: int, hi: int) -> int:
+    return int(min(max(round(value / lsb), lo), hi))
+
+
+class Cat062Writer:
+    """Stateful CAT062 encoder (remembers which track numbers it has sent, for TSB).
+
+    ``encode_batch(batch)`` → data blocks (≤ ``max_block_bytes`` each, one UDP datagram
+    each); ``encode_track(track, frame, state_labels)`` → one libasterix record."""
+
+    def __init__(
+        self,
+        *,
+        sac: int,
+        sic: int,
+        service_id: int = 1,
+        simulated: bool = False,
+        max_block_bytes: int = 1400,
+    ) -> None:
+        for name, v in (("sac", sac), ("sic", sic), ("service_id", service_id)):
+            if not 0 <= int(v) <= 255:
+                raise ValueError(f"{name} = {v}: must be in 0..255")
+        self.sac, self.sic, self.service_id = int(sac), int(sic), int(service_id)
+        self.simulated = simulated
+        self.max_block_bytes = max_block_bytes
+        self.stats: Counter = Counter()
+        self._sent: set[int] = set()
+
+    def encode_batch(self, batch: TrackBatch) -> list[bytes]:
+        records = [self.encode_track(t, batch.frame.kind, batch.state_labels) for t in batch.tracks]
+        return datablocks(cat062.CATEGORY, records, self.max_block_bytes)
+
+    def encode(self, batches: list[TrackBatch]) -> bytes:
+        """Concatenated data blocks of several batches (a raw file's bytes)."""
+        return b"".join(b for batch in batches for b in self.encode_batch(batch))
+
+    def encode_track(self, track: Track, frame: FrameKind, state_labels: list[str]) -> Any:
+        number = track.track_id % 65536
+        if number != track.track_id:
+            self.stats["track_number_wrapped"] += 1
+        first = track.track_id not in self._sent
+        self._sent.add(track.track_id)
+        last = track.status == TrackStatus.TERMINATED
+        if last:
+            self._sent.discard(track.track_id)
+        mono = int(len(track.radars) == 1)
+        items: dict[str, Any] = {
+            "010": (("SAC", self.sac), ("SIC", self.sic)),
+            "015": self.service_id,
+            "070": time_ticks(track.time) % (86_400 * 128),
+            "105": (
+                ("LAT", _clip_raw(track.lat, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF),
+                ("LON", _clip_raw(track.lon, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF),
+            ),
+            "185": (
+                ("VX", _clip_raw(track.vel_east, 0.25, -32768, 32767) & 0xFFFF),
+                ("VY", _clip_raw(track.vel_north, 0.25, -32768, 32767) & 0xFFFF),
+            ),
+            "040": number,
+            "080": (
+                (mono, 0, 0, 0, int(track.status == TrackStatus.TENTATIVE), None),
+                (int(self.simulated), int(last), int(first), 0, 0, 0, 0, None),
+            ),
+        }
+        idx = {name: i for i, name in enumerate(state_labels)}
+        if frame == FrameKind.STEREOGRAPHIC and "x" in idx and "y" in idx:
+            x, y = track.state[idx["x"]], track.state[idx["y"]]
+            lim = 2**23 - 1
+            if abs(x) / 0.5 <= lim and abs(y) / 0.5 <= lim:
+                items["100"] = (
+                    ("X", _clip_raw(x, 0.5, -lim - 1, lim) & 0xFFFFFF),
+                    ("Y", _clip_raw(y, 0.5, -lim - 1, lim) & 0xFFFFFF),
+                )
+            else:
+                self.stats["i100_out_of_range"] += 1
+        if track.alt is not None:
+            fl = altitude_to_flight_level(track.alt)
+            items["136"] = _clip_raw(fl, 0.25, -32768, 32767) & 0xFFFF
+        acc = self._accuracies(track, frame, idx)
+        if acc:
+            items["500"] = acc
+        self.stats["tracks"] += 1
+        return cat062.SPEC.cv_record.create(items)
+
+    def _accuracies(self, track: Track, frame: FrameKind, idx: dict[str, int]) -> dict[str, Any]:
+        if "x" not in idx or "y" not in idx:
+            return {}
+        cov = np.asarray(track.covariance, dtype=float)
+        ix, iy = idx["x"], idx["y"]
+        east, north = (iy, ix) if frame == FrameKind.NED else (ix, iy)
+        var_e, var_n, c_en = cov[east, east], cov[north, north], cov[east, north]
+        out: dict[str, Any] = {}
+        sx, sy = math.sqrt(max(var_e, 0.0)), math.sqrt(max(var_n, 0.0))
+        out["APC"] = (("X", _clip_raw(sx, 0.5, 0, 0xFFFF)), ("Y", _clip_raw(sy, 0.5, 0, 0xFFFF)))
+        root = math.copysign(math.sqrt(abs(c_en)), c_en)
+        out["COV"] = _clip_raw(root, 0.5, -32768, 32767) & 0xFFFF
+        m_lat, m_lon = metres_per_degree(track.lat)
+        out["APW"] = (
+            ("LAT", _clip_raw(sy / m_lat, LSB_DEG_105, 0, 0xFFFF)),
+            ("LON", _clip_raw(sx / max(m_lon, 1e-9), LSB_DEG_105, 0, 0xFFFF)),
+        )
+        if "vx" in idx and "vy" in idx:
+            ive, ivn = (idx["vy"], idx["vx"]) if frame == FrameKind.NED else (idx["vx"], idx["vy"])
+            svx = math.sqrt(max(cov[ive, ive], 0.0))
+            svy = math.sqrt(max(cov[ivn, ivn], 0.0))
+            out["ATV"] = (
+                ("X", _clip_raw(svx, 0.25, 0, 0xFF)),
+                ("Y", _clip_raw(svy, 0.25, 0, 0xFF)),
+            )
+        return out
