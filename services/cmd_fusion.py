@@ -19,7 +19,7 @@ import time
 
 from schemas import keys
 
-from .config import add_model_arguments, build_config
+from .config import ConfigError, _split_list, add_model_arguments, build_config
 from .fusion_service import FusionConfig, FusionCore
 from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from .transport import (
@@ -52,10 +52,46 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--config", default=None, help="TOML file: [fusion], [tracker], [transport]")
     add_model_arguments(p, FusionConfig, skip=("sites",))
-    group = p.add_argument_group("tracker")
-    add_model_arguments(group, _tracker_config_model())
+    group = p.add_argument_group(
+        "tracker",
+        "Every field of fusion.tracker.TrackerConfig can be set in the [tracker] "
+        "TOML table, as SKYFUSE_TRACKER_<FIELD>, or with --tracker-set FIELD=VALUE,...",
+    )
+    group.add_argument(
+        "--tracker",
+        default=argparse.SUPPRESS,
+        help="Tracker: gnn, ipda, its, lmipda, lmits, jipda or jits (default: lmits)",
+    )
+    group.add_argument(
+        "--tracker-set",
+        type=_split_list,
+        default=argparse.SUPPRESS,
+        metavar="FIELD=VALUE,...",
+        help="Tracker settings, e.g. depth=2,p_gate=0.995",
+    )
     add_transport_arguments(p)
     p.set_defaults(func=run)
+
+
+def tracker_config(args: argparse.Namespace):
+    """The TrackerConfig: defaults < TOML [tracker] < SKYFUSE_TRACKER_* < flags."""
+    from .cmd_simulate import parse_params
+
+    overrides = {}
+    for item in getattr(args, "tracker_set", []):
+        if "=" not in item:
+            raise ConfigError(f"tracker-set {item!r} is not FIELD=VALUE")
+    overrides.update(parse_params(getattr(args, "tracker_set", [])))
+    if hasattr(args, "tracker"):
+        overrides["tracker"] = args.tracker
+    return build_config(
+        _tracker_config_model(),
+        None,
+        toml_path=getattr(args, "config", None),
+        section="tracker",
+        env_prefix="SKYFUSE_TRACKER_",
+        overrides=overrides,
+    )
 
 
 def make_pipeline_factory(tracker_cfg, fusion_id: str):
@@ -73,13 +109,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = build_config(
         FusionConfig, args, toml_path=args.config, section="fusion", env_prefix="SKYFUSE_FUSION_"
     )
-    tracker_cfg = build_config(
-        _tracker_config_model(),
-        args,
-        toml_path=args.config,
-        section="tracker",
-        env_prefix="SKYFUSE_TRACKER_",
-    )
+    tracker_cfg = tracker_config(args)
     tcfg = transport_config(args, toml_path=args.config)
     core = FusionCore(cfg, make_pipeline_factory(tracker_cfg, cfg.fusion_id))
     stop = StopFlag().install()
