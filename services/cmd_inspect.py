@@ -176,4 +176,3 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_report(info, Console())
     return 0
-
