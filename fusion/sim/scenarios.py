@@ -15,6 +15,7 @@ seed (one per sensor), so changing one sensor never changes another's plots.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -87,10 +88,17 @@ def _cartesian_sensor(p: dict, area: tuple[float, float, float, float], regions=
     return [SensorConfig(site=site, phase=0.0, first_scan=1, coverage=area, regions=tuple(regions))]
 
 
+@functools.lru_cache(maxsize=32)
+def _plane(lat0: float, lon0: float) -> Stereographic:
+    """Projections are cached: building the pyproj transformers costs ≈0.1 s, which would
+    dominate Monte Carlo loops that build a scenario per run."""
+    return Stereographic(lat0, lon0)
+
+
 def _planar_frame(p: dict) -> tuple[FrameSpec, Stereographic]:
     return (
         FrameSpec(kind=FrameKind.PLANAR, lat0=p["lat0"], lon0=p["lon0"]),
-        Stereographic(p["lat0"], p["lon0"]),
+        _plane(p["lat0"], p["lon0"]),
     )
 
 
@@ -369,7 +377,7 @@ _REGIONAL_PARAMS = {
     "mode_s_fraction": Param(0.8, "fraction of aircraft with a Mode-S address", in_range(0, 1)),
     "area_radius": Param(170_000.0, "radius of the traffic area around the centre, m", positive),
     "airborne_fraction": Param(
-        0.4, "fraction of aircraft already airborne at t = 0", in_range(0, 1)
+        0.6, "fraction of aircraft (not departures) already airborne at t = 0", in_range(0, 1)
     ),
 }
 
@@ -430,7 +438,12 @@ def _regional_routes(
             b.fly_to(pt[0], pt[1], alt, g_load=g_load, max_climb_rate=max_climb)
         route_time = b.t
         if kind != "dep" and rng.random() < airborne_fraction:
-            shift = -rng.uniform(0.05, 0.7) * route_time  # mid-route at t = 0
+            # already in the air at t = 0; a third of them leave (or land) during the run
+            if rng.random() < 0.35:
+                remaining = rng.uniform(0.1, 0.9) * duration
+            else:
+                remaining = rng.uniform(duration, max(duration, route_time))
+            shift = min(remaining, route_time) - route_time
             birth = 0.0
         else:
             shift = rng.uniform(0.0, 0.8 * duration)
@@ -448,7 +461,7 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
     radars = _REGIONAL_RADARS[: p["radars"]]
     lat_c = float(np.mean([r.lat for r in radars]))
     lon_c = float(np.mean([r.lon for r in radars]))
-    plane = Stereographic(lat_c, lon_c)
+    plane = _plane(lat_c, lon_c)
     frame = FrameSpec(kind=FrameKind.STEREOGRAPHIC, lat0=lat_c, lon0=lon_c)
     quantum = p["altitude_quantum_ft"] * FT
     sensors = []
