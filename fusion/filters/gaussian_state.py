@@ -19,8 +19,11 @@ class GaussianState:
 
     def __post_init__(self) -> None:
         self.x = np.atleast_2d(np.asarray(self.x, float))
-        self.P = np.asarray(self.P, float).reshape(self.x.shape[0], self.x.shape[1], -1)
-        if self.P.shape[-1] != self.x.shape[1]:
+        self.P = np.asarray(self.P, float)
+        d = self.x.shape[1]
+        if self.P.shape != (self.x.shape[0], d, d):
+            self.P = self.P.reshape(self.x.shape[0], d, d)
+        if self.P.shape[-1] != d:
             raise ValueError(f"P has shape {self.P.shape} but x has shape {self.x.shape}")
 
     def __len__(self) -> int:

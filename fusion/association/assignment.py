@@ -1,0 +1,164 @@
+"""Optimal track-to-plot assignment with "no assignment" options (spec 01 §6).
+
+Problem: minimise Σ cost[i, a(i)] over assignments where each track i takes at most one
+plot and each plot at most one track; a track left unassigned costs ``miss_cost[i]``;
+cost = +inf marks forbidden pairs (outside the gate). Two solvers give the same optimum:
+
+* :func:`assign_jv` — scipy's ``linear_sum_assignment`` (Jonker-Volgenant family) on the
+  n × (k + n) matrix [cost | diag(miss_cost)] with +inf off the diagonal of the dummy
+  "no assignment" block;
+* :func:`assign_auction` — Bertsekas' forward auction with ε-scaling on the square
+  (n + k) augmented problem [[cost, diag(miss)], [diag(0), D]] (a dummy person per plot
+  so that the problem is symmetric and the forward auction is exact; D links plot j's
+  dummy to the dummies of the tracks gating plot j). With final ε the total cost is
+  within (n + k)·ε of the optimum (ε-complementary slackness).
+
+Use :func:`split_clusters` to solve independent clusters of the gating graph separately.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+EPS_FINAL_RELATIVE = 1e-7
+"""Default final ε of the auction, relative to the cost scale C and divided by n + k + 1:
+the auction's total cost is then within ~1e-7·C of the optimum."""
+
+
+@dataclass
+class Assignment:
+    """track_to_plot[i] = plot index or −1; total cost including miss costs."""
+
+    track_to_plot: np.ndarray
+    total_cost: float
+
+    @property
+    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        t = np.flatnonzero(self.track_to_plot >= 0)
+        return t, self.track_to_plot[t]
+
+
+def _check(cost, miss_cost):
+    cost = np.asarray(cost, float)
+    if cost.ndim != 2:
+        raise ValueError(f"cost has shape {cost.shape}: must be (n_tracks, n_plots)")
+    n = cost.shape[0]
+    miss = np.broadcast_to(np.asarray(miss_cost, float), (n,))
+    if not np.isfinite(miss).all():
+        raise ValueError("miss_cost must be finite for every track")
+    if np.isnan(cost).any() or np.isneginf(cost).any():
+        raise ValueError("cost has NaN or -inf entries (use +inf for forbidden pairs)")
+    return cost, miss
+
+
+def total_cost(cost, miss_cost, track_to_plot) -> float:
+    cost, miss = _check(cost, miss_cost)
+    t2p = np.asarray(track_to_plot)
+    on = t2p >= 0
+    return float(cost[np.flatnonzero(on), t2p[on]].sum() + miss[~on].sum())
+
+
+def assign_jv(cost, miss_cost) -> Assignment:
+    """Optimal assignment with scipy.optimize.linear_sum_assignment and dummy columns."""
+    cost, miss = _check(cost, miss_cost)
+    n, k = cost.shape
+    if n == 0:
+        return Assignment(np.zeros(0, int), 0.0)
+    big = np.full((n, k + n), np.inf)
+    big[:, :k] = cost
+    big[np.arange(n), k + np.arange(n)] = miss
+    rows, cols = linear_sum_assignment(big)
+    t2p = np.full(n, -1)
+    real = cols < k
+    t2p[rows[real]] = cols[real]
+    return Assignment(t2p, total_cost(cost, miss, t2p))
+
+
+def assign_auction(
+    cost, miss_cost, *, eps_final: float | None = None, scaling: float = 6.0
+) -> Assignment:
+    """Forward auction (Gauss-Seidel bidding) with ε-scaling (Bertsekas 1988/1992).
+
+    The square augmented problem has persons = n tracks + k plot-dummies and objects =
+    k plots + n track-dummies. Arcs: track i → its gated plots and its own dummy; plot-
+    dummy j → plot j (plot unassigned) and the dummies of the tracks that gate plot j
+    (enough for every feasible track assignment to complete, and sparse, which avoids
+    price wars among equal-benefit dummy arcs). Bids run over these sparse arc lists.
+
+    eps_final: final ε; default EPS_FINAL_RELATIVE · C / (n + k + 1) with
+    C = max(1, max |finite cost|, max miss cost), so the total cost is within
+    EPS_FINAL_RELATIVE · C of the optimum. scaling: ε divisor between phases."""
+    cost, miss = _check(cost, miss_cost)
+    n, k = cost.shape
+    if n == 0:
+        return Assignment(np.zeros(0, int), 0.0)
+    N = n + k
+    fin = np.isfinite(cost)
+    # sparse arc lists as plain Python lists: bids touch a handful of arcs each, where
+    # list arithmetic beats NumPy's per-call overhead
+    cols: list[list[int]] = []
+    bens: list[list[float]] = []
+    for i in range(n):  # tracks
+        js = np.flatnonzero(fin[i])
+        cols.append([*js.tolist(), k + i])
+        bens.append([*(-cost[i, js]).tolist(), -float(miss[i])])
+    for j in range(k):  # plot dummies
+        ts = np.flatnonzero(fin[:, j])
+        cols.append([j, *(k + ts).tolist()])
+        bens.append([0.0] * (1 + ts.size))
+    C = max(1.0, float(np.abs(cost[fin]).max(initial=0.0)), float(np.abs(miss).max()))
+    if eps_final is None:
+        eps_final = EPS_FINAL_RELATIVE * C / (N + 1)
+    big_step = 2.0 * C * (N + 1) + 1.0
+    price = [0.0] * N
+    eps = max(C / 4.0, eps_final)
+    ninf = -math.inf
+    while True:
+        owner = [-1] * N
+        assigned = [-1] * N
+        unassigned = list(range(N - 1, -1, -1))
+        while unassigned:
+            i = unassigned.pop()
+            best, second, jbest = ninf, ninf, -1
+            for c, b in zip(cols[i], bens[i]):
+                v = b - price[c]
+                if v > best:
+                    best, second, jbest = v, best, c
+                elif v > second:
+                    second = v
+            price[jbest] += big_step if second == ninf else best - second + eps
+            prev = owner[jbest]
+            owner[jbest] = i
+            assigned[i] = jbest
+            if prev >= 0:
+                assigned[prev] = -1
+                unassigned.append(prev)
+        if eps <= eps_final:
+            break
+        eps = max(eps / scaling, eps_final)
+    assigned = np.asarray(assigned)
+    t2p = assigned[:n].copy()
+    t2p[t2p >= k] = -1
+    return Assignment(t2p, total_cost(cost, miss, t2p))
+
+
+def split_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: int):
+    """Independent clusters of the gating graph (tracks linked through shared plots).
+
+    Returns a list of (track_indices, plot_indices); tracks without any valid plot form
+    no cluster (they are simply unassigned)."""
+    if track.size == 0:
+        return []
+    g = coo_matrix((np.ones(track.size), (track, n_tracks + plot)), shape=(n_tracks + n_plots,) * 2)
+    _, labels = connected_components(g, directed=False)
+    out = []
+    tl, pl = labels[:n_tracks], labels[n_tracks:]
+    for lab in np.unique(labels[track]):
+        out.append((np.flatnonzero(tl == lab), np.flatnonzero(pl == lab)))
+    return out

@@ -1,0 +1,184 @@
+"""Global-nearest-neighbour (GNN) multi-target tracker: the baseline of spec 01 §6-7.
+
+Per scan (all plots of one antenna revolution, converted to the system frame):
+
+1. predict every track to the scan time (one common time per scan: the baseline's
+   simplification);
+2. gate all track × plot pairs (:func:`fusion.association.gating.gate`, chi-square gate
+   from P_G and the measurement dimension, cheap box pre-gate);
+3. cost d² + ln det S (003 eq. 20), "no assignment" at the gate-edge cost G + ln det S_i
+   (so any gated plot beats leaving the track empty), independent clusters solved by the
+   auction algorithm (default) or scipy's Jonker-Volgenant — same optimum;
+4. update assigned tracks; life cycle (003: update, initialise, delete): unassigned plots
+   start tentative tracks (one-point initiation); a tentative track is confirmed with M
+   hits in its first N scans (M-of-N) and deleted when that can no longer happen; a
+   confirmed track is deleted after ``max_misses`` consecutive misses.
+
+The filter is any object with the :class:`fusion.filters.ModelFilter` / :class:`IMM`
+interface (``initiate``, ``predict``, ``predict_measurement``, ``update``, ``position``);
+the state of all tracks is one batched filter state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..filters import IMM, GaussianState, IMMState
+from .assignment import assign_auction, assign_jv, split_clusters
+from .gating import gate, gate_threshold
+
+TENTATIVE, CONFIRMED = 0, 1
+
+
+@dataclass(frozen=True)
+class GNNConfig:
+    p_gate: float = 0.9997
+    confirm_m: int = 2
+    confirm_n: int = 3
+    max_misses: int = 3
+    solver: str = "auction"
+    velocity_sigma: float = 350.0
+    acceleration_sigma: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.solver not in ("auction", "jv"):
+            raise ValueError(f"solver = {self.solver!r}: must be 'auction' or 'jv'")
+        if not 1 <= self.confirm_m <= self.confirm_n:
+            raise ValueError(
+                f"confirm_m = {self.confirm_m}, confirm_n = {self.confirm_n}: need 1 <= M <= N"
+            )
+        if self.max_misses < 1:
+            raise ValueError(f"max_misses = {self.max_misses}: must be >= 1")
+
+
+@dataclass
+class ScanReport:
+    """What happened in one scan: track ids and their assigned plot (−1: none)."""
+
+    time: float
+    track_ids: np.ndarray
+    assigned_plot: np.ndarray
+    born: list[int] = field(default_factory=list)
+    confirmed: list[int] = field(default_factory=list)
+    deleted: list[int] = field(default_factory=list)
+    n_gated_pairs: int = 0
+
+
+class GNNTracker:
+    """GNN tracker over a batched filter. ``filt``: ModelFilter or IMM."""
+
+    def __init__(self, filt, config: GNNConfig | None = None) -> None:
+        self.filt = filt
+        self.cfg = config or GNNConfig()
+        self._solve = assign_auction if self.cfg.solver == "auction" else assign_jv
+        self.state = None
+        self.ids = np.zeros(0, int)
+        self.status = np.zeros(0, int)
+        self.hits = np.zeros(0, int)
+        self.age = np.zeros(0, int)  # scans since birth (birth scan = 1)
+        self.misses = np.zeros(0, int)
+        self.time: float | None = None
+        self._next_id = 0
+
+    def __len__(self) -> int:
+        return self.ids.size
+
+    # --- state helpers -----------------------------------------------------------------
+    def _concat(self, a, b):
+        if a is None or len(a) == 0:
+            return b
+        return (IMMState if isinstance(self.filt, IMM) else GaussianState).concat([a, b])
+
+    def _keep(self, mask):
+        self.state = self.state.take(np.flatnonzero(mask)) if self.state is not None else None
+        for name in ("ids", "status", "hits", "age", "misses"):
+            setattr(self, name, getattr(self, name)[mask])
+
+    def estimates(self) -> GaussianState:
+        """Current estimates of all tracks (IMM: combined, common format)."""
+        if isinstance(self.filt, IMM):
+            return self.filt.estimate(self.state)
+        return self.state
+
+    def positions(self) -> np.ndarray:
+        if self.state is None or len(self.state) == 0:
+            return np.zeros((0, 2))
+        return self.filt.position(self.state)
+
+    # --- one scan ----------------------------------------------------------------------
+    def step(self, z: np.ndarray, R: np.ndarray, time_s: float) -> ScanReport:
+        """Process the plots of one scan: z (k, m), R (k, m, m) in the system frame, all
+        taken at ``time_s`` seconds."""
+        z = np.asarray(z, float).reshape(-1, np.shape(z)[-1] if np.ndim(z) == 2 else 2)
+        k, m = z.shape
+        R = np.asarray(R, float).reshape(k, m, m)
+        n = self.ids.size
+        assigned_plot = np.full(n, -1)
+        n_gated = 0
+        if n:
+            dt = time_s - self.time
+            self.state = self.filt.predict(self.state, dt)
+            zero_R = np.zeros((n, m, m))
+            pred = self.filt.predict_measurement(self.state, zero_R)
+            zhat, HPH = pred[0], pred[1]
+            G = gate_threshold(self.cfg.p_gate, m)
+            g = gate(zhat, HPH, z, G, R)
+            n_gated = g.track.size
+            # miss cost: the gate-edge cost with the track's own S (plot R at its mean)
+            Rbar = R.mean(axis=0) if k else np.zeros((m, m))
+            miss = G + np.linalg.slogdet(HPH + Rbar)[1]
+            for tr, pl in split_clusters(g.track, g.plot, n, k):
+                sel = np.isin(g.track, tr) & np.isin(g.plot, pl)
+                C = np.full((tr.size, pl.size), np.inf)
+                C[np.searchsorted(tr, g.track[sel]), np.searchsorted(pl, g.plot[sel])] = g.cost[sel]
+                a = self._solve(C, miss[tr])
+                ok = a.track_to_plot >= 0
+                assigned_plot[tr[ok]] = pl[a.track_to_plot[ok]]
+            upd = np.flatnonzero(assigned_plot >= 0)
+            if upd.size:
+                sub = self.state.take(upd)
+                zi, Ri = z[assigned_plot[upd]], R[assigned_plot[upd]]
+                out = self.filt.update(sub, zi, Ri)
+                self.state.put(upd, out[0])
+            hit = assigned_plot >= 0
+            self.age += 1
+            self.hits += hit
+            self.misses = np.where(hit, 0, self.misses + 1)
+        report = ScanReport(time_s, self.ids.copy(), assigned_plot.copy(), n_gated_pairs=n_gated)
+        # life cycle: confirm, delete
+        if n:
+            cfg = self.cfg
+            newly = (self.status == TENTATIVE) & (self.hits >= cfg.confirm_m)
+            self.status[newly] = CONFIRMED
+            report.confirmed = self.ids[newly].tolist()
+            hopeless = (self.status == TENTATIVE) & (
+                self.hits + np.maximum(cfg.confirm_n - self.age, 0) < cfg.confirm_m
+            )
+            lost = (self.status == CONFIRMED) & (self.misses >= cfg.max_misses)
+            dead = hopeless | lost
+            report.deleted = self.ids[dead].tolist()
+            self._keep(~dead)
+        # initiation from unassigned plots
+        used = np.zeros(k, bool)
+        used[assigned_plot[assigned_plot >= 0]] = True
+        free = np.flatnonzero(~used)
+        if free.size:
+            new = self.filt.initiate(
+                z[free],
+                R[free],
+                velocity_sigma=self.cfg.velocity_sigma,
+                acceleration_sigma=self.cfg.acceleration_sigma,
+            )
+            self.state = self._concat(self.state, new)
+            ids = np.arange(self._next_id, self._next_id + free.size)
+            self._next_id += free.size
+            self.ids = np.concatenate([self.ids, ids])
+            self.status = np.concatenate([self.status, np.full(free.size, TENTATIVE)])
+            self.hits = np.concatenate([self.hits, np.ones(free.size, int)])
+            self.age = np.concatenate([self.age, np.ones(free.size, int)])
+            self.misses = np.concatenate([self.misses, np.zeros(free.size, int)])
+            report.born = ids.tolist()
+        self.time = time_s
+        return report
