@@ -97,7 +97,7 @@ def tracker_config(args: argparse.Namespace):
 def make_pipeline_factory(tracker_cfg, fusion_id: str):
     """``frame -> pipeline``: the conversion + tracker + TrackBatch code path shared with
     ``skyfuse track``."""
-    from .track_pipeline import TrackPipeline
+    from fusion.tracker.pipeline import TrackPipeline
 
     def factory(frame):
         return TrackPipeline(frame, tracker_cfg, fusion_id=fusion_id)

@@ -320,6 +320,10 @@ class FusionCore:
             self._start_pipeline(r.site)
         try:
             tracks, events = self.pipeline.process(r.site, batch)
+        except ValidationError as e:  # the pipeline built an invalid output message
+            self.reject("tracker error", f"invalid output: {_detail(e)}")
+            log.error("tracker output invalid on radar %s seq %s: %s", batch.radar_id, batch.seq, e)
+            return None
         except ValueError as e:
             self.reject("batch not convertible", f"radar {batch.radar_id}: {e}")
             return None
@@ -362,7 +366,10 @@ class FusionCore:
             time=time.time_ns(),
             uptime_s=now - self.started,
             counters={**self.counters, "queued": len(self.buffer)},
-            rejected=dict(self.rejected),
+            rejected={
+                **self.rejected,
+                **{f"plot: {k}": v for k, v in getattr(self.pipeline, "rejected", {}).items()},
+            },
             radars=[
                 RadarHealth(
                     radar_id=r.radar_id,
