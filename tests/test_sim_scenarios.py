@@ -243,3 +243,13 @@ def test_start_time_parameter():
     first = next(s for s in Simulator(sc).scans())
     assert first.time_start == sc.start_time + 10**9
     assert math.isclose(build_scenario("thesis-mtt-5").start_time / 1e9, 1_767_225_600)
+
+
+def test_run_for_one_radar_gives_the_same_batches_as_the_full_run():
+    sc = build_scenario("regional", duration=24, seed=3)
+    full = [e for e in Simulator(sc).run() if e.kind != "truth"]
+    one = list(Simulator(sc).run(["LYVR"], truth=False))
+    want = [e for e in full if e.message.radar_id == "LYVR"]
+    assert [e.message.to_json_bytes() for e in one] == [e.message.to_json_bytes() for e in want]
+    with pytest.raises(ValueError, match="XXXX"):
+        list(Simulator(sc).run(["XXXX"]))

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -145,16 +145,27 @@ class Simulator:
             msg = self.truth_message(int(t))
             yield (int(t), _RANK["truth"], -1, j, SimEvent(int(t), "truth", keys.SIM_TRUTH, msg))
 
-    def run(self) -> Iterator[SimEvent]:
+    def run(self, radars: Iterable[str] | None = None, *, truth: bool = True) -> Iterator[SimEvent]:
         """All events in non-decreasing time: the sites at the start time, Truth every
         ``truth_period``, and every sensor's sector batches, each emitted when the beam
         leaves its sector (``time_end``; the cartesian sensor: at the scan time). Ties:
-        sites, then truth, then plots in sensor order."""
+        sites, then truth, then plots in sensor order.
+
+        ``radars`` restricts the sites and plots to those radar ids (e.g. one sensor
+        process publishing one radar; the other radars are then not simulated at all, and
+        the numbers are the same as in a full run); ``truth=False`` leaves out Truth."""
         sc = self.scenario
+        ids = [s.radar_id for s in sc.sensors]
+        wanted = set(ids) if radars is None else set(radars)
+        unknown = sorted(wanted - set(ids))
+        if unknown:
+            raise ValueError(f"radar_id {unknown[0]!r} is not in this scenario; radars: {ids}")
         for site in sc.sites:
-            yield SimEvent(sc.start_time, "site", keys.radar_site(site.radar_id), site)
-        streams = [self._plot_events(i) for i in range(len(sc.sensors))]
-        streams.append(self._truth_events())
+            if site.radar_id in wanted:
+                yield SimEvent(sc.start_time, "site", keys.radar_site(site.radar_id), site)
+        streams = [self._plot_events(i) for i, rid in enumerate(ids) if rid in wanted]
+        if truth:
+            streams.append(self._truth_events())
         for *_, ev in heapq.merge(*streams, key=lambda e: e[:4]):
             yield ev
 
