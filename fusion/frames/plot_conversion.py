@@ -142,7 +142,11 @@ def convert_plots(
     z = np.full((m, ndim), np.nan)
     R = np.full((m, ndim, ndim), np.nan)
     idx = np.flatnonzero(valid)
-    if idx.size:
+    if idx.size and site.kind is RadarKind.CARTESIAN and frame.kind is FrameKind.PLANAR:
+        # the plane is the frame: offsets from the site's plane position, R unchanged
+        z[idx] = (enu[idx] + site_pos)[:, :ndim]
+        R[idx] = C[idx][:, :ndim, :ndim]
+    elif idx.size:
         pos = frame.enu_to_frame(enu[idx], site.lat, site.lon, site.alt)
         Jf = frame.enu_jacobian(enu[idx], site.lat, site.lon, site.alt)
         Rf = Jf @ C[idx] @ np.swapaxes(Jf, -1, -2)
@@ -230,10 +234,7 @@ def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_eart
     # --- plots whose elevation comes from a height -------------------------------------
     i2 = np.flatnonzero(~use_elev & valid)
     if i2.size:
-        if frame.kind is FrameKind.PLANAR:
-            radius = np.full(i2.size, np.inf)
-        else:
-            radius = k_earth * normal_section_radius(site.lat, psi[i2])
+        radius = k_earth * normal_section_radius(site.lat, psi[i2])
         sol = elevation_from_altitude(D[i2], h[i2], site.alt, radius)
         bad = ~sol.feasible
         for j in np.flatnonzero(bad):
@@ -246,7 +247,7 @@ def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_eart
         keep = ~bad
         i2, theta = i2[keep], sol.theta[keep]
         dth_dD, dth_dh = sol.dtheta_dD[keep], sol.dtheta_dh[keep]
-        if i2.size and frame.kind is not FrameKind.PLANAR and k_earth == 1.0:
+        if i2.size and k_earth == 1.0:
             theta = _refine_elevation_on_ellipsoid(site, D[i2], psi[i2], h[i2], theta)
         # Jacobian of (D, ψ, h) → (e, n, u) through θ(D, h).
         Js = spherical_jacobian(D[i2], psi[i2], theta)

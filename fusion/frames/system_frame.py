@@ -10,10 +10,12 @@
   (x, y, z) = (east, north, up) of pymap3d's ENU at that point, i.e. exactly the NED
   frame of the wire convention (:class:`schemas.FrameKind`) with n = y, e = x, d = −z
   (:meth:`SystemFrame.to_ned`). For deployments under ~30 km (spec 01 §1).
-* ``planar`` — planar test scenarios where the plane *is* the frame: a radar's local
-  (east, north) offsets are added to the site's position without curvature, and z is
-  the height. Site positions come from the tangent plane at (lat0, lon0, alt0);
-  geodetic output goes through that tangent plane and is for display only.
+* ``planar`` — planar test scenarios where the plane *is* the frame (the simulator's
+  scenario plane): cartesian test sensors' (x, y) plots are plane offsets from the site's
+  plane position, added without curvature or rotation, with R = σ² I unchanged. The
+  plane is tied to the Earth as the simulator ties it (:mod:`fusion.sim`): the
+  stereographic plane at (lat0, lon0), so sites, polar radar plots and geodetic output
+  are converted exactly as in ``stereographic``; z is the height.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ class SystemFrame:
             raise ValueError(f"alt0 = {alt0}: must be finite metres")
         self.lat0, self.lon0, self.alt0 = float(lat0), float(lon0), float(alt0)
         self._sterea = (
-            Stereographic(self.lat0, self.lon0) if self.kind is FrameKind.STEREOGRAPHIC else None
+            Stereographic(self.lat0, self.lon0) if self.kind is not FrameKind.NED else None
         )
 
     # --- construction ------------------------------------------------------------------
@@ -101,10 +103,7 @@ class SystemFrame:
             x, y = self._sterea.forward(lat, lon)
             return x, y, np.array(alt, dtype=float, copy=True)
         e, n, u = pymap3d.geodetic2enu(lat, lon, alt, self.lat0, self.lon0, self.alt0)
-        e, n, u = (np.asarray(a, float) for a in (e, n, u))
-        if self.kind is FrameKind.PLANAR:
-            return e, n, u + self.alt0
-        return e, n, u
+        return tuple(np.asarray(a, float) for a in (e, n, u))
 
     def to_geodetic(self, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Frame (x east, y north, z up), m → geodetic (lat deg, lon deg, alt m)."""
@@ -112,8 +111,7 @@ class SystemFrame:
         if self._sterea is not None:
             lat, lon = self._sterea.inverse(x, y)
             return lat, lon, np.array(z, dtype=float, copy=True)
-        u = z - self.alt0 if self.kind is FrameKind.PLANAR else z
-        lat, lon, alt = pymap3d.enu2geodetic(x, y, u, self.lat0, self.lon0, self.alt0)
+        lat, lon, alt = pymap3d.enu2geodetic(x, y, z, self.lat0, self.lon0, self.alt0)
         return tuple(np.asarray(a, float) for a in (lat, lon, alt))
 
     def to_ned(self, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -127,26 +125,21 @@ class SystemFrame:
     def enu_to_frame(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
         """Points given in the local ENU frame of a site (m, 3) → frame positions (m, 3).
 
-        ``planar``: flat translation by the site position (no curvature);
         ``ned``: exact affine map ENU(site) → ECEF → ENU(reference);
-        ``stereographic``: ENU(site) → geodetic (pymap3d) → sterea plane + height."""
+        ``stereographic``/``planar``: ENU(site) → geodetic (pymap3d) → sterea plane + height.
+        """
         enu = np.asarray(enu, float).reshape(-1, 3)
-        if self.kind is FrameKind.PLANAR:
-            return enu + self.site_position(lat_s, lon_s, alt_s)
         lat, lon, alt = pymap3d.enu2geodetic(enu[:, 0], enu[:, 1], enu[:, 2], lat_s, lon_s, alt_s)
         return np.stack(self.from_geodetic(lat, lon, alt), axis=-1)
 
     def enu_jacobian(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
         """∂(x, y, z)/∂(e, n, u) of :meth:`enu_to_frame` at the given site-ENU points, (m, 3, 3).
 
-        ``planar``: identity; ``ned``: the constant rotation R_ref R_siteᵀ (exact);
-        ``stereographic``: central differences (±1 m) through pymap3d and pyproj — to
-        first order a rotation by the grid convergence and a scale by the point scale
-        factor (spec 01 §3), with truncation error ~1e-13 relative."""
+        ``ned``: the constant rotation R_ref R_siteᵀ (exact); ``stereographic``/``planar``:
+        central differences (±1 m) through pymap3d and pyproj — to first order a rotation
+        by the grid convergence and a scale by the point scale factor (spec 01 §3)."""
         enu = np.asarray(enu, float).reshape(-1, 3)
         m = enu.shape[0]
-        if self.kind is FrameKind.PLANAR:
-            return np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
         if self.kind is FrameKind.NED:
             rot = enu_to_enu_rotation(lat_s, lon_s, self.lat0, self.lon0)
             return np.broadcast_to(rot, (m, 3, 3)).copy()
