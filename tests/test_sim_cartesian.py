@@ -107,3 +107,19 @@ def test_thesis_stt_process_noise_has_the_discrete_white_acceleration_covariance
         s2 = (dev[:, j] ** 2).sum() / P[j, j]
         lo, hi = stats.chi2.ppf([0.0005, 0.9995], len(dev))
         assert lo <= s2 <= hi
+
+
+def test_batched_snapshot_path_equals_the_per_scan_path():
+    from fusion.sim.cartesian import cartesian_scan
+
+    sc = build_scenario("thesis-stt", seed=2, clutter_density=1e-5)
+    sim = Simulator(sc, seed=7)
+    fast = list(sim.scans())
+    rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, 0)))
+    cfg = sc.sensors[0]
+    slow = [cartesian_scan(cfg, k, sc.targets, rng, sc.start_time) for k in cfg.scans_in(50.0)]
+    assert len(fast) == len(slow) == 50
+    for a, b in zip(fast, slow):
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.y, b.y)
+        np.testing.assert_array_equal(a.target_id, b.target_id)

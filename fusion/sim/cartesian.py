@@ -19,13 +19,23 @@ def cartesian_scan(
     rng: np.random.Generator,
     start_time_ns: int,
     radar_index: int = 0,
+    truth: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> ScanData:
     """Plots of scan ``k`` (all at time ``cfg.scan_time(k)``), in random order so the
-    order never reveals which plot is a target. x/y in m in the scenario plane."""
+    order never reveals which plot is a target. x/y in m in the scenario plane.
+
+    ``truth`` optionally gives the precomputed (alive mask (n,), positions (n, 3)) of all
+    targets at the scan time (the simulator computes all scans at once)."""
     site = cfg.site
     t = cfg.scan_time(k)
-    idx = np.flatnonzero(targets.alive(t))
-    pos, _ = targets.state(t, idx)
+    if truth is None:
+        alive_all = targets.alive(t)
+        idx = np.flatnonzero(alive_all)
+        pos, _ = targets.state(t, idx)
+    else:
+        alive_all, pos_all = truth
+        idx = np.flatnonzero(alive_all)
+        pos = pos_all[idx]
     u_det = rng.random(idx.size)
     noise = rng.standard_normal((idx.size, 2))
     det = u_det < site.p_detection
