@@ -1,10 +1,34 @@
 """Named scenarios (values from ``shared/spec``; ambiguous values are parameters).
 
+* ``thesis-stt`` (spec 03 §3.1, 02 §10): one target from x₀ = [100, 16, 100, 4] (m, m/s),
+  T = 1 s, 50 scans, P_D = 0.6, R = 25 I. Clutter: the 900 × 900 m area is split at
+  x = 333.3 m into a weak region [0, 333.3] × [0, 900] (2e-5 m⁻², area 3.0e5 m², ≈6 per
+  scan) and a strong one [333.3, 900] × [0, 900] (2e-4 m⁻², 5.1e5 m², ≈102 per scan): the
+  target starts in weak clutter and enters the strong region at t ≈ 14.6 s. Truth process
+  noise q = 0.75 (spec 03 §3.1 "truth per (7.2), q = 0.75"; q = 0 gives the straight
+  line through (900, 300) at scan 50).
+* ``thesis-mtt-5/-15/-50`` (spec 03 §3.2): 1000 × 1000 m, centre (500, 500); targets start
+  R₀ = 500 m out (475 m at scan 1), fly inward at 25 m/s, cross the centre at scan 20;
+  spacing 10° (7° for 50); per-run velocity noise σ_v = √50/20 m/s per axis; P_D = 0.8,
+  R = 25 I, 40 scans, clutter 0 (parameter ``clutter_density``).
+* ``lm-ipf-2/-15`` (spec 04 A.4): start on r = 450 m, 20°/10° apart, fly straight through
+  c + δ, δ ~ N(0, 2R), at scan 20 (22.5 m/s nominal); the trajectories depend only on
+  ``trajectory_seed`` (default 0), the same in every run.
+* ``crossing-4g`` (spec 01 §7): one radar at the plane origin (2d by default, σ_r = 20 m,
+  σ_θ = 2.5 mrad, T = 4 s), two targets 50 km out at azimuths 45° and 46.1° flying at
+  311 m/s towards it, opposite 4 g turns (each towards the other) from 34 to 42 s, so
+  they cross at ≈38 s; 72 s.
+* ``regional``: 4 radars at airport reference points (Beograd LYBE 3d 4 s, Vršac LYVR 2d
+  8 s, Timișoara LRTR 2d 10 s, Novi Sad 3d 12 s; 62-137 km apart), stereographic system
+  plane at their mean position; overflights with turning waypoints, climbs and descents,
+  arrivals landing at and departures climbing out of Beograd; some airborne at t = 0,
+  others entering, some leaving or landing during the run; Mode-S on 80% of them;
+  uniform clutter plus a ground-clutter ring around each radar; horizon test at 0°.
+
 Scan numbering of the planar thesis scenarios follows the spec: scan k (k = 1..K) is a
 snapshot at t = k·T after the scenario start, and the targets' initial states are at
-t = 0 (so thesis-stt is at (900, 300) at scan 50 without process noise, and the
-thesis-mtt / lm-ipf targets are at the centre at scan 20). Polar radars number their
-revolutions from 0.
+t = 0 (so thesis-stt with q = 0 is at (900, 300) at scan 50, and the thesis-mtt / lm-ipf
+targets are at the centre at scan 20). Polar radars number their revolutions from 0.
 
 Randomness: the *trajectory* generator is seeded from ``seed`` (stream 0 of
 ``SeedSequence(seed)``), except for lm-ipf whose trajectories use ``trajectory_seed``
@@ -506,7 +530,7 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
         p["airborne_fraction"],
     )
     has_mode_s = rng.random(n) < p["mode_s_fraction"]
-    addresses = rng.choice(np.arange(1, 1 << 24), size=n, replace=False)
+    addresses = 1 + rng.choice((1 << 24) - 1, size=n, replace=False)  # unique, 24-bit, != 0
     squawks = rng.integers(0o1000, 0o7000, n)
     targets = TargetSet.from_builders(
         builders,
