@@ -3,8 +3,8 @@
 Every track is a Gaussian mixture {ξ^c, x̂^c, P^c, h^c}. All components of all tracks
 live in one :class:`Mixture`: ``track`` (C,) says which track row a component belongs to,
 ``hist`` (C, N) holds the ids of the plots the component used over the last N scans
-(0 = no plot), most recent first. Grouped sums run as one sparse-matrix product, so no
-Python loop touches a component.
+(0 = no plot), most recent first. Grouped sums are ``np.bincount`` calls over columns,
+so no Python loop runs over components.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 
 @dataclass
@@ -52,18 +51,15 @@ class Mixture:
         )
 
 
-def group_matrix(group: np.ndarray, ngroups: int, weights: np.ndarray | None = None):
-    """Sparse (ngroups, C) matrix M with M[group[c], c] = weights[c] (1 by default)."""
-    C = len(group)
-    data = np.ones(C) if weights is None else weights
-    return sp.csr_matrix((data, (group, np.arange(C))), shape=(ngroups, C))
-
-
 def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
-    """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...)."""
+    """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
+
+    One ``np.bincount`` per flattened column: linear in C, no per-component Python."""
     flat = values.reshape(len(values), -1)
-    out = group_matrix(group, ngroups) @ flat
-    return np.asarray(out).reshape((ngroups, *values.shape[1:]))
+    out = np.empty((ngroups, flat.shape[1]))
+    for j in range(flat.shape[1]):
+        out[:, j] = np.bincount(group, weights=flat[:, j], minlength=ngroups)
+    return out.reshape((ngroups, *values.shape[1:]))
 
 
 def moment_match(
