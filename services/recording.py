@@ -10,6 +10,7 @@ truncation instead of failing.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import struct
@@ -31,8 +32,9 @@ log = logging.getLogger(__name__)
 SCHEMA_PREFIX = "skyfuse."
 
 
+@functools.cache
 def json_schema_bytes(model: type[WireModel]) -> bytes:
-    """The model's JSON Schema, as stored in MCAP schema records."""
+    """The model's JSON Schema, as stored in MCAP schema records (computed once per model)."""
     return json.dumps(model.model_json_schema(), separators=(",", ":")).encode()
 
 
