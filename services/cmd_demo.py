@@ -79,7 +79,9 @@ def run(args: argparse.Namespace) -> int:
     live = sys.stderr.isatty() if cfg.live is None else cfg.live
     try:
         with open_session(TransportConfig(mode="peer", listen=[listen])) as session:
-            interrupted, failed = orchestrate(session, cfg, sc, listen, out, workdir, stop, live)
+            interrupted, failed, children = orchestrate(
+                session, cfg, sc, listen, out, workdir, stop, live
+            )
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED
@@ -99,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
             "png": str(png),
             "interrupted": interrupted,
             "failed_services": failed,
+            "services": {c.name: {"exit_code": c.rc, "stop_s": c.stop_s} for c in children},
         }
     )
     try:
@@ -115,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
-    """Start, watch and stop the services; return (interrupted, failed service names)."""
+    """Start, watch and stop the services; return (interrupted, failed service names,
+    the children)."""
     radars = [s.radar_id for s in sc.sites][: cfg.radars]
     common = ["--connect", listen, "--no-multicast"]
     scen = [
@@ -160,7 +164,7 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
         if missing and not stop.is_set():
             failed += [c.name for c in children if c.poll() is not None] or ["startup"]
             log.error("services did not come up: %s", missing)
-            return False, failed
+            return False, failed, children
         start_at = time.time() + cfg.start_margin
         for i, r in enumerate(radars):
             extra = ["--truth"] if i == 0 else []
@@ -215,7 +219,7 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
                 log.error("%s exited with %s:\n%s", c.name, c.rc, c.tail())
             if c.stop_s is not None:
                 log.info("%s stopped in %.2f s (exit %s)", c.name, c.stop_s, c.rc)
-    return interrupted, failed
+    return interrupted, failed, children
 
 
 def _foxglove(cfg: DemoConfig):

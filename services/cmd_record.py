@@ -17,6 +17,7 @@ from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from .recorder import Recorder, RecorderConfig
 from .transport import (
     Inbox,
+    Received,
     TransportError,
     add_transport_arguments,
     declare_liveliness,
@@ -27,6 +28,13 @@ from .transport import (
 )
 
 log = logging.getLogger("skyfuse.record")
+
+
+def keys_match(key_expr: str, key: str) -> bool:
+    """Whether the concrete ``key`` is matched by ``key_expr``."""
+    import zenoh
+
+    return zenoh.KeyExpr(key_expr).intersects(zenoh.KeyExpr(key))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,9 +66,13 @@ def run(args: argparse.Namespace) -> int:
 
 def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
     rec = Recorder(cfg, metadata={"command": "skyfuse record", "key_expr": cfg.key_expr})
-    inbox = Inbox()
-    inbox.subscribe(session, cfg.key_expr, "data")
-    status_pub = declare_publisher(session, keys.service_status(cfg.name))
+    # a small inbox: a recorder that falls behind slows the (BLOCK) publishers down
+    # instead of piling up messages it could not write before a shutdown deadline
+    inbox = Inbox(capacity=cfg.queue)
+    # remote only: our own Status is written directly (see below), never through the inbox
+    inbox.subscribe(session, cfg.key_expr, "data", remote_only=True)
+    status_key = keys.service_status(cfg.name)
+    status_pub = declare_publisher(session, status_key)
     token = declare_liveliness(session, service_alive_key(cfg.name))
     start_wall = time.time_ns()
     t0 = time.monotonic()
@@ -91,12 +103,23 @@ def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
                     },
                     rejected=dict(rec.rejected),
                 )
-                status_pub.put(st.to_json_bytes())
+                payload = st.to_json_bytes()
+                status_pub.put(payload)
+                if keys_match(cfg.key_expr, status_key):
+                    rec.handle(Received("data", status_key, payload, True, st.time))
     finally:
         token.undeclare()
         inbox.close()
-        for item in inbox.drain(10_000_000):
+        deadline = time.monotonic() + max(0.5, stop.grace - 2.0)
+        left = inbox.drain(10_000_000)
+        for i, item in enumerate(left):
+            if time.monotonic() > deadline:
+                rec.rejected["not written: shutdown deadline"] += len(left) - i
+                log.error("shutdown deadline: %d received messages not written", len(left) - i)
+                break
             rec.handle(item)
+        if inbox.discarded:
+            rec.rejected["not written: arrived after the stop"] += inbox.discarded
         files = rec.close()
         summary = rec.summary()
         log.info(

@@ -21,9 +21,11 @@ Exit codes (shared by every ``skyfuse`` command):
 
 from __future__ import annotations
 
+import faulthandler
 import logging
 import os
 import signal
+import socket
 import sys
 import threading
 import time
@@ -64,7 +66,7 @@ class StopFlag:
         log.error("shutdown did not finish within %.1f s: forcing exit", self.grace)
         _hard_exit(EXIT_SHUTDOWN_TIMEOUT)
 
-    def _handler(self, signum: int, frame: FrameType | None) -> None:
+    def _on_signal(self, signum: int) -> None:
         self._count += 1
         name = signal.Signals(signum).name
         if self._count == 1:
@@ -75,17 +77,52 @@ class StopFlag:
             _hard_exit(EXIT_SHUTDOWN_TIMEOUT)
         self.set(signum)
 
+    @staticmethod
+    def _python_handler(signum: int, frame: FrameType | None) -> None:
+        """Python-level handler: only there so SIGINT raises no KeyboardInterrupt; the
+        work is done by the wakeup thread."""
+
+    def _wakeup_loop(self, sock: socket.socket) -> None:
+        while True:
+            try:
+                data = sock.recv(64)
+            except OSError:
+                return
+            if not data:
+                return
+            for signum in data:
+                if signum in (signal.SIGINT, signal.SIGTERM):
+                    self._on_signal(signum)
+
     def install(self) -> StopFlag:
-        """Install the SIGINT/SIGTERM handlers (main thread only); returns ``self``."""
+        """Install the SIGINT/SIGTERM handling (main thread only); returns ``self``.
+
+        The C-level signal handler writes the signal number to a socket (``set_wakeup_fd``)
+        that a thread reads: the stop request (and the shutdown watchdog) therefore work
+        even while the main thread is blocked inside a native call, where Python-level
+        handlers cannot run."""
         if threading.current_thread() is not threading.main_thread():
             return self
+        # `kill -USR1 PID` prints every thread's stack to stderr, even if one holds the GIL
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
+        r, w = socket.socketpair()
+        w.setblocking(False)
+        self._sockets = (r, w)
+        self._previous_fd = signal.set_wakeup_fd(w.fileno(), warn_on_full_buffer=False)
+        threading.Thread(
+            target=self._wakeup_loop, args=(r,), name="signal-wakeup", daemon=True
+        ).start()
         for sig in (signal.SIGINT, signal.SIGTERM):
-            self._previous[sig] = signal.signal(sig, self._handler)
+            self._previous[sig] = signal.signal(sig, self._python_handler)
         return self
 
     def restore(self) -> None:
         for sig, h in self._previous.items():
             signal.signal(sig, h)
+        if self._previous:
+            signal.set_wakeup_fd(self._previous_fd)
+            for sock in self._sockets:
+                sock.close()
         self._previous.clear()
 
     def __enter__(self) -> StopFlag:

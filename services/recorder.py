@@ -34,7 +34,7 @@ from pydantic import BaseModel, Field, ValidationError
 import schemas
 from schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
 
-from .recording import RecordingWriter
+from .recording import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from .transport import Received
 
 log = logging.getLogger(__name__)
@@ -66,6 +66,9 @@ class RecorderConfig(BaseModel):
     name: str = Field("recorder", pattern=keys.ID_PATTERN, description="Service id")
     duration: float | None = Field(None, gt=0, description="Stop after this many seconds")
     status_interval: float = Field(2.0, gt=0, description="Status publication period, s")
+    queue: int = Field(
+        2000, ge=10, le=1_000_000, description="Messages received but not yet written, at most"
+    )
     stats: Path | None = Field(None, description="Write a JSON summary here at exit")
 
 
@@ -73,32 +76,41 @@ def _stamp(ns: int) -> fg.Timestamp:
     return fg.Timestamp(sec=int(ns // 1_000_000_000), nsec=int(ns % 1_000_000_000))
 
 
-def plot_positions(batch: PlotBatch, site: RadarSite) -> tuple[np.ndarray, ...]:
-    """Approximate WGS-84 (lat°, lon°, h m) of a batch's plots, for display only.
+def plot_positions(
+    batch: PlotBatch | list[PlotBatch], site: RadarSite
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Approximate WGS-84 (lat°, lon°, h m) of the plots of one or more batches of a radar,
+    for display only.
 
     Polar plots use ``pymap3d.aer2geodetic`` from the site; a 2-D radar's elevation is
     taken as ``asin((altitude - site.alt) / range)`` (flat earth; 0 if unknown);
     cartesian plots are ENU offsets at the site."""
-    if batch.x is not None:
-        e = batch.column("x")
-        n = batch.column("y")
+    batches = [batch] if isinstance(batch, PlotBatch) else list(batch)
+    planar = [b for b in batches if b.x is not None]
+    if planar:
+        e = np.concatenate([b.column("x") for b in planar])
+        n = np.concatenate([b.column("y") for b in planar])
         lat, lon, h = pymap3d.enu2geodetic(e, n, np.zeros_like(e), site.lat, site.lon, site.alt)
         return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
-    r = batch.column("range")
-    az = batch.column("azimuth")
-    if batch.elevation is not None:
-        el = np.nan_to_num(batch.column("elevation"), nan=0.0)
-    elif batch.altitude is not None and r.size:
-        alt = batch.column("altitude")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            s = np.clip((alt - site.alt) / np.maximum(r, 1.0), -1.0, 1.0)
-        el = np.nan_to_num(np.arcsin(s), nan=0.0)
-    else:
-        el = np.zeros_like(r)
+    r = np.concatenate([b.column("range") for b in batches])
+    az = np.concatenate([b.column("azimuth") for b in batches])
+    el = np.concatenate([_elevation(b, site) for b in batches])
     lat, lon, h = pymap3d.aer2geodetic(
         np.degrees(az), np.degrees(el), r, site.lat, site.lon, site.alt, deg=True
     )
     return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
+
+
+def _elevation(batch: PlotBatch, site: RadarSite) -> np.ndarray:
+    r = batch.column("range")
+    if batch.elevation is not None:
+        return np.nan_to_num(batch.column("elevation"), nan=0.0)
+    if batch.altitude is not None and r.size:
+        alt = batch.column("altitude")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.clip((alt - site.alt) / np.maximum(r, 1.0), -1.0, 1.0)
+        return np.nan_to_num(np.arcsin(s), nan=0.0)
+    return np.zeros_like(r)
 
 
 def location_fixes(
@@ -125,6 +137,10 @@ def location_fixes(
     return fg.LocationFixes(fixes=fixes)
 
 
+_SCHEMAS: dict[type, bytes] = {}
+"""JSON Schema bytes per model (computing a schema costs milliseconds: once per model)."""
+
+
 class _FlushingWriter(RecordingWriter):
     def flush(self) -> None:
         """Finish the chunk in progress and flush it to the file."""
@@ -144,6 +160,7 @@ class Recorder:
         self.messages = 0
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
+        self._scan_plots: dict[str, list[PlotBatch]] = {}
         self._writer: _FlushingWriter | None = None
         self._opened_at = 0.0
         self._last_flush = time.monotonic()
@@ -190,6 +207,11 @@ class Recorder:
 
     def close(self) -> list[Path]:
         if self._writer is not None:
+            for radar_id in list(self._scan_plots):
+                try:
+                    self._flush_plots(radar_id, time.time_ns())
+                except Exception as e:  # display channel only
+                    log.warning("foxglove plots of %s not written: %s", radar_id, e)
             self._writer.add_metadata(
                 "skyfuse.recorder",
                 {"messages": self.messages, **{f"count:{k}": v for k, v in self.counts.items()}},
@@ -200,7 +222,13 @@ class Recorder:
 
     # --- messages ------------------------------------------------------------------
     def _write(self, topic: str, payload: bytes, log_time: int, pub_time: int, model) -> None:
-        self._writer.write(topic, payload, log_time, publish_time=pub_time, model=model)
+        schema = _SCHEMAS.get(model)
+        if schema is None:
+            schema = _SCHEMAS[model] = json_schema_bytes(model)
+        cid = self._writer.channel_for(
+            topic, schema_name=SCHEMA_PREFIX + model.__name__, schema_data=schema
+        )
+        self._writer.write_raw(cid, payload, log_time, publish_time=pub_time)
         self.messages += 1
         self.bytes += len(payload)
         self.counts[topic] += 1
@@ -254,23 +282,31 @@ class Recorder:
         self.maybe_flush()
         return True
 
+    def _flush_plots(self, radar_id: str, log_time: int) -> None:
+        batches = self._scan_plots.pop(radar_id, [])
+        entry = self.sites.get(radar_id)
+        if not batches or entry is None:
+            return
+        site = entry[0]
+        if (site.kind == RadarKind.CARTESIAN) != (batches[0].x is not None):
+            self.rejected["plots do not match their site's kind"] += 1
+            return
+        lat, lon, h = plot_positions(batches, site)
+        fixes = location_fixes(batches[-1].time_end, radar_id, lat, lon, h, _COLORS["plots"])
+        self._write_fg("plots", fixes, log_time)
+
     def _foxglove(self, msg, log_time: int) -> None:
         if isinstance(msg, RadarSite):
             self.sites[msg.radar_id] = (msg, msg.to_json_bytes())
             self._foxglove_site(msg, log_time)
         elif isinstance(msg, PlotBatch):
-            entry = self.sites.get(msg.radar_id)
-            if entry is None or len(msg.time) == 0:
-                return
-            site = entry[0]
-            if site.kind == RadarKind.CARTESIAN and msg.x is None:
-                return
-            lat, lon, h = plot_positions(msg, site)
-            self._write_fg(
-                "plots",
-                location_fixes(msg.time_end, msg.radar_id, lat, lon, h, _COLORS["plots"]),
-                log_time,
-            )
+            # one LocationFixes per radar revolution (a map shows scans, and it is 16x
+            # cheaper than one per sector)
+            pending = self._scan_plots.get(msg.radar_id)
+            if pending and pending[0].scan != msg.scan:
+                self._flush_plots(msg.radar_id, log_time)
+            if len(msg.time):
+                self._scan_plots.setdefault(msg.radar_id, []).append(msg)
         elif isinstance(msg, TrackBatch):
             conf = [t for t in msg.tracks if t.status == TrackStatus.CONFIRMED]
             fixes = location_fixes(

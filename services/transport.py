@@ -199,7 +199,8 @@ class Inbox:
         self._q: queue.Queue[Received] = queue.Queue(maxsize=capacity)
         self._closed = threading.Event()
         self._handles: list = []
-        self.received = 0
+        self.discarded = 0
+        """Samples that arrived after :meth:`close` and were dropped."""
 
     def _push(self, tag: str) -> Callable[[zenoh.Sample], None]:
         def callback(sample: zenoh.Sample) -> None:
@@ -218,12 +219,22 @@ class Inbox:
                     return
                 except queue.Full:
                     continue
+            self.discarded += 1
 
         return callback
 
-    def subscribe(self, session: zenoh.Session, key_expr: str, tag: str = "") -> None:
-        """Subscribe to ``key_expr``; samples arrive tagged ``tag`` (default: the key)."""
-        self._handles.append(session.declare_subscriber(key_expr, self._push(tag or key_expr)))
+    def subscribe(
+        self, session: zenoh.Session, key_expr: str, tag: str = "", *, remote_only: bool = False
+    ) -> None:
+        """Subscribe to ``key_expr``; samples arrive tagged ``tag`` (default: the key).
+
+        ``remote_only`` ignores this session's own publications: a service that publishes
+        on keys it also subscribes to must use it, or a blocking ``put`` from the thread
+        that drains a full inbox would wait for itself."""
+        origin = zenoh.Locality.REMOTE if remote_only else None
+        self._handles.append(
+            session.declare_subscriber(key_expr, self._push(tag or key_expr), allowed_origin=origin)
+        )
 
     def subscribe_liveliness(
         self, session: zenoh.Session, key_expr: str, tag: str = "alive", history: bool = True
