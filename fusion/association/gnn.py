@@ -6,7 +6,9 @@ Per scan (all plots of one antenna revolution, converted to the system frame):
    simplification);
 2. gate all track × plot pairs (:func:`fusion.association.gating.gate`, chi-square gate
    from P_G and the measurement dimension, cheap box pre-gate);
-3. cost d² + ln det S (003 eq. 20), "no assignment" at the gate-edge cost G + ln det S_i
+3. cost d² + ln det S (003 eq. 20) with the IMM's mode-mixed prediction, or with one
+   matrix per mode (``imm_gating="per-mode"``: valid if inside any mode's gate, cost the
+   smallest mode cost), "no assignment" at the gate-edge cost G + ln det S_i
    (so any gated plot beats leaving the track empty), independent clusters solved by the
    auction algorithm (default) or scipy's Jonker-Volgenant — same optimum;
 4. update assigned tracks; life cycle (003: update, initialise, delete): unassigned plots
@@ -27,9 +29,10 @@ import numpy as np
 
 from ..filters import IMM, GaussianState, IMMState
 from .assignment import assign_auction, assign_jv, split_clusters
-from .gating import gate, gate_threshold
+from .gating import GateResult, gate, gate_threshold
 
 TENTATIVE, CONFIRMED = 0, 1
+_SMALL_PROBLEM = 64  # n·k below which one assignment problem beats splitting clusters
 
 
 @dataclass(frozen=True)
@@ -41,8 +44,11 @@ class GNNConfig:
     solver: str = "auction"
     velocity_sigma: float = 350.0
     acceleration_sigma: float = 10.0
+    imm_gating: str = "mixed"
 
     def __post_init__(self) -> None:
+        if self.imm_gating not in ("mixed", "per-mode"):
+            raise ValueError(f"imm_gating = {self.imm_gating!r}: must be 'mixed' or 'per-mode'")
         if self.solver not in ("auction", "jv"):
             raise ValueError(f"solver = {self.solver!r}: must be 'auction' or 'jv'")
         if not 1 <= self.confirm_m <= self.confirm_n:
@@ -107,6 +113,30 @@ class GNNTracker:
             return np.zeros((0, 2))
         return self.filt.position(self.state)
 
+    @staticmethod
+    def _gate_per_mode(per_mode, z, R, G, Rbar):
+        """IMM with one association matrix per mode (spec 01 §6 [S], 003): a pair is valid
+        if it is inside any mode's gate; its cost is the smallest mode cost
+        d²_j + ln det S_j; the miss cost is the largest mode's gate-edge cost."""
+        results = [gate(zj, Sj, z, G, R) for zj, Sj in per_mode]
+        n = results[0].n_tracks
+        k = results[0].n_plots
+        track = np.concatenate([r.track for r in results])
+        plot = np.concatenate([r.plot for r in results])
+        d2 = np.concatenate([r.d2 for r in results])
+        logdet = np.concatenate([r.logdet for r in results])
+        order = np.lexsort((d2 + logdet, plot, track))
+        key = track[order] * max(k, 1) + plot[order]
+        first = np.ones(order.size, bool)
+        first[1:] = key[1:] != key[:-1]
+        keep = order[first]
+        g = GateResult(
+            track[keep], plot[keep], d2[keep], logdet[keep], n, k,
+            sum(r.n_pregated for r in results),
+        )  # fmt: skip
+        miss = G + np.max([np.linalg.slogdet(Sj + Rbar)[1] for _, Sj in per_mode], axis=0)
+        return g, miss
+
     # --- one scan ----------------------------------------------------------------------
     def step(self, z: np.ndarray, R: np.ndarray, time_s: float) -> ScanReport:
         """Process the plots of one scan: z (k, m), R (k, m, m) in the system frame, all
@@ -122,14 +152,23 @@ class GNNTracker:
             self.state = self.filt.predict(self.state, dt)
             zero_R = np.zeros((n, m, m))
             pred = self.filt.predict_measurement(self.state, zero_R)
-            zhat, HPH = pred[0], pred[1]
             G = gate_threshold(self.cfg.p_gate, m)
-            g = gate(zhat, HPH, z, G, R)
-            n_gated = g.track.size
             # miss cost: the gate-edge cost with the track's own S (plot R at its mean)
             Rbar = R.mean(axis=0) if k else np.zeros((m, m))
-            miss = G + np.linalg.slogdet(HPH + Rbar)[1]
-            for tr, pl in split_clusters(g.track, g.plot, n, k):
+            if isinstance(self.filt, IMM) and self.cfg.imm_gating == "per-mode":
+                g, miss = self._gate_per_mode(pred[2], z, R, G, Rbar)
+            else:
+                g = gate(pred[0], pred[1], z, G, R)
+                miss = G + np.linalg.slogdet(pred[1] + Rbar)[1]
+            n_gated = g.track.size
+            clusters = (
+                split_clusters(g.track, g.plot, n, k)
+                if n * k > _SMALL_PROBLEM
+                else [(np.unique(g.track), np.unique(g.plot))]
+                if g.track.size
+                else []
+            )
+            for tr, pl in clusters:
                 sel = np.isin(g.track, tr) & np.isin(g.plot, pl)
                 C = np.full((tr.size, pl.size), np.inf)
                 C[np.searchsorted(tr, g.track[sel]), np.searchsorted(pl, g.plot[sel])] = g.cost[sel]

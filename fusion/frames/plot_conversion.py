@@ -293,6 +293,8 @@ def _refine_elevation_on_ellipsoid(site, D, psi, h, theta0):
         )
         alt = np.asarray(alt, float)
         f0, f1 = alt[: D.size] - h, alt[D.size :] - h
+        if np.abs(f0).max() < 1e-4:  # 0.1 mm in height: converged
+            break
         slope = (f1 - f0) / step
         ok = np.abs(slope) > 1e-6
         theta = np.where(ok, theta - np.where(ok, f0 / np.where(ok, slope, 1.0), 0.0), theta)

@@ -20,6 +20,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pymap3d
 
@@ -29,6 +31,12 @@ from .geodesy import enu_to_enu_rotation
 from .stereographic import Stereographic
 
 _JACOBIAN_STEP_M = 1.0  # central-difference step for the ENU → plane Jacobian
+
+
+@functools.lru_cache(maxsize=64)
+def _stereographic(lat0: float, lon0: float) -> Stereographic:
+    """Shared projections: building pyproj transformers costs tens of ms."""
+    return Stereographic(lat0, lon0)
 
 
 class SystemFrame:
@@ -52,7 +60,7 @@ class SystemFrame:
             raise ValueError(f"alt0 = {alt0}: must be finite metres")
         self.lat0, self.lon0, self.alt0 = float(lat0), float(lon0), float(alt0)
         self._sterea = (
-            Stereographic(self.lat0, self.lon0) if self.kind is not FrameKind.NED else None
+            _stereographic(self.lat0, self.lon0) if self.kind is not FrameKind.NED else None
         )
 
     # --- construction ------------------------------------------------------------------
