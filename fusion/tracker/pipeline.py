@@ -120,7 +120,7 @@ class TrackPipeline:
             fusion_id=self.fusion_id,
             cycle=self.cycle,
             time=out.time_ns,
-            frame=self.frame.spec,
+            frame=self.frame.spec(),
             state_labels=list(self.tracker.model.labels),
             source_radar=out.radar_id,
             source_seq=None if batch is None else batch.seq,
