@@ -32,6 +32,7 @@ from .transport import (
     TransportConfig,
     TransportError,
     check_endpoint,
+    declare_liveliness,
     loopback_endpoint,
     open_session,
     service_alive_key,
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         sc = build_scenario(
             cfg.scenario, seed=cfg.seed, duration=cfg.duration, targets=cfg.targets,
-            radars=cfg.radars,
+            radars=scenario_radars(cfg),
         )  # fmt: skip
     except (ValueError, TypeError) as e:
         raise ConfigError(str(e)) from None
@@ -117,6 +118,11 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 
+def scenario_radars(cfg: DemoConfig) -> int:
+    """The scenario's ``radars`` parameter: it has at least 3; the demo runs the first N."""
+    return max(cfg.radars, 3)
+
+
 def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     """Start, watch and stop the services; return (interrupted, failed service names,
     the children)."""
@@ -124,7 +130,7 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     common = ["--connect", listen, "--no-multicast"]
     scen = [
         "--scenario", cfg.scenario, "--seed", str(cfg.seed), "--duration", str(cfg.duration),
-        "--targets", str(cfg.targets), "--param", f"radars={cfg.radars}",
+        "--targets", str(cfg.targets), "--param", f"radars={scenario_radars(cfg)}",
     ]  # fmt: skip
     f = sc.frame
     recorder = Child(
@@ -154,31 +160,46 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     failed: list[str] = []
     interrupted = False
     view = _View(cfg, radars, live)
+    go = None
     try:
         for c in children:
             c.start(env_cwd)
         log.info("demo network on %s; logs in %s", listen, workdir)
         missing = wait_for_tokens(
-            session, [service_alive_key("recorder"), service_alive_key("fusion")], 30.0, stop
+            session,
+            [service_alive_key("recorder"), service_alive_key("fusion")],
+            cfg.start_timeout,
+            stop,
         )
         if missing and not stop.is_set():
             failed += [c.name for c in children if c.poll() is not None] or ["startup"]
             log.error("services did not come up: %s", missing)
             return False, failed, children
-        start_at = time.time() + cfg.start_margin
+        # sensors load the scenario, declare their ready tokens and wait for the demo's
+        # "go" token; then they all start within a poll interval (~0.1 s) of each other
         for i, r in enumerate(radars):
             extra = ["--truth"] if i == 0 else []
             s = Child(
                 f"sensor-{r}",
                 [
                     "sensor", "--radar", r, *scen, "--speed", str(cfg.speed),
-                    "--start-at", f"{start_at:.3f}", *extra, *common,
+                    "--wait-for", "demo", "--wait-timeout", str(cfg.start_timeout), *extra,
+                    *common,
                 ],
                 workdir / f"sensor-{r}.log",
             )  # fmt: skip
             s.start(env_cwd)
             sensors.append(s)
         children += sensors
+        missing = wait_for_tokens(
+            session, [service_alive_key(f"sensor-{r}") for r in radars], cfg.start_timeout, stop
+        )
+        if missing and not stop.is_set():
+            failed += [c.name for c in sensors if c.poll() is not None] or ["startup"]
+            log.error("sensors did not come up: %s", missing)
+            return False, failed, children
+        go = declare_liveliness(session, service_alive_key("demo"))
+        start_at = time.time()
         view.start(start_at)
         while not stop.is_set():
             for item in inbox.drain(2000):
@@ -201,6 +222,8 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
                 view.feed(item, fox)
             time.sleep(0.1)
     finally:
+        if go is not None:
+            go.undeclare()
         for c in sensors:
             c.terminate()
         fusion.terminate()

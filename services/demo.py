@@ -55,8 +55,8 @@ class DemoConfig(BaseModel):
     reorder_wait: float = Field(0.5, ge=0, le=10, description="Fusion reorder wait, s")
     tracker: str = Field("lmits", description="Tracker kind for the fusion service")
     gospa_c: float = Field(2000.0, gt=0, description="GOSPA cut-off c, m")
-    start_margin: float = Field(
-        4.0, gt=0, le=60, description="Seconds between launching the sensors and their start"
+    start_timeout: float = Field(
+        60.0, gt=0, le=600, description="How long to wait for the services to start, s"
     )
     live: bool | None = Field(None, description="Live view (default: on a terminal)")
 
@@ -148,15 +148,21 @@ def _track_xy(batch: TrackBatch, t: int, proj) -> np.ndarray:
 
 
 def evaluate_recording(
-    path: Path, frame: FrameSpec | None = None, gospa_c: float = 2000.0, min_detections: int = 5
+    path: Path,
+    frame: FrameSpec | None = None,
+    gospa_c: float = 2000.0,
+    min_detections: int = 3,
+    window_s: float = 15.0,
 ) -> Evaluation:
     """Evaluate a demo recording: counts, tracks and GOSPA (horizontal, c = ``gospa_c`` m,
     p = 2, α = 2) between the recorded truth and the latest confirmed tracks at each truth
     time, moved to that time with their velocity.
 
-    A target is *detectable* if the recorded plots carry at least ``min_detections``
-    detections of it (``PlotBatch.target_id``, simulation only); it is *confirmed* if a
-    confirmed track was assigned to it (distance < c) at some truth time."""
+    At truth time t, a target is *in coverage* if the recorded plots carry at least
+    ``min_detections`` detections of it up to t (``PlotBatch.target_id``, simulation
+    only), the last one within ``window_s`` s; GOSPA is over the targets in coverage. A
+    target is *detectable* if it has ``min_detections`` detections in the whole run, and
+    *confirmed* if a confirmed track was assigned to it (distance < c) at some truth time."""
     from fusion.frames import Stereographic
     from fusion.metrics.gospa import gospa
 
@@ -165,7 +171,8 @@ def evaluate_recording(
     batches: list[TrackBatch] = []
     sites: dict[str, RadarSite] = {}
     plot_batches = plots = 0
-    detections: dict[int, int] = defaultdict(int)
+    det_ids: list[np.ndarray] = []
+    det_times: list[np.ndarray] = []
     status_last: dict[str, Status] = {}
     topics: dict[str, int] = defaultdict(int)
     for rec in iter_recording(path, stats=stats):
@@ -174,10 +181,10 @@ def evaluate_recording(
         if isinstance(m, PlotBatch):
             plot_batches += 1
             plots += len(m.time)
-            if m.target_id is not None:
-                for tid in m.target_id:
-                    if tid >= 0:
-                        detections[tid] += 1
+            if m.target_id is not None and len(m.time):
+                tid = m.column("target_id")
+                det_ids.append(tid[tid >= 0])
+                det_times.append(m.column("time")[tid >= 0])
         elif isinstance(m, TrackBatch):
             batches.append(m)
         elif isinstance(m, Truth):
@@ -193,7 +200,24 @@ def evaluate_recording(
     proj = Stereographic(lat0, lon0)
     batches.sort(key=lambda b: b.time)
     bt = np.array([b.time for b in batches], dtype=np.int64)
-    detectable = {tid for tid, n in detections.items() if n >= min_detections}
+    d_ids = np.concatenate(det_ids) if det_ids else np.zeros(0, np.int64)
+    d_t = np.concatenate(det_times) if det_times else np.zeros(0, np.int64)
+    order = np.argsort(d_t, kind="stable")
+    d_ids, d_t = d_ids[order], d_t[order]
+    window_ns = int(window_s * 1e9)
+
+    def in_coverage(t: int, ids: list[int]) -> np.ndarray:
+        """Targets detected >= min_detections times up to t, the last within window_s."""
+        k = int(np.searchsorted(d_t, t, side="right"))
+        upto_ids, upto_t = d_ids[:k], d_t[:k]
+        out = np.zeros(len(ids), dtype=bool)
+        for j, tid in enumerate(ids):
+            mask = upto_ids == tid
+            n = int(mask.sum())
+            out[j] = n >= min_detections and upto_t[mask][-1] > t - window_ns
+        return out
+
+    detectable = {int(t) for t in np.unique(d_ids) if (d_ids == t).sum() >= min_detections}
     confirmed_targets: set[int] = set()
     per_time = []
     truth_tracks: dict[int, list[tuple[float, float]]] = defaultdict(list)
@@ -201,7 +225,7 @@ def evaluate_recording(
         for tid, la, lo in zip(tr.target_id, tr.lat, tr.lon):
             truth_tracks[tid].append((lo, la))
         ids = np.array(tr.target_id, dtype=np.int64)
-        keep = np.array([t in detectable for t in tr.target_id], dtype=bool)
+        keep = in_coverage(tr.time, tr.target_id)
         if not keep.any() or len(bt) == 0:
             continue
         k = int(np.searchsorted(bt, tr.time, side="right")) - 1
@@ -274,10 +298,12 @@ def plot_tracks_vs_truth(ev: Evaluation, path: Path, title: str = "skyfuse demo"
     fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
     for i, (_tid, pts) in enumerate(sorted(ev.truth_tracks.items())):
         a = np.asarray(pts)
-        ax.plot(a[:, 0], a[:, 1], "-", color="0.55", lw=1.2, label="truth" if i == 0 else None)
+        ax.plot(
+            a[:, 0], a[:, 1], "-", color="k", lw=0.8, zorder=3, label="truth" if i == 0 else None
+        )
     if ev.track_points:
         a = np.asarray(ev.track_points)
-        ax.plot(a[:, 0], a[:, 1], ".", ms=2.5, color="tab:blue", label="confirmed tracks")
+        ax.plot(a[:, 0], a[:, 1], ".", ms=4, color="tab:blue", alpha=0.5, label="confirmed tracks")
     for s in ev.sites:
         ax.plot(s.lon, s.lat, "^", color="tab:red", ms=9)
         ax.annotate(s.radar_id, (s.lon, s.lat), textcoords="offset points", xytext=(5, 5))

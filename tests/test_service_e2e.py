@@ -21,7 +21,7 @@ def test_demo_three_radars_end_to_end(tmp_path):
     cmd = [
         sys.executable, "-m", "services.cli", "demo", "--radars", "3", "--targets", "6",
         "--duration", "60", "--speed", "15", "--seed", "2", "--out", str(out),
-        "--json", str(js), "--workdir", str(tmp_path), "--no-live", "--start-margin", "3",
+        "--json", str(js), "--workdir", str(tmp_path), "--no-live",
     ]  # fmt: skip
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, timeout=120)
     log = res.stderr.decode(errors="replace")[-4000:]
