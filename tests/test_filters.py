@@ -256,3 +256,21 @@ def test_polar_ekf_nees_is_consistent_at_moderate_noise():
     e = xs[11] + offset - st.x
     nees = np.einsum("ni,ni->", e, np.linalg.solve(st.P, e[..., None])[..., 0])
     assert lo < nees < hi
+
+
+def test_imm3_from_a_one_point_initiation_converges_without_blowing_up():
+    """Zero initial velocity makes the CT course undefined: the conversion must fall back
+    to an uninformative course instead of exploding (seen as 1e7 m errors before)."""
+    imm = imm3_cv_singer_ct()
+    rng = np.random.default_rng(11)
+    n, T = 50, 4.0
+    R = np.diag([100.0**2, 100.0**2])
+    v = np.array([-220.0, -220.0])
+    truth = np.array([30_000.0, 30_000.0]) + np.arange(10)[:, None] * T * v
+    z = truth[None] + rng.normal(0, 100.0, (n, 10, 2))
+    st = imm.initiate(z[:, 0], R, velocity_sigma=350.0)
+    for k in range(1, 10):
+        st, _ = imm.update(imm.predict(st, T), z[:, k], R)
+        assert all(np.isfinite(P).all() for P in st.P)
+    err = np.linalg.norm(imm.position(st) - truth[-1], axis=1)
+    assert np.sqrt((err**2).mean()) < 150

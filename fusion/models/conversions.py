@@ -5,7 +5,8 @@ Common format: [x, vx, ax, y, vy, ay(, z, vz, az)] (the Singer/CA layout).
 * CV [x, vx, y, vy(, z, vz)] → common: accelerations a = 0 with zero variance; back:
   drop the accelerations (004: "CV states get a_x = a_y = 0").
 * CT (x, y, ψ, ω, v(, z, vz)) → common: v_x = v cosψ, v_y = v sinψ, a_x = −ω v_y,
-  a_y = ω v_x (004 eq. 22); back: ψ = atan2(v_y, v_x), v = |v|, ω = (v_x a_y − v_y a_x)/v².
+  a_y = ω v_x (004 eq. 22); back: ψ = atan2(v_y, v_x), v = |v|, ω = (v_x a_y − v_y a_x)/v²
+  (when |v| is within 3σ of zero, course and turn rate get an uninformative covariance).
   The vertical channel (z, vz) maps to (z, vz, az = 0).
 * Singer/CA: identity.
 """
@@ -20,6 +21,8 @@ from .cv import ConstantVelocity
 from .singer import Singer
 
 _MIN_SPEED = 1e-3  # m/s, below it the course of a CT state is undefined
+SPEED_SIGNIFICANCE = 3.0
+"""CT course/turn rate are linearised only when |v| > 3 σ_v; below, uninformative."""
 
 
 def _sandwich(J, P):
@@ -99,5 +102,21 @@ def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.n
         if model.vertical:
             x[:, 5], x[:, 6] = xc[:, 6], xc[:, 7]
             J[:, 5, 6] = J[:, 6, 7] = 1.0
-        return x, _sandwich(J, Pc)
+        P = _sandwich(J, Pc)
+        # When the speed is not significantly above its uncertainty (e.g. a one-point
+        # initiation with zero velocity), course and turn rate are undefined and the
+        # linearisation explodes: use an uninformative course (σ_ψ = π), the turn rate
+        # implied by the acceleration spread, and no correlations for ψ, ω, v.
+        var_v = 0.5 * (Pc[:, 1, 1] + Pc[:, 4, 4])
+        weak = v2 < SPEED_SIGNIFICANCE**2 * var_v
+        if weak.any():
+            w = np.flatnonzero(weak)
+            pol = [2, 3, 4]
+            P[np.ix_(w, pol, range(model.dim))] = 0.0
+            P[np.ix_(w, range(model.dim), pol)] = 0.0
+            P[w, 2, 2] = np.pi**2
+            P[w, 3, 3] = 0.5 * (Pc[w, 2, 2] + Pc[w, 5, 5]) / np.maximum(var_v[w], 1.0)
+            P[w, 4, 4] = v2[w] + var_v[w]
+            x[w, 3] = 0.0
+        return x, P
     raise TypeError(f"no common-format conversion for {type(model).__name__}")
