@@ -19,6 +19,7 @@ from typing import Any
 
 import asterix.generated as gen
 
+from .layout import compile_layout, split_record
 from .records import quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_034_1_29
@@ -26,6 +27,7 @@ CATEGORY = 34
 NORTH_MARKER = 1
 SECTOR_CROSSING = 2
 TOD_WRAP = 86_400 * 128
+LAYOUT = compile_layout(SPEC)
 
 
 @dataclass(slots=True)
@@ -107,3 +109,41 @@ def build_record(
             ("LON", round(lon * scale) & 0xFFFFFF),
         )
     return SPEC.cv_record.create(items)
+
+
+def decode_fast(data: bytes, pos: int) -> tuple[Cat034Message | str, int] | None:
+    """Like :func:`decode_record` for the record at ``pos`` without libasterix objects:
+    ``(message or reject reason, end offset)``, or ``None`` if the record is not well
+    formed (the caller re-parses with libasterix for the error)."""
+    split = split_record(data, pos, LAYOUT)
+    if isinstance(split, str):
+        return None
+    end, items = split
+    span = items.get("010")
+    if span is None:
+        return "cat034_no_data_source", end
+    sac, sic = data[span[0]], data[span[0] + 1]
+    span = items.get("000")
+    if span is None:
+        return "cat034_no_message_type", end
+    mtype = data[span[0]]
+    tod = None
+    span = items.get("030")
+    if span is not None:
+        tod = int.from_bytes(data[span[0] : span[1]], "big") / 128.0
+        if not 0.0 <= tod < 86_401.0:
+            return "cat034_bad_time", end
+    span = items.get("020")
+    sector = None if span is None else data[span[0]] * (360.0 / 256.0)
+    span = items.get("041")
+    period = None if span is None else int.from_bytes(data[span[0] : span[1]], "big") / 128.0
+    lat = lon = height = None
+    span = items.get("120")
+    if span is not None:
+        s0 = span[0]
+        height = float(int.from_bytes(data[s0 : s0 + 2], "big", signed=True))
+        lat = int.from_bytes(data[s0 + 2 : s0 + 5], "big", signed=True) * (180.0 / 2**23)
+        lon = int.from_bytes(data[s0 + 5 : s0 + 8], "big", signed=True) * (180.0 / 2**23)
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            lat = lon = height = None
+    return Cat034Message(sac, sic, mtype, tod, sector, period, lat, lon, height), end

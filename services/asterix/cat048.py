@@ -27,6 +27,7 @@ from typing import Any
 
 import asterix.generated as gen
 
+from .layout import compile_layout, split_record
 from .records import quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_048_1_32
@@ -45,6 +46,9 @@ PLOT_TYPES = {
     6: "Mode S all-call + PSR",
     7: "Mode S roll-call + PSR",
 }
+
+
+LAYOUT = compile_layout(SPEC)
 
 
 @dataclass(slots=True)
@@ -172,3 +176,83 @@ def build_record(
     if mode_s is not None:
         items["220"] = int(mode_s)
     return SPEC.cv_record.create(items)
+
+
+def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | Cat048Reject, int] | None:
+    """Decode the record at ``pos`` without building libasterix objects.
+
+    Returns ``(plot or reject, end offset)``, or ``None`` when the record is not
+    well formed (or uses RFS): the caller then re-parses with libasterix, which gives
+    the authoritative error. Values are identical to :func:`decode_record` (checked by
+    a differential test); the LSBs are those of the CAT048 items listed above."""
+    split = split_record(data, pos, LAYOUT)
+    if isinstance(split, str):
+        return None
+    end, items = split
+    span = items.get("010")
+    if span is None:
+        return Cat048Reject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)"), end
+    sac, sic = data[span[0]], data[span[0] + 1]
+    span = items.get("140")
+    if span is None:
+        return Cat048Reject("cat048_no_time", "record has no I048/140 time of day", sac, sic), end
+    tod = int.from_bytes(data[span[0] : span[1]], "big") / 128.0
+    if not 0.0 <= tod < DAY_S + 1.0:
+        reason = f"I048/140 time of day = {tod} s is outside one day"
+        return Cat048Reject("cat048_bad_time", reason, sac, sic), end
+    typ, sim, tst = 0, False, False
+    span = items.get("020")
+    if span is not None:
+        b0 = data[span[0]]
+        typ, sim = b0 >> 5, bool(b0 & 0x10)
+        if span[1] - span[0] >= 2:
+            tst = bool(data[span[0] + 1] & 0x80)
+        if typ == 0:
+            reason = "I048/020 TYP = 0 (no detection)"
+            return Cat048Reject("cat048_no_detection", reason, sac, sic), end
+    span = items.get("040")
+    if span is None:
+        reason = "record has no I048/040 measured position"
+        return Cat048Reject("cat048_no_position", reason, sac, sic), end
+    s0 = span[0]
+    rho = int.from_bytes(data[s0 : s0 + 2], "big") / 256.0
+    theta = int.from_bytes(data[s0 + 2 : s0 + 4], "big") * (360.0 / 65536.0)
+    fl = None
+    span = items.get("090")
+    if span is not None:
+        raw = int.from_bytes(data[span[0] : span[1]], "big")
+        if not raw & 0xC000:  # V = 0, G = 0
+            v = raw & 0x3FFF
+            fl = (v - 0x4000 if v & 0x2000 else v) * 0.25
+    code = None
+    span = items.get("070")
+    if span is not None:
+        raw = int.from_bytes(data[span[0] : span[1]], "big")
+        if not raw & 0xC000:
+            code = raw & 0x0FFF
+    addr = None
+    span = items.get("220")
+    if span is not None:
+        addr = int.from_bytes(data[span[0] : span[1]], "big")
+    amp = None
+    span = items.get("130")
+    if span is not None:
+        amp = _amplitude_130(data, span[0])
+    return Cat048Plot(sac, sic, tod, rho, theta, typ, sim, tst, fl, code, addr, amp), end
+
+
+def _amplitude_130(data: bytes, pos: int) -> float | None:
+    """PAM (else SAM) of I048/130: 1-byte FSPEC (SRL SRR SAM PRL PAM RPD APD), 1 byte each."""
+    fspec = data[pos]
+    present = [bool(fspec & (0x80 >> i)) for i in range(7)]
+    offset = pos + 1
+    values: dict[int, int] = {}
+    for i, flag in enumerate(present):
+        if flag:
+            values[i] = data[offset]
+            offset += 1
+    for index in (4, 2):  # PAM, then SAM
+        if index in values:
+            v = values[index]
+            return float(v - 256 if v & 0x80 else v)
+    return None

@@ -153,17 +153,15 @@ class _Radar:
     cur_idx: int | None = None  # fixed mode: index of the open sector
     last_t: int | None = None  # latest plot time, ns
     last_az: float = 0.0
-    times: list[int] = field(default_factory=list)
-    rng: list[float] = field(default_factory=list)
-    az: list[float] = field(default_factory=list)
-    alt: list[float | None] = field(default_factory=list)
-    amp: list[float | None] = field(default_factory=list)
-    mode_s: list[int | None] = field(default_factory=list)
-    mode_3a: list[int | None] = field(default_factory=list)
-    typ: list[int] = field(default_factory=list)
+    # plots not yet emitted, sorted by time (ties in arrival order): ptimes[i] is the
+    # time of pending[i] = (time ns, range m, azimuth rad, altitude, amplitude, mode_s,
+    # mode_3a, typ)
+    ptimes: list[int] = field(default_factory=list)
+    pending: list[tuple] = field(default_factory=list)
     periods_041: list[float] = field(default_factory=list)
     est_t: list[float] = field(default_factory=list)
     est_az: list[float] = field(default_factory=list)
+    est_cache: tuple[int, float | None] | None = None  # (samples used, estimate)
     position: tuple[float, float, float] | None = None
     plots: int = 0
     now: int = 0  # latest time seen from this radar (plot or boundary), ns
@@ -212,7 +210,9 @@ class AsterixStreamDecoder:
     how long a closed sector is held for plots that arrive after its boundary message
     but are timed before it (some radars deliver plots seconds late); plots are
     assigned to sectors by *time*, and a plot arriving after its sector was emitted
-    goes into the next batch and is counted as ``late_plots``. 0 = emit at once."""
+    goes into the next batch and is counted as ``late_plots``. 0 = emit at once.
+    ``fast``: split CAT048 records with the compiled layout (:mod:`.layout`) instead of
+    building libasterix objects for each (same values, ~20× faster)."""
 
     def __init__(
         self,
@@ -223,7 +223,9 @@ class AsterixStreamDecoder:
         dedup: bool = True,
         skip_simulated: bool = False,
         max_plot_delay: float = 0.0,
+        fast: bool = True,
     ) -> None:
+        self.fast = fast
         if not max_plot_delay >= 0.0:
             raise ValueError(f"max_plot_delay = {max_plot_delay} s: must be >= 0")
         self._hold_ns = max_plot_delay * 1e9
@@ -275,15 +277,16 @@ class AsterixStreamDecoder:
             while radar.bounds:
                 t_b, az_b, w = radar.bounds.pop(0)
                 self._emit(radar, az_b, t_b, out, width=w)
-            if not radar.times:
+            if not radar.pending:
                 continue
             if radar.e_az is None:
-                radar.e_az = radar.az[0]
-            offsets = [(a - radar.e_az) % TWO_PI for a in radar.az]
+                radar.e_az = radar.pending[0][2]
+            offsets = [(p[2] - radar.e_az) % TWO_PI for p in radar.pending]
             width = min(TWO_PI, max(offsets) + 1e-6)
             if radar.mode == "fixed":
                 width = max(width, min(TWO_PI, TWO_PI / self.sector_count))
-            self._emit(radar, (radar.e_az + width) % TWO_PI, max(radar.times), out, width=width)
+            end_t = radar.ptimes[-1]
+            self._emit(radar, (radar.e_az + width) % TWO_PI, end_t, out, width=width)
         return out
 
     def current_sites(self) -> tuple[dict[str, RadarSite], dict[str, str]]:
@@ -323,10 +326,10 @@ class AsterixStreamDecoder:
         if len(self.messages) < MAX_MESSAGES:
             self.messages.append(text)
 
-    def _is_duplicate(self, cat: int, rec) -> bool:
+    def _is_duplicate(self, cat: int, raw: bytes) -> bool:
         if not self.dedup:
             return False
-        key = bytes([cat]) + rec.unparse().to_bytes()
+        key = bytes([cat]) + raw
         if key in self._recent:
             self.stats["duplicate_records"] += 1
             return True
@@ -359,9 +362,11 @@ class AsterixStreamDecoder:
         if radar is not None and radar.periods_041:
             return float(np.median(radar.periods_041)), "cat034"
         if radar is not None and len(radar.est_t) >= 8:
-            est = estimate_scan_period(np.asarray(radar.est_t), np.asarray(radar.est_az))
-            if est is not None:
-                return est[0], "estimated"
+            if radar.est_cache is None or radar.est_cache[0] != len(radar.est_t):
+                est = estimate_scan_period(np.asarray(radar.est_t), np.asarray(radar.est_az))
+                radar.est_cache = (len(radar.est_t), None if est is None else est[0])
+            if radar.est_cache[1] is not None:
+                return radar.est_cache[1], "estimated"
         return (site.scan_period if site is not None else None), "default"
 
     def _block_error(self, cat: int, err: RecordError, index: int, where: str) -> None:
@@ -372,27 +377,52 @@ class AsterixStreamDecoder:
         )
 
     def _cat048_block(self, data: bytes, recv_ns: int | None, out: list, where: str) -> None:
-        for index, rec in enumerate(iter_records(cat048.SPEC, data)):
+        """Records of one CAT048 block: the fast splitter (:mod:`.layout`) while records
+        are well formed, libasterix for the rest of the block after the first record the
+        fast path declines (it gives the authoritative error), or for all of it when
+        ``fast`` is off."""
+        pos, index, n = 0, 0, len(data)
+        while self.fast and pos < n:
+            fast = cat048.decode_fast(data, pos)
+            if fast is None:
+                break
+            plot, end = fast
+            self._cat048_plot(plot, data[pos:end], recv_ns, index, where)
+            pos, index = end, index + 1
+        if pos >= n:
+            return
+        for rec in iter_records(cat048.SPEC, data[pos:]):
             if isinstance(rec, RecordError):
                 self._block_error(48, rec, index, where)
                 return
-            self.stats["cat048_records"] += 1
-            if self._is_duplicate(48, rec):
-                continue
-            plot = cat048.decode_record(rec)
-            if isinstance(plot, cat048.Cat048Reject):
-                self.stats[plot.reason] += 1
-                if self.stats[plot.reason] <= 3:
-                    self._note(f"{where}: CAT048 record {index + 1} skipped: {plot.detail}")
-                continue
-            if plot.tst:
-                self.stats["cat048_test_target"] += 1
-                continue
-            if plot.sim:
-                self.stats["cat048_simulated"] += 1
-                if self.skip_simulated:
-                    continue
-            self._add_plot(plot, recv_ns)
+            raw = rec.unparse().to_bytes()
+            self._cat048_plot(cat048.decode_record(rec), raw, recv_ns, index, where)
+            index += 1
+
+    def _cat048_plot(
+        self,
+        plot: cat048.Cat048Plot | cat048.Cat048Reject,
+        raw: bytes,
+        recv_ns: int | None,
+        index: int,
+        where: str,
+    ) -> None:
+        self.stats["cat048_records"] += 1
+        if self._is_duplicate(48, raw):
+            return
+        if isinstance(plot, cat048.Cat048Reject):
+            self.stats[plot.reason] += 1
+            if self.stats[plot.reason] <= 3:
+                self._note(f"{where}: CAT048 record {index + 1} skipped: {plot.detail}")
+            return
+        if plot.tst:
+            self.stats["cat048_test_target"] += 1
+            return
+        if plot.sim:
+            self.stats["cat048_simulated"] += 1
+            if self.skip_simulated:
+                return
+        self._add_plot(plot, recv_ns)
 
     def _add_plot(self, plot: cat048.Cat048Plot, recv_ns: int | None) -> None:
         radar = self._radar(plot.sac, plot.sic)
@@ -408,16 +438,24 @@ class AsterixStreamDecoder:
                 radar.cur_idx = None
         if radar.mode == "fixed":
             self._fixed_sector_advance(radar, t, az)
-        radar.times.append(t)
-        radar.rng.append(plot.rho_nm * NM)
-        radar.az.append(az)
-        radar.alt.append(
-            None if plot.flight_level is None else flight_level_to_altitude(plot.flight_level)
+        alt = None if plot.flight_level is None else flight_level_to_altitude(plot.flight_level)
+        row = (
+            t,
+            plot.rho_nm * NM,
+            az,
+            alt,
+            plot.amplitude_dbm,
+            plot.mode_s,
+            plot.mode_3a,
+            plot.typ,
         )
-        radar.amp.append(plot.amplitude_dbm)
-        radar.mode_s.append(plot.mode_s)
-        radar.mode_3a.append(plot.mode_3a)
-        radar.typ.append(plot.typ)
+        if not radar.ptimes or t >= radar.ptimes[-1]:
+            radar.ptimes.append(t)
+            radar.pending.append(row)
+        else:
+            pos = bisect.bisect_right(radar.ptimes, t)
+            radar.ptimes.insert(pos, t)
+            radar.pending.insert(pos, row)
         radar.plots += 1
         radar.now = max(radar.now, t)
         self.stats["plots"] += 1
@@ -464,42 +502,59 @@ class AsterixStreamDecoder:
         radar.cur_idx = idx
 
     def _cat034_block(self, data: bytes, recv_ns: int | None, out: list, where: str) -> None:
-        for index, rec in enumerate(iter_records(cat034.SPEC, data)):
+        """Records of one CAT034 block (fast path first, as for CAT048)."""
+        pos, index, n = 0, 0, len(data)
+        while self.fast and pos < n:
+            fast = cat034.decode_fast(data, pos)
+            if fast is None:
+                break
+            msg, end = fast
+            self._cat034_message(msg, data[pos:end], recv_ns)
+            pos, index = end, index + 1
+        if pos >= n:
+            return
+        for rec in iter_records(cat034.SPEC, data[pos:]):
             if isinstance(rec, RecordError):
                 self._block_error(34, rec, index, where)
                 return
-            self.stats["cat034_records"] += 1
-            if self._is_duplicate(34, rec):
-                continue
-            msg = cat034.decode_record(rec)
-            if isinstance(msg, str):
-                self.stats[msg] += 1
-                continue
-            radar = self._radar(msg.sac, msg.sic)
-            if msg.period_s is not None and msg.period_s > 0:
-                radar.periods_041.append(msg.period_s)
-            if msg.lat is not None and msg.lon is not None and msg.height is not None:
-                radar.position = (msg.lat, msg.lon, msg.height)
-            if msg.message_type == cat034.NORTH_MARKER:
-                self.stats["cat034_north_markers"] += 1
-                az = 0.0
-            elif msg.message_type == cat034.SECTOR_CROSSING:
-                self.stats["cat034_sector_crossings"] += 1
-                if msg.sector_deg is None:
-                    self.stats["cat034_sector_without_azimuth"] += 1
-                    continue
-                az = math.radians(msg.sector_deg) % TWO_PI
-            else:
-                self.stats[f"cat034_message_type_{msg.message_type}"] += 1
-                continue
-            if msg.tod is not None:
-                t = self.clock.resolve(msg.tod, recv_ns)
-            elif radar.last_t is not None:
-                t = radar.last_t
-            else:
-                self.stats["cat034_boundary_without_time"] += 1
-                continue
-            self._boundary(radar, az, t)
+            raw = rec.unparse().to_bytes()
+            self._cat034_message(cat034.decode_record(rec), raw, recv_ns)
+            index += 1
+
+    def _cat034_message(
+        self, msg: cat034.Cat034Message | str, raw: bytes, recv_ns: int | None
+    ) -> None:
+        self.stats["cat034_records"] += 1
+        if self._is_duplicate(34, raw):
+            return
+        if isinstance(msg, str):
+            self.stats[msg] += 1
+            return
+        radar = self._radar(msg.sac, msg.sic)
+        if msg.period_s is not None and msg.period_s > 0:
+            radar.periods_041.append(msg.period_s)
+        if msg.lat is not None and msg.lon is not None and msg.height is not None:
+            radar.position = (msg.lat, msg.lon, msg.height)
+        if msg.message_type == cat034.NORTH_MARKER:
+            self.stats["cat034_north_markers"] += 1
+            az = 0.0
+        elif msg.message_type == cat034.SECTOR_CROSSING:
+            self.stats["cat034_sector_crossings"] += 1
+            if msg.sector_deg is None:
+                self.stats["cat034_sector_without_azimuth"] += 1
+                return
+            az = math.radians(msg.sector_deg) % TWO_PI
+        else:
+            self.stats[f"cat034_message_type_{msg.message_type}"] += 1
+            return
+        if msg.tod is not None:
+            t = self.clock.resolve(msg.tod, recv_ns)
+        elif radar.last_t is not None:
+            t = radar.last_t
+        else:
+            self.stats["cat034_boundary_without_time"] += 1
+            return
+        self._boundary(radar, az, t)
 
     def _boundary(self, radar: _Radar, az: float, t: int) -> None:
         """Queue a CAT034 sector boundary (North marker = azimuth 0) in time order.
@@ -514,8 +569,10 @@ class AsterixStreamDecoder:
         if radar.e_t is not None and t < radar.e_t:
             self.stats["cat034_late_boundary"] += 1
             return
-        times = [b[0] for b in radar.bounds]
-        pos = bisect.bisect_right(times, t)
+        if not radar.bounds or t >= radar.bounds[-1][0]:
+            pos = len(radar.bounds)
+        else:
+            pos = bisect.bisect_right([b[0] for b in radar.bounds], t)
         half = 0.5 * self._period_guess_ns(radar)
         neighbours = []
         if pos > 0:
@@ -544,14 +601,15 @@ class AsterixStreamDecoder:
     ) -> None:
         """Emit the sector from the last emitted boundary to (end_az, end_t) with the plots
         timed up to ``end_t`` (plots older than the sector start are late: counted)."""
-        if radar.e_az is None and not any(t <= end_t for t in radar.times):
+        n_take = bisect.bisect_right(radar.ptimes, end_t)
+        take = radar.pending[:n_take]
+        if radar.e_az is None and not take:
             radar.e_az, radar.e_t = end_az % TWO_PI, end_t  # the first boundary opens
             return
         if radar.e_az is None:  # the first sector of this radar: cover its plots
             w0 = width or TWO_PI / self.sector_count
-            for t, a in zip(radar.times, radar.az):
-                if t <= end_t:
-                    w0 = max(w0, (end_az - a) % TWO_PI + 1e-6)
+            for row in take:
+                w0 = max(w0, (end_az - row[2]) % TWO_PI + 1e-6)
             radar.e_az = (end_az - min(w0, TWO_PI)) % TWO_PI
         if width is None:
             width = (end_az - radar.e_az) % TWO_PI
@@ -559,11 +617,10 @@ class AsterixStreamDecoder:
                 width = TWO_PI
         width = min(max(width, 1e-9), TWO_PI)
         start_t = radar.e_t if radar.e_t is not None else end_t
-        take = [i for i, t in enumerate(radar.times) if t <= end_t]
-        take.sort(key=radar.times.__getitem__)
-        times = [radar.times[i] for i in take]
+        cols = list(zip(*take)) if take else [[]] * 8
+        times = list(cols[0])
         if times:
-            late = sum(1 for t in times if t < start_t)
+            late = bisect.bisect_left(times, start_t)
             if late and radar.seq > 0:
                 self.stats["late_plots"] += late
             start_t = min(start_t, times[0])
@@ -579,33 +636,22 @@ class AsterixStreamDecoder:
             time_start=start_t,
             time_end=end_t,
             time=times,
-            range=[radar.rng[i] for i in take] if polar else None,
-            azimuth=[radar.az[i] for i in take] if polar else None,
-            altitude=[radar.alt[i] for i in take] if polar else None,
-            amplitude=[radar.amp[i] for i in take] if polar else None,
-            mode_s=[radar.mode_s[i] for i in take] if polar else None,
-            mode_3a=[radar.mode_3a[i] for i in take] if polar else None,
+            range=list(cols[1]) if polar else None,
+            azimuth=list(cols[2]) if polar else None,
+            altitude=list(cols[3]) if polar else None,
+            amplitude=list(cols[4]) if polar else None,
+            mode_s=list(cols[5]) if polar else None,
+            mode_3a=list(cols[6]) if polar else None,
         )
-        out.append((batch, [radar.typ[i] for i in take]))
+        out.append((batch, list(cols[7])))
         self.stats["batches"] += 1
         radar.seq += 1
         if radar.e_az + width >= TWO_PI - 1e-9:
             radar.scan += 1
         radar.e_az = end_az % TWO_PI
         radar.e_t = end_t
-        if take:
-            keep = sorted(set(range(len(radar.times))) - set(take))
-            for column in (
-                radar.times,
-                radar.rng,
-                radar.az,
-                radar.alt,
-                radar.amp,
-                radar.mode_s,
-                radar.mode_3a,
-                radar.typ,
-            ):
-                column[:] = [column[i] for i in keep]
+        del radar.ptimes[:n_take]
+        del radar.pending[:n_take]
 
 
 def read_asterix(
@@ -617,6 +663,7 @@ def read_asterix(
     dedup: bool = True,
     skip_simulated: bool = False,
     max_plot_delay: float = 30.0,
+    fast: bool = True,
 ) -> AsterixReadResult:
     """Read a pcap or raw ASTERIX file into sector batches (see the module docstring).
 
@@ -632,6 +679,7 @@ def read_asterix(
         dedup=dedup,
         skip_simulated=skip_simulated,
         max_plot_delay=max_plot_delay,
+        fast=fast,
     )
     pairs: list[tuple[PlotBatch, list[int]]] = []
     for dgram in iter_file_datagrams(path, decoder.stats):
