@@ -309,3 +309,45 @@ def test_velocity_to_enu_matches_displacement_of_the_true_target(frame):
     vf = (p2 - p1) / dt
     ve, vn, vu = frame.velocity_to_enu(p1[:, 0], p1[:, 1], p1[:, 2], vf[:, 0], vf[:, 1], vf[:, 2])
     np.testing.assert_allclose(np.stack([ve, vn, vu], -1), v, atol=2e-3)
+
+
+def test_elevation_from_altitude_matches_sphere_geometry_and_its_derivatives():
+    """spec 01 §3 formula vs the elevation of a point placed on a sphere directly
+    (radar at radius a, target at radius b, central angle γ), incl. the 4/3-Earth radius."""
+    from fusion.frames.polar import elevation_from_altitude
+
+    for R in (6_371e3, 4 / 3 * 6_371e3):
+        hR = 300.0
+        gamma = np.linspace(1e-3, 0.04, 30)
+        hT = np.linspace(500.0, 12_000.0, 30)
+        a, b = R + hR, R + hT
+        D = np.sqrt(a * a + b * b - 2 * a * b * np.cos(gamma))
+        sin_ref = (b * np.cos(gamma) - a) / D
+        sol = elevation_from_altitude(D, hT, hR, R)
+        np.testing.assert_allclose(np.sin(sol.theta), sin_ref, atol=1e-12)
+        assert sol.feasible.all()
+        h = 1e-3
+        dD = (
+            elevation_from_altitude(D + h, hT, hR, R).theta
+            - elevation_from_altitude(D - h, hT, hR, R).theta
+        ) / (2 * h)
+        dh = (
+            elevation_from_altitude(D, hT + h, hR, R).theta
+            - elevation_from_altitude(D, hT - h, hR, R).theta
+        ) / (2 * h)
+        np.testing.assert_allclose(sol.dtheta_dD, dD, rtol=1e-5, atol=1e-12)
+        np.testing.assert_allclose(sol.dtheta_dh, dh, rtol=1e-5, atol=1e-12)
+    flat = elevation_from_altitude(np.array([1000.0]), np.array([600.0]), 100.0, np.inf)
+    assert np.sin(flat.theta[0]) == pytest.approx(0.5)
+
+
+def test_four_thirds_earth_option_changes_the_2d_solution_by_the_refraction_amount():
+    frame = SystemFrame.stereographic(LAT0, LON0)
+    site = RadarSite(radar_id="r", lat=LAT0, lon=LON0, alt=100.0, kind="2d")
+    b = _batch(site, [150e3], [60.0], altitude=[9000.0])
+    geo = convert_plots(frame, site, b)
+    refr = convert_plots(frame, site, b, k_earth=4 / 3)
+    # 4/3 Earth: less curvature drop → higher elevation θ for the same altitude → shorter
+    # ground range, by ≈ D sinθ Δθ with Δθ ≈ (1 − 3/4) D/(2R) ≈ 3 mrad: about 20-40 m here
+    shift = np.linalg.norm(refr.z[0]) - np.linalg.norm(geo.z[0])
+    assert -60.0 < shift < -10.0
