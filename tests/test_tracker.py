@@ -211,3 +211,29 @@ def test_bad_plots_are_counted_not_fatal():
     assert len(out.batch) == 1
     with pytest.raises(ValueError, match="p_detection"):
         tr.step(MeasurementBatch(NS, "r", z, R, 1.5, 1e-6))
+
+
+def test_estimated_clutter_mode_runs_from_empty_and_matches_formula():
+    """Non-parametric clutter (2.35): ρ̂ = (m − P_D P_G ψ)/V with V = π g √det S."""
+    c = cfg(tracker="ipda", clutter="estimated", initiation="none")
+    tr = Tracker(c)
+    out = tr.step(MeasurementBatch(NS, "r", np.array([[0.0, 0.0]]), R, 0.9, 0.0))
+    assert len(out) == 0
+    P0 = np.diag([25.0, 4.0, 25.0, 4.0])
+    tid = tr.add_track([0, 0, 0, 0], P0, NS, existence=0.5)
+    z = np.array([[3.0, -2.0], [-6.0, 4.0]])
+    out = tr.step(MeasurementBatch(2 * NS, "r", z, R, 0.9, 0.0))
+    F = np.kron(np.eye(2), [[1.0, 1.0], [0.0, 1.0]])
+    Q = np.kron(np.eye(2), 0.75 * np.array([[0.25, 0.5], [0.5, 1.0]]))
+    Pp = F @ P0 @ F.T + Q
+    S = Pp[np.ix_([0, 2], [0, 2])] + R
+    g = -2 * np.log(0.01)
+    pdpg = 0.9 * 0.99
+    psi_p = 0.98 * 0.5
+    V = np.pi * g * np.sqrt(np.linalg.det(S))
+    rho = (2 - pdpg * psi_p) / V
+    Si = np.linalg.inv(S)
+    p = [np.exp(-0.5 * v @ Si @ v) / (2 * np.pi * np.sqrt(np.linalg.det(S))) / 0.99 for v in z]
+    lam = 1 - pdpg + pdpg * sum(pi / rho for pi in p)
+    want = lam * psi_p / (1 - (1 - lam) * psi_p)
+    assert out.existence[list(out.ids).index(tid)] == pytest.approx(want, rel=1e-9)

@@ -55,7 +55,7 @@ def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarr
     """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
 
     One ``np.bincount`` per flattened column: linear in C, no per-component Python."""
-    flat = values.reshape(len(values), -1)
+    flat = values.reshape(len(values), int(np.prod(values.shape[1:], dtype=np.int64)))
     out = np.empty((ngroups, flat.shape[1]))
     for j in range(flat.shape[1]):
         out[:, j] = np.bincount(group, weights=flat[:, j], minlength=ngroups)

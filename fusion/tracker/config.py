@@ -31,7 +31,11 @@ class TrackerConfig(BaseModel):
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
     )
     ndim: int = Field(2, ge=2, le=3, description="Measured position dimensions (2 or 3)")
-    q: float = Field(1.0, ge=0.0, description="CV acceleration variance, m²/s⁴ (thesis 0.75)")
+    q: float = Field(
+        25.0,
+        ge=0.0,
+        description="CV acceleration variance, m²/s⁴ (25: turning aircraft; thesis 0.75)",
+    )
     q_vertical: float | None = Field(
         None, ge=0.0, description="Vertical acceleration variance (ndim=3), m²/s⁴"
     )
