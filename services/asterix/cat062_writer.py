@@ -86,7 +86,10 @@ class Cat062Writer:
         self._sent: set[int] = set()
 
     def encode_batch(self, batch: TrackBatch) -> list[bytes]:
-        records = [self.encode_track(t, batch.frame.kind, batch.state_labels) for t in batch.tracks]
+        records = [
+            self.encode_track(t, batch.frame.kind, batch.state_labels).unparse().to_bytes()
+            for t in batch.tracks
+        ]
         return datablocks(cat062.CATEGORY, records, self.max_block_bytes)
 
     def encode(self, batches: list[TrackBatch]) -> bytes:

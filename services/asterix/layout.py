@@ -219,4 +219,20 @@ def split_record(
     return p, items
 
 
-__all__ = ["RecordLayout", "compile_layout", "compile_rule", "split_record"]
+def build_fspec(layout: RecordLayout, present: list[str]) -> bytes:
+    """The FSPEC announcing the ``present`` items of ``layout`` (FX bits set on all but
+    the last byte), as libasterix writes it."""
+    index = {name: i for i, (name, _) in enumerate(layout.slots) if name}
+    slots = [index[name] for name in present]
+    if not slots:
+        return b"\x00"
+    n = max(slots) // 7 + 1
+    out = bytearray(n)
+    for i in slots:
+        out[i // 7] |= 0x80 >> (i % 7)
+    for k in range(n - 1):
+        out[k] |= 1
+    return bytes(out)
+
+
+__all__ = ["RecordLayout", "build_fspec", "compile_layout", "compile_rule", "split_record"]

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import Any
 
 from schemas import PlotBatch, RadarSite
 
@@ -54,19 +53,21 @@ def tod_of_ticks(ticks: int) -> float:
     return (ticks % TICKS_PER_DAY) / TICKS_PER_S
 
 
-def datablock(category: int, records: list[Any]) -> bytes:
-    """One data block (CAT, LEN, records) from libasterix records."""
-    body = b"".join(r.unparse().to_bytes() for r in records)
+def datablock(category: int, records: list[bytes]) -> bytes:
+    """One data block (CAT, LEN, records) from encoded records."""
+    body = b"".join(records)
+    if len(body) + 3 > 0xFFFF:
+        raise ValueError(f"{len(records)} records ({len(body)} bytes) exceed one data block")
     return bytes([category]) + (len(body) + 3).to_bytes(2, "big") + body
 
 
-def datablocks(category: int, records: list[Any], max_bytes: int) -> list[bytes]:
-    """Records packed into as few blocks as possible, each at most ``max_bytes``."""
+def datablocks(category: int, records: list[bytes], max_bytes: int) -> list[bytes]:
+    """Records packed into as few blocks as possible, each at most ``max_bytes`` (a
+    record longer than that gets a block of its own)."""
     out: list[bytes] = []
     chunk: list[bytes] = []
     size = 3
-    for r in records:
-        b = r.unparse().to_bytes()
+    for b in records:
         if chunk and size + len(b) > max_bytes:
             out.append(bytes([category]) + size.to_bytes(2, "big") + b"".join(chunk))
             chunk, size = [], 3
@@ -128,7 +129,7 @@ class AsterixPlotWriter:
     def _service(self, sac: int, sic: int, radar_id: str, az: float, t_ns: int) -> bytes:
         site = self.sites.get(radar_id)
         if _same_az(az, 0.0):
-            rec = cat034.build_record(
+            rec = cat034.encode_record(
                 sac=sac,
                 sic=sic,
                 message_type=cat034.NORTH_MARKER,
@@ -138,7 +139,7 @@ class AsterixPlotWriter:
             )
             self.stats["north_markers"] += 1
         else:
-            rec = cat034.build_record(
+            rec = cat034.encode_record(
                 sac=sac,
                 sic=sic,
                 message_type=cat034.SECTOR_CROSSING,
@@ -151,7 +152,7 @@ class AsterixPlotWriter:
             self.stats["sector_crossings"] += 1
         return datablock(cat034.CATEGORY, [rec])
 
-    def _plot_records(self, batch: PlotBatch, sac: int, sic: int) -> list[Any]:
+    def _plot_records(self, batch: PlotBatch, sac: int, sic: int) -> list[bytes]:
         n = len(batch)
         for name in ("elevation", "doppler", "target_id"):
             if getattr(batch, name) is not None:
@@ -181,7 +182,7 @@ class AsterixPlotWriter:
             else:
                 typ = 1
             records.append(
-                cat048.build_record(
+                cat048.encode_record(
                     sac=sac,
                     sic=sic,
                     tod=tod_of_ticks(min(max(time_ticks(batch.time[i]), lo), max(hi, lo))),
