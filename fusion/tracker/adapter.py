@@ -14,7 +14,7 @@ from collections import Counter
 
 import numpy as np
 
-from schemas import PlotBatch, RadarSite
+from schemas import PlotBatch, RadarKind, RadarSite
 
 from .measurements import MeasurementBatch, SectorCoverage
 
@@ -47,13 +47,16 @@ def measurement_batch_from(
         _PLOT_PREFIX.sub("", converted.reasons[i]) or "invalid" for i in np.flatnonzero(~valid)
     )
     tid = plot_batch.column("target_id")
+    # A rotating radar sweeps the sector from time_start to time_end, so each track is
+    # predicted to the time the beam crossed it; a cartesian sensor measures all at once.
+    rotating = site.kind is not RadarKind.CARTESIAN
     coverage = SectorCoverage(
         site=np.asarray(converted.site_position, dtype=np.float64),
         min_range=site.min_range,
         max_range=site.max_range,
         sector_start=plot_batch.sector_start,
         sector_width=plot_batch.sector_width,
-        time_start=plot_batch.time_start,
+        time_start=plot_batch.time_start if rotating else plot_batch.time_end,
         time_end=plot_batch.time_end,
     )
     return MeasurementBatch(
