@@ -237,3 +237,19 @@ def test_estimated_clutter_mode_runs_from_empty_and_matches_formula():
     lam = 1 - pdpg + pdpg * sum(pi / rho for pi in p)
     want = lam * psi_p / (1 - (1 - lam) * psi_p)
     assert out.existence[list(out.ids).index(tid)] == pytest.approx(want, rel=1e-9)
+
+
+def test_gnn_picks_the_best_one_to_one_assignment():
+    """Two tracks, two plots in both gates: GNN gives each track its own plot (the
+    brute-force best of the feasible assignments by likelihood), β = 1 on it."""
+    tr = Tracker(cfg(tracker="gnn", initiation="none"))
+    P = np.diag([100.0, 25, 100, 25])
+    a = tr.add_track([0, 10, 0, 0], P, 0, existence=0.9)
+    b = tr.add_track([0, 10, 20, 0], P, 0, existence=0.9)
+    z = np.array([[10.0, 17.0], [10.0, 2.0]])  # near b's and a's predictions
+    out = tr.step(MeasurementBatch(NS, "r", z, R, 0.9, 1e-6))
+    ia, ib = list(out.ids).index(a), list(out.ids).index(b)
+    assert out.assigned_plot[ia] == 1 and out.assigned_plot[ib] == 0
+    Pyy = 100 + 25 + 0.75 / 4  # predicted y variance; K = Pyy / (Pyy + 25)
+    assert out.states[ia][2] == pytest.approx(2.0 * Pyy / (Pyy + 25), rel=1e-9)
+    assert out.updates[ia] == out.updates[ib] == 1

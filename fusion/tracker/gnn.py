@@ -5,8 +5,9 @@ joint-event factors of (6.2) *given that the tracks exist* (ψ = 1, the classica
 low-existence tentative track must still be able to take its plot):
 L_τi = ln(P_D P_G p^τ_i/ρ_i) − ln(1 − P_D P_G). Maximising Σ L over one-to-one
 assignments (with a zero-score "no plot" option per track) gives the MAP joint event;
-scipy's Jonker–Volgenant solver (``scipy.optimize.linear_sum_assignment``) solves it per
-cluster of tracks sharing plots.
+the Jonker–Volgenant solver of :func:`fusion.association.assign_jv` (scipy's
+``linear_sum_assignment`` with "no assignment" columns) solves it per cluster of tracks
+sharing plots.
 The chosen plot gets β = 1 and existence is updated with that plot alone:
 Λ = 1 − P_D P_G + P_D P_G p_i/ρ_i (assigned) or 1 − P_D P_G (none), ψ by (5.18).
 """
@@ -14,7 +15,8 @@ The chosen plot gets β = 1 and existence is updated with that plot alone:
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+
+from fusion.association import assign_jv
 
 from .ipda import AssociationResult, existence_update, likelihood_ratio
 from .jits import clusters
@@ -48,15 +50,13 @@ def gnn_association(
             r = multi_rows[lab == lbl]
             trk, ti = np.unique(tp_track[r], return_inverse=True)
             plt, pi = np.unique(tp_plot[r], return_inverse=True)
-            T, M = len(trk), len(plt)
-            big = 1e9
-            cost = np.full((T, M + T), big)
+            cost = np.full((len(trk), len(plt)), np.inf)  # +inf: not gated
             cost[ti, pi] = -score[r]
-            cost[np.arange(T), M + np.arange(T)] = 0.0  # "no plot" for each track
-            a, b = linear_sum_assignment(cost)
-            for ai, bi in zip(a, b):
-                if bi < M and cost[ai, bi] < 0:
-                    chosen[trk[ai]] = r[(ti == ai) & (pi == bi)][0]
+            # "no plot" costs 0 (the reference of the score); fusion.association's JV
+            t2p = assign_jv(cost, np.zeros(len(trk))).track_to_plot
+            for a in np.flatnonzero(t2p >= 0):
+                if cost[a, t2p[a]] < 0:
+                    chosen[trk[a]] = r[(ti == a) & (pi == t2p[a])][0]
     has = chosen >= 0
     ratio_sum = np.zeros(n)
     ratio_sum[has] = ratio[chosen[has]]
