@@ -143,7 +143,9 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
     (NaN once deleted); the nearest-confirmed-track error (n_scans,), RMS over targets;
     ``swapped``: at the last scan the track of a target follows the other target (is
     nearest to it, within ``follow_distance``); ``lost``: the track of a target was deleted
-    or is farther than ``follow_distance`` from both; and the track positions."""
+    or is farther than ``follow_distance`` from both; ``first_cross_scan``: the first scan
+    at which a target's track is nearest the other target (None if never); and the track
+    positions."""
     from fusion.association import CONFIRMED, GNNConfig, GNNTracker
     from fusion.frames import SystemFrame, convert_plots
     from fusion.sim import Simulator, build_scenario
@@ -194,11 +196,18 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
             follows = np.array([-1, -1])
         swapped = bool(any(follows[a] == 1 - a for a in (0, 1)))
         lost = bool((follows < 0).any())
+        first_cross = None
+        for k in range(n_scans):
+            f_k = _follows(pos_hist[k], tpos[k], cfg.follow_distance)
+            if any(f_k[a] == 1 - a for a in (0, 1)):
+                first_cross = k
+                break
         out[name] = {
             "err": err,
             "best": best,
             "swapped": swapped,
             "lost": lost,
+            "first_cross_scan": first_cross,
             "positions": pos_hist,
             "cpu_s": time.process_time() - t_start,
         }
@@ -263,6 +272,12 @@ def evaluate_crossing(cfg: CrossingEvalConfig, progress: Callable[[int], None] |
             "after_turn": t_s >= TURN_END_S + 4.0,
         }
         ok = sum(not (r["filters"][name]["swapped"] or r["filters"][name]["lost"]) for r in results)
+        crossings = dict.fromkeys(windows, 0)
+        for r in results:
+            c = r["filters"][name]["first_cross_scan"]
+            if c is not None:
+                for k, w in windows.items():
+                    crossings[k] += bool(w[c])
         summary["filters"][name] = {
             "description": FILTER_HELP[name],
             "rmse_target0": _clean(rmse_t[:, 0]),
@@ -274,6 +289,7 @@ def evaluate_crossing(cfg: CrossingEvalConfig, progress: Callable[[int], None] |
             "swaps": int(swaps),
             "lost": int(lost),
             "both_kept": int(ok),
+            "first_crossing_runs": crossings,
             "runs": len(results),
             "cpu_s": float(sum(r["filters"][name]["cpu_s"] for r in results)),
         }
@@ -315,15 +331,17 @@ def markdown_table(summary: dict) -> str:
     lines.append("")
     lines.append(
         "| filter | RMSE₀ before / turn / after (m) | nearest-track RMSE before / turn / "
-        "after (m) | swaps | lost | both kept | runs |"
+        "after (m) | swaps | lost | both kept | first crossing before / turn / after | runs |"
     )
-    lines.append("|---|---:|---:|---:|---:|---:|---:|")
+    lines.append("|---|---:|---:|---:|---:|---:|---:|---:|")
     for n in names:
         f = summary["filters"][n]
         a = " / ".join(str(v) for v in f["mean_rmse_target0"].values())
         b = " / ".join(str(v) for v in f["mean_rmse_nearest_track"].values())
+        c = " / ".join(str(v) for v in f["first_crossing_runs"].values())
         lines.append(
-            f"| {n} | {a} | {b} | {f['swaps']} | {f['lost']} | {f['both_kept']} | {f['runs']} |"
+            f"| {n} | {a} | {b} | {f['swaps']} | {f['lost']} | {f['both_kept']} | {c} | "
+            f"{f['runs']} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -419,7 +437,7 @@ def run_crossing(args: argparse.Namespace) -> int:
     step = max(1, cfg.runs // 10)
 
     def progress(done: int) -> None:
-        if done % step == 0 or done == cfg.runs:
+        if done % step == 0 or done == cfg.runs or cfg.workers > 1:
             print(f"  {done}/{cfg.runs} runs, {time.perf_counter() - t0:.1f} s", flush=True)
 
     print(
