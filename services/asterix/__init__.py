@@ -6,11 +6,15 @@ See ``docs/asterix.md``. Public API:
   :class:`AsterixStreamDecoder` (UDP datagrams → PlotBatches as sectors complete);
 * :func:`load_sites` (sites TOML → radar id ``"SAC-SIC"`` → RadarSite);
 * :class:`AsterixPlotWriter` (PlotBatch → CAT048 + CAT034 data blocks);
-* :class:`Cat062Writer` (Track / TrackBatch → CAT062) and :func:`decode_cat062`.
+* :class:`Cat062Writer` (TrackBatch → CAT062 data blocks), :func:`decode_cat062` and
+  :func:`read_cat062` (CAT062 → :class:`Cat062Track`).
 """
 
 from __future__ import annotations
 
+from .cat062 import Cat062Track, decode_cat062, read_cat062
+from .cat062_writer import Cat062Writer
+from .pcap import build_pcap
 from .reader import (
     AsterixReadResult,
     AsterixStreamDecoder,
@@ -21,18 +25,25 @@ from .reader import (
 )
 from .scan_period import estimate_scan_period
 from .sites import SitesError, load_sites, parse_sites, radar_id_for, sac_sic_of
+from .writer import AsterixPlotWriter
 
 __all__ = [
+    "AsterixPlotWriter",
     "AsterixReadResult",
     "AsterixStreamDecoder",
+    "Cat062Track",
+    "Cat062Writer",
     "SitesError",
     "TimeOfDayResolver",
     "altitude_to_flight_level",
+    "build_pcap",
+    "decode_cat062",
     "estimate_scan_period",
     "flight_level_to_altitude",
     "load_sites",
     "parse_sites",
     "radar_id_for",
     "read_asterix",
+    "read_cat062",
     "sac_sic_of",
 ]

@@ -32,11 +32,13 @@ from typing import Any
 
 import asterix.generated as gen
 
+from .layout import compile_layout
 from .pcap import iter_file_datagrams, split_datablocks
 from .records import RecordError, iter_records, quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_062_1_20
 CATEGORY = 62
+LAYOUT = compile_layout(SPEC)
 
 
 @dataclass(slots=True)

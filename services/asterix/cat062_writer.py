@@ -38,6 +38,7 @@ import numpy as np
 from schemas import FrameKind, Track, TrackBatch, TrackStatus
 
 from . import cat062
+from .layout import RecordLayout, build_fspec
 from .reader import altitude_to_flight_level
 from .writer import datablocks, time_ticks
 
@@ -86,42 +87,44 @@ class Cat062Writer:
         self._sent: set[int] = set()
 
     def encode_batch(self, batch: TrackBatch) -> list[bytes]:
-        records = [
-            self.encode_track(t, batch.frame.kind, batch.state_labels).unparse().to_bytes()
-            for t in batch.tracks
-        ]
+        records = [self.encode_track(t, batch.frame.kind, batch.state_labels) for t in batch.tracks]
         return datablocks(cat062.CATEGORY, records, self.max_block_bytes)
 
     def encode(self, batches: list[TrackBatch]) -> bytes:
         """Concatenated data blocks of several batches (a raw file's bytes)."""
         return b"".join(b for batch in batches for b in self.encode_batch(batch))
 
-    def encode_track(self, track: Track, frame: FrameKind, state_labels: list[str]) -> Any:
-        number = track.track_id % 65536
-        if number != track.track_id:
-            self.stats["track_number_wrapped"] += 1
+    def encode_track(self, track: Track, frame: FrameKind, state_labels: list[str]) -> bytes:
+        """One CAT062 record (bytes); updates the first/last-message bookkeeping."""
         first = track.track_id not in self._sent
         self._sent.add(track.track_id)
         last = track.status == TrackStatus.TERMINATED
         if last:
             self._sent.discard(track.track_id)
-        mono = int(len(track.radars) == 1)
-        items: dict[str, Any] = {
-            "010": (("SAC", self.sac), ("SIC", self.sic)),
+        raw = self.raw_items(track, frame, state_labels, first=first, last=last)
+        self.stats["tracks"] += 1
+        return pack_record(raw)
+
+    def raw_items(
+        self,
+        track: Track,
+        frame: FrameKind,
+        state_labels: list[str],
+        *,
+        first: bool,
+        last: bool,
+    ) -> dict[str, Any]:
+        """Raw (LSB-count, masked to the item width) values of the items of one track."""
+        number = track.track_id % 65536
+        if number != track.track_id:
+            self.stats["track_number_wrapped"] += 1
+        raw: dict[str, Any] = {
+            "010": (self.sac, self.sic),
             "015": self.service_id,
             "070": time_ticks(track.time) % (86_400 * 128),
             "105": (
-                ("LAT", _clip_raw(track.lat, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF),
-                ("LON", _clip_raw(track.lon, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF),
-            ),
-            "185": (
-                ("VX", _clip_raw(track.vel_east, 0.25, -32768, 32767) & 0xFFFF),
-                ("VY", _clip_raw(track.vel_north, 0.25, -32768, 32767) & 0xFFFF),
-            ),
-            "040": number,
-            "080": (
-                (mono, 0, 0, 0, int(track.status == TrackStatus.TENTATIVE), None),
-                (int(self.simulated), int(last), int(first), 0, 0, 0, 0, None),
+                _clip_raw(track.lat, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF,
+                _clip_raw(track.lon, LSB_DEG_105, -(2**31), 2**31 - 1) & 0xFFFFFFFF,
             ),
         }
         idx = {name: i for i, name in enumerate(state_labels)}
@@ -129,20 +132,31 @@ class Cat062Writer:
             x, y = track.state[idx["x"]], track.state[idx["y"]]
             lim = 2**23 - 1
             if abs(x) / 0.5 <= lim and abs(y) / 0.5 <= lim:
-                items["100"] = (
-                    ("X", _clip_raw(x, 0.5, -lim - 1, lim) & 0xFFFFFF),
-                    ("Y", _clip_raw(y, 0.5, -lim - 1, lim) & 0xFFFFFF),
+                raw["100"] = (
+                    _clip_raw(x, 0.5, -lim - 1, lim) & 0xFFFFFF,
+                    _clip_raw(y, 0.5, -lim - 1, lim) & 0xFFFFFF,
                 )
             else:
                 self.stats["i100_out_of_range"] += 1
+        raw["185"] = (
+            _clip_raw(track.vel_east, 0.25, -32768, 32767) & 0xFFFF,
+            _clip_raw(track.vel_north, 0.25, -32768, 32767) & 0xFFFF,
+        )
+        raw["040"] = number
+        raw["080"] = (
+            int(len(track.radars) == 1),  # MON
+            int(track.status == TrackStatus.TENTATIVE),  # CNF
+            int(self.simulated),  # SIM
+            int(last),  # TSE
+            int(first),  # TSB
+        )
         if track.alt is not None:
             fl = altitude_to_flight_level(track.alt)
-            items["136"] = _clip_raw(fl, 0.25, -32768, 32767) & 0xFFFF
+            raw["136"] = _clip_raw(fl, 0.25, -32768, 32767) & 0xFFFF
         acc = self._accuracies(track, frame, idx)
         if acc:
-            items["500"] = acc
-        self.stats["tracks"] += 1
-        return cat062.SPEC.cv_record.create(items)
+            raw["500"] = acc
+        return raw
 
     def _accuracies(self, track: Track, frame: FrameKind, idx: dict[str, int]) -> dict[str, Any]:
         if "x" not in idx or "y" not in idx:
@@ -153,20 +167,84 @@ class Cat062Writer:
         var_e, var_n, c_en = cov[east, east], cov[north, north], cov[east, north]
         out: dict[str, Any] = {}
         sx, sy = math.sqrt(max(var_e, 0.0)), math.sqrt(max(var_n, 0.0))
-        out["APC"] = (("X", _clip_raw(sx, 0.5, 0, 0xFFFF)), ("Y", _clip_raw(sy, 0.5, 0, 0xFFFF)))
+        out["APC"] = (_clip_raw(sx, 0.5, 0, 0xFFFF), _clip_raw(sy, 0.5, 0, 0xFFFF))
         root = math.copysign(math.sqrt(abs(c_en)), c_en)
         out["COV"] = _clip_raw(root, 0.5, -32768, 32767) & 0xFFFF
         m_lat, m_lon = metres_per_degree(track.lat)
         out["APW"] = (
-            ("LAT", _clip_raw(sy / m_lat, LSB_DEG_105, 0, 0xFFFF)),
-            ("LON", _clip_raw(sx / max(m_lon, 1e-9), LSB_DEG_105, 0, 0xFFFF)),
+            _clip_raw(sy / m_lat, LSB_DEG_105, 0, 0xFFFF),
+            _clip_raw(sx / max(m_lon, 1e-9), LSB_DEG_105, 0, 0xFFFF),
         )
         if "vx" in idx and "vy" in idx:
             ive, ivn = (idx["vy"], idx["vx"]) if frame == FrameKind.NED else (idx["vx"], idx["vy"])
             svx = math.sqrt(max(cov[ive, ive], 0.0))
             svy = math.sqrt(max(cov[ivn, ivn], 0.0))
-            out["ATV"] = (
-                ("X", _clip_raw(svx, 0.25, 0, 0xFF)),
-                ("Y", _clip_raw(svy, 0.25, 0, 0xFF)),
-            )
+            out["ATV"] = (_clip_raw(svx, 0.25, 0, 0xFF), _clip_raw(svy, 0.25, 0, 0xFF))
         return out
+
+
+def pack_record(raw: dict[str, Any]) -> bytes:
+    """Bytes of a CAT062 record from :meth:`Cat062Writer.raw_items` values, packed
+    directly (identical to :func:`build_record`'s libasterix encoding, differential
+    test; ~20× faster)."""
+    body = bytearray(raw["010"])
+    body.append(raw["015"])
+    body += raw["070"].to_bytes(3, "big")
+    body += raw["105"][0].to_bytes(4, "big") + raw["105"][1].to_bytes(4, "big")
+    if "100" in raw:
+        body += raw["100"][0].to_bytes(3, "big") + raw["100"][1].to_bytes(3, "big")
+    body += raw["185"][0].to_bytes(2, "big") + raw["185"][1].to_bytes(2, "big")
+    body += raw["040"].to_bytes(2, "big")
+    mon, cnf, sim, tse, tsb = raw["080"]
+    body += bytes((mon << 7 | cnf << 1 | 1, sim << 7 | tse << 6 | tsb << 5))
+    if "136" in raw:
+        body += raw["136"].to_bytes(2, "big")
+    if "500" in raw:
+        acc = raw["500"]
+        subs = [k for k in ("APC", "COV", "APW", "ATV") if k in acc]
+        body += build_fspec(_I500_LAYOUT, subs)
+        if "APC" in acc:
+            body += acc["APC"][0].to_bytes(2, "big") + acc["APC"][1].to_bytes(2, "big")
+        if "COV" in acc:
+            body += acc["COV"].to_bytes(2, "big")
+        if "APW" in acc:
+            body += acc["APW"][0].to_bytes(2, "big") + acc["APW"][1].to_bytes(2, "big")
+        if "ATV" in acc:
+            body += bytes(acc["ATV"])
+    return build_fspec(cat062.LAYOUT, list(raw)) + bytes(body)
+
+
+def build_record(raw: dict[str, Any]) -> Any:
+    """The same record built with libasterix (the reference encoder)."""
+    mon, cnf, sim, tse, tsb = raw["080"]
+    items: dict[str, Any] = {
+        "010": (("SAC", raw["010"][0]), ("SIC", raw["010"][1])),
+        "015": raw["015"],
+        "070": raw["070"],
+        "105": (("LAT", raw["105"][0]), ("LON", raw["105"][1])),
+        "185": (("VX", raw["185"][0]), ("VY", raw["185"][1])),
+        "040": raw["040"],
+        "080": ((mon, 0, 0, 0, cnf, None), (sim, tse, tsb, 0, 0, 0, 0, None)),
+    }
+    if "100" in raw:
+        items["100"] = (("X", raw["100"][0]), ("Y", raw["100"][1]))
+    if "136" in raw:
+        items["136"] = raw["136"]
+    if "500" in raw:
+        acc = raw["500"]
+        i500: dict[str, Any] = {}
+        if "APC" in acc:
+            i500["APC"] = (("X", acc["APC"][0]), ("Y", acc["APC"][1]))
+        if "COV" in acc:
+            i500["COV"] = acc["COV"]
+        if "APW" in acc:
+            i500["APW"] = (("LAT", acc["APW"][0]), ("LON", acc["APW"][1]))
+        if "ATV" in acc:
+            i500["ATV"] = (("X", acc["ATV"][0]), ("Y", acc["ATV"][1]))
+        items["500"] = i500
+    return cat062.SPEC.cv_record.create(items)
+
+
+_I500_LAYOUT = RecordLayout(
+    2, tuple((name, None) for name in ("APC", "COV", "APW", "AGA", "ABA", "ATV", "AA", "ARC"))
+)

@@ -1,8 +1,10 @@
 """ASTERIX CAT048/CAT034 → :class:`schemas.PlotBatch` sector batches and radar sites.
 
 Pipeline: datagram (pcap UDP payload or raw file) → data blocks
-(:func:`pcap.split_datablocks`) → records (libasterix, record by record) → plots and
-service messages → per-radar sector batches.
+(:func:`pcap.split_datablocks`) → records (split with the layout compiled from
+libasterix's specification, :mod:`.layout`; libasterix itself parses any record the
+fast path declines and reports the error) → plots and service messages → per-radar
+sector batches.
 
 Conversions (CAT048 item → PlotBatch column):
 
@@ -32,19 +34,26 @@ Conversions (CAT048 item → PlotBatch column):
 Batches (one per radar sector):
 
 * With CAT034: each sector crossing (I020 azimuth, LSB 360/2^8 deg) or North marker
-  (azimuth 0) closes the batch of the sector swept since the previous one, even if it
-  holds no plots (a sector swept without detections is information for
-  existence-based trackers). A second boundary at the same azimuth within half a scan
-  (North marker + sector 0) is ignored. ``scan`` increments after the sector that ends
-  at north. I041 gives the scan period, I120 the site position.
+  (azimuth 0) is a sector boundary; a radar's first boundary only opens its first
+  sector. Boundaries are kept in time order (a North marker may overtake the last
+  crossings); a second boundary at the same azimuth within half a scan (North marker +
+  sector-0 crossing) is ignored. Each closed sector becomes a batch, even an empty one
+  (a sector swept without detections is information for existence-based trackers).
+  ``scan`` increments after the sector that ends at north. I041 gives the scan period,
+  I120 the site position.
 * Without CAT034 (per radar, until its first CAT034 message): fixed azimuth sectors of
-  2π/``sector_count``; a plot in a later sector closes the open one (and emits empty
-  batches for sectors skipped), with boundary times interpolated in azimuth between
-  the last plot and the new one; a plot up to half a turn *behind* arriving within a
+  2π/``sector_count``; a plot in a later sector closes the open one (and the sectors
+  skipped, as empty batches), with boundary times interpolated in azimuth between the
+  last plot and the new one; a plot up to half a turn *behind* arriving within a
   quarter of a scan is a late plot of the open sector. The scan period is then
   estimated from the plots (:func:`.scan_period.estimate_scan_period`).
+* Plots go to sectors by their *time* (time of day), not by arrival: a batch holds the
+  plots timed after the previous boundary and up to its own. A closed sector is kept
+  open for late plots for ``max_plot_delay`` seconds of the radar's own time (some
+  radars deliver plots seconds after the sector message); plots arriving even later go
+  into the next batch and are counted as ``late_plots``.
 * ``time_start``/``time_end`` are the boundary times, widened to cover the batch's plot
-  times; plots are sorted by time inside a batch.
+  times; plots are sorted by time inside a batch; per radar, ``seq`` counts batches.
 
 Bad input never raises: unknown categories, malformed blocks and records, and plots
 that cannot be used are counted by reason in ``stats`` and described (first 200) in
