@@ -218,5 +218,11 @@ def test_writer_rejects_what_cat048_cannot_carry():
     writer = AsterixPlotWriter()
     writer.encode_batch(far)
     assert writer.stats["plot_beyond_256_nm"] == 1 and writer.stats["plots"] == 1
-    with pytest.raises(ValueError, match="SAC-SIC"):
-        AsterixPlotWriter().encode_batch(far.model_copy(update={"radar_id": "radar_a"}))
+    named = far.model_copy(update={"radar_id": "radar_a"})
+    with pytest.raises(ValueError, match=r"SAC-SIC.*sac_sic"):
+        AsterixPlotWriter().encode_batch(named)
+    blocks = AsterixPlotWriter(sac_sic={"radar_a": (9, 3)}).encode_batch(named)
+    dec = AsterixStreamDecoder()
+    for blk in blocks:
+        dec.feed(blk, 1)
+    assert dec.radars == {"9-3": 1}

@@ -82,18 +82,25 @@ class AsterixPlotWriter:
     """Stateful encoder of PlotBatches to ASTERIX data blocks (see module docstring).
 
     ``sites``: radar id → RadarSite, for I041 (scan period) and I120 (position) in
-    North markers. Radar ids must be of the form ``"SAC-SIC"`` (:func:`.sites.radar_id_for`).
+    North markers. Radar ids of the form ``"SAC-SIC"`` (:func:`.sites.radar_id_for`)
+    give their own SAC/SIC; others (e.g. a simulator's ``"radar"``) need an entry in
+    ``sac_sic`` (radar id → (SAC, SIC)); read back, they are named ``"SAC-SIC"``.
     ``simulated``: set I048/020 SIM (the plots come from a simulator)."""
 
     def __init__(
         self,
         sites: dict[str, RadarSite] | None = None,
         *,
+        sac_sic: dict[str, tuple[int, int]] | None = None,
         simulated: bool = True,
         max_block_bytes: int = 1400,
     ) -> None:
         if max_block_bytes < 64 or max_block_bytes > 65535:
             raise ValueError(f"max_block_bytes = {max_block_bytes}: must be in 64..65535")
+        self.sac_sic = dict(sac_sic or {})
+        for rid, (sac, sic) in self.sac_sic.items():
+            if not (0 <= sac <= 255 and 0 <= sic <= 255):
+                raise ValueError(f"sac_sic[{rid!r}] = ({sac}, {sic}): SAC and SIC are 0..255")
         self.sites = dict(sites or {})
         self.simulated = simulated
         self.max_block_bytes = max_block_bytes
@@ -107,7 +114,13 @@ class AsterixPlotWriter:
                 f"batch {batch.radar_id}#{batch.seq} has x/y plots: CAT048 carries polar "
                 "plots (range/azimuth) only"
             )
-        sac, sic = sac_sic_of(batch.radar_id)
+        if batch.radar_id in self.sac_sic:
+            sac, sic = self.sac_sic[batch.radar_id]
+        else:
+            try:
+                sac, sic = sac_sic_of(batch.radar_id)
+            except ValueError as exc:
+                raise ValueError(f"{exc}; or map it with sac_sic={{id: (SAC, SIC)}}") from None
         out: list[bytes] = []
         last = self._last_end.get(batch.radar_id)
         start_az = batch.sector_start
