@@ -50,7 +50,10 @@ class TrackerConfig(BaseModel):
         1e-3, gt=0.0, lt=1.0, description="Termination threshold τ_t on existence"
     )
     confirm_min_updates: int = Field(
-        1, ge=0, description="Scans with a plot (weight > 0.5) needed before confirmation"
+        2,
+        ge=0,
+        description="Scans with a plot (weight > 0.5) after initiation before confirmation "
+        "(spec 02 §8: above τ_c 'long enough')",
     )
     initiation: Literal["two_point", "one_point", "none"] = Field(
         "two_point", description="Track initiation: two_point (3.25-3.27), one_point, none"
