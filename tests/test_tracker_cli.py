@@ -145,3 +145,45 @@ def test_track_command_bad_configuration_is_exit_2(tmp_path, capsys):
     )
     assert "tau_terminate" in capsys.readouterr().err
     assert main(["track", str(tmp_path / "missing.mcap")]) == 2
+
+
+def test_adapter_builds_sector_coverage_and_counts_invalid_plots():
+    from fusion.frames import SystemFrame, convert_plots
+    from fusion.tracker.adapter import measurement_batch_from
+
+    site = RadarSite(
+        radar_id="r2",
+        lat=LAT,
+        lon=LON,
+        alt=100.0,
+        kind="2d",
+        p_detection=0.8,
+        clutter_density=2e-9,
+        max_range=150_000.0,
+    )
+    t = T0 + 4 * 10**9
+    batch = PlotBatch(
+        radar_id="r2",
+        scan=1,
+        seq=3,
+        sector_start=1.0,
+        sector_width=0.5,
+        time_start=t - 250_000_000,
+        time_end=t,
+        time=[t - 10**8, t - 10**7],
+        range=[50_000.0, 60_000.0],
+        azimuth=[1.2, 1.4],
+        altitude=[9000.0, None],
+        target_id=[7, -1],
+    )
+    frame = SystemFrame.stereographic(LAT, LON)
+    mb = measurement_batch_from(convert_plots(frame, site, batch), site, batch)
+    assert len(mb) == 1 and sum(mb.rejected.values()) == 1
+    assert mb.p_detection == 0.8 and mb.clutter_density == 2e-9 and mb.time_ns == t
+    assert list(mb.target_ids) == [7] and list(mb.plot_ids) == [0]
+    cov = mb.coverage
+    # the plot lies inside the swept sector and was swept ~60 % of the way through it
+    assert cov.contains(mb.z)[0]
+    assert cov.illumination_time(mb.z)[0] == pytest.approx(t - 250_000_000 + 0.4 * 250e6, abs=2e7)
+    east, north = 50_000 * np.sin(0.5), 50_000 * np.cos(0.5)  # azimuth 0.5 rad: outside
+    assert not cov.contains(np.array([[east, north]]))[0]
