@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from services.asterix import SitesError, load_sites, radar_id_for, sac_sic_of
+from services.asterix import SitesError, cat034, load_sites, radar_id_for, sac_sic_of
 from services.asterix.reader import AsterixStreamDecoder
+from services.asterix.writer import datablock
 
 GOOD = """
 [[radar]]
@@ -91,9 +92,10 @@ def test_radar_id_round_trip():
 def test_sites_file_scan_period_overrides_cat034_only_when_given(tmp_path):
     sites = load_sites(write(tmp_path, GOOD))
     dec = AsterixStreamDecoder(sites=sites)
-    for rid in ("20-129", "20-130"):
-        radar = dec._radar(*sac_sic_of(rid))
-        radar.periods_041.append(5.5)  # as if a North marker said 5.5 s
+    for rid in ("20-129", "20-130"):  # North markers saying the period is 5.5 s
+        sac, sic = sac_sic_of(rid)
+        rec = cat034.encode_record(sac=sac, sic=sic, message_type=1, tod=100.0, period_s=5.5)
+        dec.feed(datablock(34, [rec]), None)
     got, source = dec.current_sites()
     assert source == {"20-129": "cat034", "20-130": "sites"}
     assert got["20-129"].scan_period == 5.5 and got["20-130"].scan_period == 4.8

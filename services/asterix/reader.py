@@ -250,7 +250,6 @@ class AsterixStreamDecoder:
         self._radars: dict[str, _Radar] = {}
         self._recent: OrderedDict[bytes, None] = OrderedDict()
         self._datagrams = 0
-        self._plot_types: dict[tuple[str, int], list[int]] = {}
 
     # ---------------------------------------------------------------- public API
     def feed(self, datagram: bytes, recv_time_ns: int | None = None) -> list[PlotBatch]:
@@ -542,6 +541,7 @@ class AsterixStreamDecoder:
         radar = self._radar(msg.sac, msg.sic)
         if msg.period_s is not None and msg.period_s > 0:
             radar.periods_041.append(msg.period_s)
+            del radar.periods_041[:-64]  # the latest 64 revolutions
         if msg.lat is not None and msg.lon is not None and msg.height is not None:
             radar.position = (msg.lat, msg.lon, msg.height)
         if msg.message_type == cat034.NORTH_MARKER:
