@@ -64,7 +64,7 @@ def run_once(payloads: list[bytes], plots: int, foxglove: bool, tmp: Path) -> di
     args += ["--status-interval", "0.1"]
     args.append("--foxglove" if foxglove else "--no-foxglove")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "services.cli", "--log-level", "WARNING", *args],
+        [sys.executable, "-m", "services.lifecycle", "--log-level", "WARNING", *args],
         cwd=ROOT,
         stderr=open(tmp / f"rec-{foxglove}.log", "wb"),
     )

@@ -215,12 +215,21 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
                 break
             stop.wait(0.2)
         interrupted = stop.is_set()
-        # let the fusion service apply what it buffered and publish it
-        end = time.monotonic() + cfg.reorder_wait + 1.0
+        # let the fusion service catch up: wait until it has taken in every batch the
+        # sensors published (their final Status says how many) and emptied its buffer
+        end = time.monotonic() + (cfg.drain_timeout if not interrupted else 1.0)
         while time.monotonic() < end and not (interrupted and stop.wait(0)):
             for item in inbox.drain(2000):
                 view.feed(item, fox)
+            view.refresh()
+            if view.fusion_caught_up(radars):
+                break
+            if fusion.poll() is not None:
+                break
             time.sleep(0.1)
+        else:
+            if not interrupted:
+                log.warning("the fusion service did not catch up within %.0f s", cfg.drain_timeout)
     finally:
         if go is not None:
             go.undeclare()
@@ -298,6 +307,19 @@ class _View:
                 fox["truth"].log(location_fixes(tr.time, "truth", tr.lat, tr.lon, tr.alt, _green()))
         except ValidationError:
             pass
+
+    def fusion_caught_up(self, radars: list[str]) -> bool:
+        """Whether the fusion service has received every batch the sensors reported as
+        published (final sensor Status) and has nothing left in its reorder buffer."""
+        fus = self.status.get("demo")
+        sensors = [self.status.get(f"sensor-{r}") for r in radars]
+        if fus is None or any(s is None for s in sensors):
+            return False
+        published = sum(s.counters.get("batches", 0) for s in sensors)
+        return (
+            fus.counters.get("batches_received", 0) >= published
+            and fus.counters.get("queued", 0) == 0
+        )
 
     def _render(self):
         from rich.table import Table

@@ -139,7 +139,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> 
             q.reply_err(b"no tracks yet")
 
     queryable = session.declare_queryable(snapshot_key, answer_snapshot)
-    inbox = Inbox()
+    inbox = Inbox(capacity=core.cfg.queue)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")
     inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
@@ -196,9 +196,27 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> 
     finally:
         token.undeclare()
         inbox.close()
-        for item in inbox.drain(1_000_000):
+        # apply what was already received, but never past the shutdown deadline
+        grace = getattr(stop, "grace", 4.5)
+        deadline = time.monotonic() + max(0.5, grace - 1.5)
+        left = inbox.drain(1_000_000)
+        for i, item in enumerate(left):
+            if time.monotonic() > deadline:
+                core.rejected["not processed: shutdown deadline"] += len(left) - i
+                break
             handle(item)
-        publish(core.poll(flush=True))
+        for p in core.buffer.flush():
+            if time.monotonic() > deadline:
+                core.rejected["not processed: shutdown deadline"] += 1
+                continue
+            publish([o for o in [core.cycle(p)] if o is not None])
+        if inbox.discarded:
+            core.rejected["not processed: arrived after the stop"] += inbox.discarded
+        if core.rejected.get("not processed: shutdown deadline"):
+            log.error(
+                "shutdown deadline: %d batches not processed",
+                core.rejected["not processed: shutdown deadline"],
+            )
         st = core.status()
         pub_status.put(st.to_json_bytes())
         queryable.undeclare()

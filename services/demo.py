@@ -55,6 +55,9 @@ class DemoConfig(BaseModel):
     reorder_wait: float = Field(0.5, ge=0, le=10, description="Fusion reorder wait, s")
     tracker: str = Field("lmits", description="Tracker kind for the fusion service")
     gospa_c: float = Field(2000.0, gt=0, description="GOSPA cut-off c, m")
+    drain_timeout: float = Field(
+        60.0, gt=0, le=3600, description="How long to let the fusion service catch up, s"
+    )
     start_timeout: float = Field(
         60.0, gt=0, le=600, description="How long to wait for the services to start, s"
     )
@@ -73,7 +76,7 @@ class Child:
     def start(self, cwd: Path | None = None) -> None:
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "services.cli", *self.args],
+            [sys.executable, "-m", "services.lifecycle", *self.args],
             stdin=subprocess.DEVNULL,
             stdout=self._log,
             stderr=subprocess.STDOUT,

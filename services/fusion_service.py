@@ -84,6 +84,9 @@ class FusionConfig(BaseModel):
         20_000, ge=10, description="Latency percentiles over the last N publications"
     )
     rate_window: float = Field(5.0, gt=0, description="Plot-rate averaging window, s")
+    queue: int = Field(
+        10_000, ge=10, le=1_000_000, description="Received messages waiting, at most"
+    )
 
     def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
         """The configured frame, or a stereographic frame at ``first_site``."""
@@ -302,6 +305,10 @@ class FusionCore:
         now = time.monotonic() if now is None else now
         ready = self.buffer.flush() if flush else self.buffer.pop_ready(now)
         return [out for p in ready if (out := self._cycle(p)) is not None]
+
+    def cycle(self, p: _Pending) -> CycleOutput | None:
+        """Run the cycle of one released batch (see :meth:`poll`)."""
+        return self._cycle(p)
 
     def _cycle(self, p: _Pending) -> CycleOutput | None:
         batch = p.batch

@@ -12,7 +12,7 @@ import pytest
 from test_service_support import peer, skyfuse, stop
 
 from schemas import PlotBatch, RadarSite, TrackBatch, keys
-from services.cli import main as skyfuse_main
+from services.lifecycle import main_single as skyfuse_main
 from services.recording import iter_recording
 from services.replay import replay
 from services.transport import (
@@ -37,19 +37,20 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path):
         "simulate", "--scenario", "regional", "--seed", "3", "--duration", "20",
         "--targets", "5", "--param", "radars=3", "--out", str(rec), "--no-progress",
     ]) == 0  # fmt: skip
-    offline = tmp_path / "offline.mcap"
-    assert skyfuse_main(["track", str(rec), "--out", str(offline), "--no-progress"]) == 0
-    off = [r.message for r in iter_recording(offline) if isinstance(r.message, TrackBatch)]
-    # the live fusion uses the frame `skyfuse track` chose: stereographic at the sites' mean
+    # the live fusion uses the frame `skyfuse track` chooses: stereographic at the sites' mean
     sites = [r.message for r in iter_recording(rec) if isinstance(r.message, RadarSite)]
-    n_batches = sum(isinstance(r.message, PlotBatch) for r in iter_recording(rec))
     lat0 = float(np.mean([s.lat for s in sites]))
     lon0 = float(np.mean([s.lon for s in sites]))
     ep = loopback_endpoint(free_port())
+    # (the fusion process starts up while the offline tracker runs)
     proc = skyfuse(
         "fusion", "--listen", ep, "--frame-kind", "stereographic", "--frame-lat0", repr(lat0),
         "--frame-lon0", repr(lon0), "--reorder-wait", "0.3", log_path=tmp_path / "fusion.log",
     )  # fmt: skip
+    offline = tmp_path / "offline.mcap"
+    assert skyfuse_main(["track", str(rec), "--out", str(offline), "--no-progress"]) == 0
+    off = [r.message for r in iter_recording(offline) if isinstance(r.message, TrackBatch)]
+    n_batches = sum(isinstance(r.message, PlotBatch) for r in iter_recording(rec))
     live: list[TrackBatch] = []
     try:
         with open_session(peer(connect=ep)) as s:

@@ -71,6 +71,7 @@ def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
 
 def test_sensor_sigterm_and_bad_radar(tmp_path):
     ep = loopback_endpoint(free_port())
+    bad = skyfuse("sensor", "--radar", "NOPE", *SCEN, log_path=tmp_path / "bad.log")
     with open_session(peer(listen=ep)) as s:
         proc = skyfuse(
             "sensor", "--radar", "LYBE", *SCEN, "--speed", "1", "--connect", ep,
@@ -79,6 +80,5 @@ def test_sensor_sigterm_and_bad_radar(tmp_path):
         assert wait_for_tokens(s, [service_alive_key("sensor-LYBE")], 15.0) == []
         rc, took = stop(proc, signal.SIGINT)
     assert rc == 0 and took < 5.0
-    bad = skyfuse("sensor", "--radar", "NOPE", *SCEN, log_path=tmp_path / "bad.log")
     assert bad.wait(timeout=20) == 2
     assert "is not in scenario 'regional'" in (tmp_path / "bad.log").read_text()

@@ -85,11 +85,16 @@ def synthetic_recording(
     return counts
 
 
-def skyfuse(*args: str, log_path: Path | None = None, env: dict | None = None) -> subprocess.Popen:
-    """Start ``python -m services.cli ARGS`` (stderr to ``log_path``)."""
+def skyfuse(
+    *args: str, log_path: Path | None = None, env: dict | None = None, full_cli: bool = False
+) -> subprocess.Popen:
+    """Start a ``skyfuse`` command as a process (stderr to ``log_path``): through
+    ``services.lifecycle`` (only that command's module is imported: a faster start), or
+    with ``full_cli`` through ``services.cli`` (the ``skyfuse`` entry point itself)."""
     err = open(log_path, "wb") if log_path else subprocess.DEVNULL
+    entry = "services.cli" if full_cli else "services.lifecycle"
     return subprocess.Popen(
-        [sys.executable, "-m", "services.cli", *args],
+        [sys.executable, "-m", entry, *args],
         stdout=subprocess.PIPE,
         stderr=err,
         env={**os.environ, **(env or {})},
