@@ -164,3 +164,28 @@ def test_truncation_anywhere_is_counted(cut):
     dec.flush()
     problems = sum(v for k, v in dec.stats.items() if "truncated" in k or "malformed" in k)
     assert problems == (0 if cut in BLOCK_ENDS else 1)
+
+
+def _pcap_with_linktype(linktype: int, frames: list[bytes], nano: bool = False) -> bytes:
+    magic = 0xA1B23C4D if nano else 0xA1B2C3D4
+    out = [struct.pack("<IHHiIII", magic, 2, 4, 0, 0, 262144, linktype)]
+    for i, frame in enumerate(frames):
+        out.append(struct.pack("<IIII", 1_700_000_000 + i, 5, len(frame), len(frame)) + frame)
+    return b"".join(out)
+
+
+def test_linux_cooked_vlan_and_raw_ip_links():
+    payload = plot_block(1)
+    eth = build_pcap([(T0, payload)])[24 + 16 :]  # one Ethernet frame
+    ip_udp = eth[14:]
+    sll = b"\x00\x00\x00\x01\x00\x06" + b"\x02" * 6 + b"\x00\x00" + b"\x08\x00" + ip_udp
+    sll2 = b"\x08\x00\x00\x00" + b"\x00" * 16 + ip_udp
+    vlan = eth[:12] + b"\x81\x00\x00\x07" + eth[12:]
+    for linktype, frame in ((113, sll), (276, sll2), (101, ip_udp), (1, vlan)):
+        stats: Counter = Counter()
+        got = list(iter_pcap(_pcap_with_linktype(linktype, [frame], nano=True), stats))
+        assert [d.payload for d in got] == [payload], linktype
+        assert got[0].time_ns == 1_700_000_000 * 10**9 + 5  # nanosecond pcap
+    stats = Counter()
+    assert list(iter_pcap(_pcap_with_linktype(147, [ip_udp]), stats)) == []
+    assert stats["unsupported_linktype_147"] == 1
