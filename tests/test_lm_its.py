@@ -34,9 +34,10 @@ def run(kind, starts, scans=10, seed=5, spread=60.0):
     return outs
 
 
-def test_lmits_equals_its_when_tracks_are_far_apart():
+@pytest.mark.parametrize("kind", ["lmits", "jits"])
+def test_multi_target_its_equals_its_when_tracks_are_far_apart(kind):
     starts = [[0, 10, 0, 5], [5000, -10, 3000, 2], [-4000, 3, 9000, -8]]
-    for a, b in zip(run("its", starts), run("lmits", starts)):
+    for a, b in zip(run("its", starts), run(kind, starts)):
         np.testing.assert_array_equal(a.ids, b.ids)
         np.testing.assert_allclose(a.existence, b.existence, rtol=1e-12)
         np.testing.assert_allclose(a.states, b.states, rtol=1e-12, atol=1e-9)

@@ -38,10 +38,20 @@ def test_existence_on_pure_clutter_decays_below_tau_t(kind):
     assert max(history) < c.tau_confirm
 
 
-@pytest.mark.parametrize("kind", ["ipda", "its", "lmits", "jits", "gnn"])
-def test_detected_target_is_initiated_and_confirmed(kind):
+@pytest.mark.parametrize(
+    ("kind", "chain"),
+    [
+        ("ipda", "mc1"),
+        ("its", "mc1"),
+        ("lmits", "mc1"),
+        ("jits", "mc1"),
+        ("gnn", "mc1"),
+        ("lmits", "mc2"),
+    ],
+)
+def test_detected_target_is_initiated_and_confirmed(kind, chain):
     rng = np.random.default_rng(12)
-    c = cfg(tracker=kind, depth=2)
+    c = cfg(tracker=kind, depth=2, existence_chain=chain)
     tr = Tracker(c)
     x = np.array([100.0, 16.0, 100.0, 4.0])  # the thesis STT target (spec 02 §10)
     confirmed_at = None
