@@ -32,8 +32,11 @@ class SimulateConfig(BaseModel):
     )
     out: Path = Field(Path("sim.mcap"), description="Output file")
     format: Literal["mcap", "asterix"] = Field(
-        "mcap", description="Output format: mcap, or asterix (CAT048/CAT034 data blocks)"
+        "mcap",
+        description="Output format: mcap, or asterix (CAT048/CAT034; .pcap name: UDP in pcap, "
+        "else raw data blocks; sites in <out>.sites.toml)",
     )
+    asterix_sac: int = Field(0, ge=0, le=255, description="SAC of simulated radars in ASTERIX")
     progress: bool | None = Field(None, description="Show a progress bar (default: on a terminal)")
 
     @field_validator("param")
@@ -69,11 +72,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def simulate_to_mcap(cfg: SimulateConfig) -> dict:
-    """Run the scenario and write the recording; return a summary dict."""
+def _build(cfg: SimulateConfig):
+    """The scenario and its simulator, or a ConfigError naming the bad parameter."""
     from fusion.sim import Simulator, build_scenario
-
-    from .recording import RecordingWriter
 
     try:
         scenario = build_scenario(
@@ -85,7 +86,14 @@ def simulate_to_mcap(cfg: SimulateConfig) -> dict:
         )
     except ValueError as e:
         raise ConfigError(str(e)) from None
-    sim = Simulator(scenario, seed=cfg.seed)
+    return scenario, Simulator(scenario, seed=cfg.seed)
+
+
+def simulate_to_mcap(cfg: SimulateConfig) -> dict:
+    """Run the scenario and write the recording; return a summary dict."""
+    from .recording import RecordingWriter
+
+    scenario, sim = _build(cfg)
     metadata = {
         "command": "skyfuse simulate",
         "scenario": scenario.name,
@@ -131,6 +139,89 @@ def simulate_to_mcap(cfg: SimulateConfig) -> dict:
     }
 
 
+def asterix_sac_sic(radar_ids: list[str], sac: int) -> dict[str, tuple[int, int]]:
+    """SAC/SIC for each simulated radar: ids already of the form ``SAC-SIC`` keep theirs,
+    the others get ``sac`` and SIC 1, 2, … in order."""
+    from .asterix.sites import sac_sic_of
+
+    out: dict[str, tuple[int, int]] = {}
+    used: set[tuple[int, int]] = set()
+    for rid in radar_ids:
+        try:
+            out[rid] = sac_sic_of(rid)
+            used.add(out[rid])
+        except ValueError:
+            pass
+    sic = 1
+    for rid in radar_ids:
+        if rid in out:
+            continue
+        while (sac, sic) in used:
+            sic += 1
+        out[rid] = (sac, sic)
+        used.add((sac, sic))
+    return out
+
+
+def simulate_to_asterix(cfg: SimulateConfig) -> dict:
+    """Write the scenario's plots as ASTERIX CAT048 with CAT034 service messages: a raw
+    ``.ast`` file (concatenated data blocks) or, for a ``.pcap`` name, UDP datagrams in a
+    pcap; plus ``<out>.sites.toml`` mapping SAC/SIC to the simulated sites."""
+    import tomli_w
+
+    from .asterix.pcap import build_pcap
+    from .asterix.writer import AsterixPlotWriter
+
+    scenario, sim = _build(cfg)
+    if any(s.kind.value == "cartesian" for s in scenario.sites):
+        raise ConfigError(
+            f"scenario {scenario.name!r} has cartesian sensors: ASTERIX CAT048 carries polar "
+            "plots only; use --format mcap"
+        )
+    sites = {s.radar_id: s for s in scenario.sites}
+    sac_sic = asterix_sac_sic(list(sites), cfg.asterix_sac)
+    writer = AsterixPlotWriter(sites, sac_sic=sac_sic, simulated=True)
+    datagrams: list[tuple[int, bytes]] = []
+    n_plots = n_batches = 0
+    t0 = time.perf_counter()
+    for ev in sim.run(truth=False):
+        if ev.kind != "plots":
+            continue
+        n_batches += 1
+        n_plots += len(ev.message)
+        datagrams.extend((ev.time, block) for block in writer.encode_batch(ev.message))
+    cfg.out.parent.mkdir(parents=True, exist_ok=True)
+    if cfg.out.suffix.lower() == ".pcap":
+        cfg.out.write_bytes(build_pcap(datagrams))
+    else:
+        cfg.out.write_bytes(b"".join(block for _, block in datagrams))
+    sites_path = cfg.out.with_name(cfg.out.name + ".sites.toml")
+    tables = []
+    for rid, site in sites.items():
+        sac, sic = sac_sic[rid]
+        fields = site.model_dump(mode="json", exclude={"radar_id"})
+        fields["name"] = fields.get("name") or rid
+        tables.append({"sac": sac, "sic": sic, **fields})
+    sites_path.write_text(
+        "# Sites of the simulated radars (skyfuse simulate --format asterix)\n"
+        + tomli_w.dumps({"radar": tables})
+    )
+    return {
+        "out": str(cfg.out),
+        "sites_file": str(sites_path),
+        "scenario": scenario.name,
+        "seed": cfg.seed,
+        "duration_s": scenario.duration,
+        "targets": scenario.n_targets,
+        "radars": [f"{rid} -> {sac}-{sic}" for rid, (sac, sic) in sac_sic.items()],
+        "plot_batches": n_batches,
+        "plots": n_plots,
+        "datagrams": len(datagrams),
+        "not_carried": dict(writer.stats),
+        "wall_s": round(time.perf_counter() - t0, 3),
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         from fusion.sim import SCENARIOS
@@ -140,17 +231,14 @@ def run(args: argparse.Namespace) -> int:
         return 0
     section = "simulate" if args.config else None
     cfg = build_config(SimulateConfig, args, toml_path=args.config, section=section)
-    if cfg.format != "mcap":
-        raise ConfigError(f"format {cfg.format!r} is not available yet; use mcap")
-    summary = simulate_to_mcap(cfg)
+    summary = simulate_to_mcap(cfg) if cfg.format == "mcap" else simulate_to_asterix(cfg)
     log.info(
-        "wrote %s: %s plots in %s batches from %s radars, %s truth messages (%.2f s)",
+        "wrote %s: %s plots in %s batches from %s radars (%.2f s)",
         summary["out"],
-        summary.get("plots"),
-        summary.get("plot_batches"),
-        len(summary.get("radars", [])),
-        summary.get("truth_messages"),
-        summary.get("wall_s", 0),
+        summary["plots"],
+        summary["plot_batches"],
+        len(summary["radars"]),
+        summary["wall_s"],
     )
     json.dump(summary, sys.stdout)
     sys.stdout.write("\n")
