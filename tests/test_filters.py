@@ -274,3 +274,22 @@ def test_imm3_from_a_one_point_initiation_converges_without_blowing_up():
         assert all(np.isfinite(P).all() for P in st.P)
     err = np.linalg.norm(imm.position(st) - truth[-1], axis=1)
     assert np.sqrt((err**2).mean()) < 150
+
+
+def test_imm3_with_the_altitude_channel_tracks_a_climbing_target():
+    imm = imm3_cv_singer_ct(ndim=3)
+    assert imm.labels == ("x", "vx", "ax", "y", "vy", "ay", "z", "vz", "az")
+    rng = np.random.default_rng(12)
+    n, T = 40, 4.0
+    R = np.diag([80.0**2, 80.0**2, 30.0**2])
+    v = np.array([250.0, -100.0, 10.0])
+    truth = np.array([10_000.0, 20_000.0, 3000.0]) + np.arange(12)[:, None] * T * v
+    z = truth[None] + rng.normal(size=(n, 12, 3)) * np.sqrt(np.diag(R))
+    st = imm.initiate_two_point(z[:, 0], R, z[:, 1], R, T)
+    for k in range(2, 12):
+        st, _ = imm.update(imm.predict(st, T), z[:, k], R)
+    est = imm.estimate(st)
+    assert est.x.shape == (n, 9)
+    np.testing.assert_allclose(est.x[:, 7].mean(), 10.0, atol=3.0)  # climb rate
+    err = np.linalg.norm(imm.position(st) - truth[-1], axis=1)
+    assert np.sqrt((err**2).mean()) < 100

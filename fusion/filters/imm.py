@@ -238,16 +238,24 @@ def imm3_cv_singer_ct(
     singer_sigma_m: float = 2 * G0,
     ct_sigma_a: float = 2.0,
     ct_sigma_omega: float = 0.02,
+    ndim: int = 2,
+    q_vertical: float = 1.0,
 ) -> IMM:
     """004's three-model IMM (CV + Singer + coordinated turn) mixed in the common Singer
-    format with the state conversions of spec 01 §4 (2-D horizontal)."""
+    format with the state conversions of spec 01 §4. ``ndim = 3`` adds the altitude
+    channel: CV and Singer in 3-D, the turn model with a nearly-constant vertical
+    velocity (white acceleration variance ``q_vertical``, m²/s⁴)."""
+    if ndim not in (2, 3):
+        raise ValueError(f"ndim = {ndim}: must be 2 or 3")
+    vertical = ndim == 3
+    cv = ConstantVelocity(q=q_cv, ndim=ndim, q_vertical=q_vertical if vertical else None)
+    singer = Singer(tau=singer_tau, sigma_m=singer_sigma_m, ndim=ndim)
+    ct = CoordinatedTurn(ct_sigma_a, ct_sigma_omega, vertical=vertical, q_vertical=q_vertical)
     return IMM(
         [
-            ConvertedMeasurementKF(ConstantVelocity(q=q_cv, ndim=2), "cv"),
-            ConvertedMeasurementKF(
-                Singer(tau=singer_tau, sigma_m=singer_sigma_m, ndim=2), "singer"
-            ),
-            ConvertedMeasurementKF(CoordinatedTurn(ct_sigma_a, ct_sigma_omega), "ct"),
+            ConvertedMeasurementKF(cv, "cv"),
+            ConvertedMeasurementKF(singer, "singer"),
+            ConvertedMeasurementKF(ct, "ct"),
         ],
         tpm,
         name="imm3",
