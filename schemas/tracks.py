@@ -19,10 +19,12 @@ class TrackStatus(StrEnum):
 
 
 class FrameKind(StrEnum):
-    """System frame of track states: a stereographic plane (x east, y north, metres,
-    PROJ ``+proj=sterea`` at lat0/lon0 on WGS-84), a local NED tangent plane at
-    lat0/lon0/alt0 (x north, y east, z down), or a planar scenario plane (x east,
-    y north, metres; no geodesy)."""
+    """System frame of track states, all with x east, y north, z up (metres):
+    ``stereographic`` — the plane of PROJ ``+proj=sterea`` at lat0/lon0 on WGS-84, z height
+    above the ellipsoid; ``ned`` — the local tangent plane at lat0/lon0/alt0 (state kept
+    east/north/up; NED order is a view of it); ``planar`` — a planar test scenario's
+    plane, tied to the Earth like ``stereographic`` but with cartesian sensors taken flat
+    (offsets in the plane from the site)."""
 
     STEREOGRAPHIC = "stereographic"
     NED = "ned"
