@@ -339,6 +339,7 @@ class FusionCore:
             log.exception("tracker error on radar %s seq %s", batch.radar_id, batch.seq)
             return None
         self.counters["cycles"] += 1
+        self.counters["plots_applied"] += len(batch.time)
         self.counters["events"] += len(events)
         self.latest = tracks
         return CycleOutput(tracks, events, p.sent_ns, batch.time_end)
@@ -361,6 +362,14 @@ class FusionCore:
             count=int(a.size), p50=float(p50), p90=float(p90), p99=float(p99), max=float(a.max())
         )
 
+    def _plot_rejections(self) -> dict[str, int]:
+        """Plots the conversion rejected, by reason with the numbers masked (``#``) so
+        that the reasons form a small set."""
+        out: Counter[str] = Counter()
+        for reason, n in getattr(self.pipeline, "rejected", {}).items():
+            out["plot: " + _NUMBER.sub("#", reason)] += n
+        return dict(out)
+
     def status(self) -> Status:
         now = time.monotonic()
         confirmed = total = None
@@ -373,10 +382,7 @@ class FusionCore:
             time=time.time_ns(),
             uptime_s=now - self.started,
             counters={**self.counters, "queued": len(self.buffer)},
-            rejected={
-                **self.rejected,
-                **{f"plot: {k}": v for k, v in getattr(self.pipeline, "rejected", {}).items()},
-            },
+            rejected={**self.rejected, **self._plot_rejections()},
             radars=[
                 RadarHealth(
                     radar_id=r.radar_id,
@@ -394,6 +400,9 @@ class FusionCore:
             tracks_total=total,
             message="" if self.pipeline is not None else "waiting for a radar site",
         )
+
+
+_NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
 def _reason(model: str, e: ValidationError) -> str:
