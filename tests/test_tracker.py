@@ -263,3 +263,17 @@ def test_gnn_picks_the_best_one_to_one_assignment():
     Pyy = 100 + 25 + 0.75 / 4  # predicted y variance; K = Pyy / (Pyy + 25)
     assert out.states[ia][2] == pytest.approx(2.0 * Pyy / (Pyy + 25), rel=1e-9)
     assert out.updates[ia] == out.updates[ib] == 1
+
+
+def test_three_dimensional_tracking_estimates_climb():
+    rng = np.random.default_rng(21)
+    tr = Tracker(cfg(tracker="lmits", depth=2, ndim=3, q=1.0, v_max=300.0, init_max_dt=5.0))
+    R3 = np.diag([400.0, 400.0, 900.0])
+    x = np.array([0.0, 200.0, 0.0, 50.0, 3000.0, 10.0])
+    for k in range(1, 16):
+        x = x + 4.0 * np.array([x[1], 0, x[3], 0, x[5], 0])
+        z = (x[[0, 2, 4]] + rng.multivariate_normal(np.zeros(3), R3))[None]
+        out = tr.step(MeasurementBatch(4 * k * NS, "r", z, R3, 0.95, 1e-14))
+    assert out.states.shape[1] == 6 and out.confirmed.sum() == 1
+    est = out.states[out.confirmed][0]
+    assert abs(est[4] - x[4]) < 60 and abs(est[5] - 10.0) < 5 and abs(est[1] - 200) < 10
