@@ -358,7 +358,7 @@ class _View:
             fus = self.status.get("demo")
             if fus is not None:
                 log.info(
-                    "fusion: %s plots in, %s confirmed tracks, latency p50 %s ms",
+                    "fusion: %s plots in, %s confirmed tracks, latency p50 %s",
                     fus.counters.get("plots_in", 0),
                     fus.tracks_confirmed,
                     _ms(fus.latency_ms.p50 if fus.latency_ms else None),

@@ -189,7 +189,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> 
                 handle(item)
                 for more in inbox.drain(1000):
                     handle(more)
-            publish(core.poll())
+            publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval
                 pub_status.put(core.status().to_json_bytes())

@@ -144,10 +144,13 @@ class ReorderBuffer:
         )
         return None
 
-    def pop_ready(self, now: float) -> list[_Pending]:
-        """Batches whose hold has expired, in order (a held head holds back the rest)."""
+    def pop_ready(self, now: float, limit: int | None = None) -> list[_Pending]:
+        """Batches whose hold has expired, in order (a held head holds back the rest),
+        at most ``limit``."""
         out = []
         while self._heap and now - self._heap[0].arrival >= self.wait:
+            if limit is not None and len(out) >= limit:
+                break
             out.append(self._release())
         return out
 
@@ -300,11 +303,29 @@ class FusionCore:
         return True
 
     # --- cycles ----------------------------------------------------------------------
-    def poll(self, now: float | None = None, *, flush: bool = False) -> list[CycleOutput]:
-        """Run the cycles of every batch whose hold expired (all with ``flush``)."""
+    def poll(
+        self, now: float | None = None, *, flush: bool = False, budget_s: float | None = None
+    ) -> list[CycleOutput]:
+        """Run the cycles of the batches whose hold expired (all queued with ``flush``).
+
+        ``budget_s`` bounds the time spent (at least one cycle runs): the rest stays
+        queued for the next call, so a service that falls behind still reads its input
+        and publishes its Status in between."""
         now = time.monotonic() if now is None else now
-        ready = self.buffer.flush() if flush else self.buffer.pop_ready(now)
-        return [out for p in ready if (out := self._cycle(p)) is not None]
+        if flush:
+            return [out for p in self.buffer.flush() if (out := self._cycle(p)) is not None]
+        t_end = None if budget_s is None else time.monotonic() + budget_s
+        outs = []
+        while True:
+            ready = self.buffer.pop_ready(now, limit=1)
+            if not ready:
+                break
+            out = self._cycle(ready[0])
+            if out is not None:
+                outs.append(out)
+            if t_end is not None and time.monotonic() >= t_end:
+                break
+        return outs
 
     def cycle(self, p: _Pending) -> CycleOutput | None:
         """Run the cycle of one released batch (see :meth:`poll`)."""
