@@ -184,11 +184,13 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> 
             now = time.monotonic()
             if duration is not None and now - t0 >= duration:
                 break
-            item = inbox.get(timeout=_next_wait(core, now))
-            if item is not None:
-                handle(item)
-                for more in inbox.drain(1000):
-                    handle(more)
+            room = core.cfg.queue - len(core.buffer)
+            if room > 0:  # a full reorder buffer stops the reading: back-pressure (BLOCK)
+                item = inbox.get(timeout=_next_wait(core, now))
+                if item is not None:
+                    handle(item)
+                    for more in inbox.drain(min(1000, room)):
+                        handle(more)
             publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval

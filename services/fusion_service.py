@@ -85,7 +85,11 @@ class FusionConfig(BaseModel):
     )
     rate_window: float = Field(5.0, gt=0, description="Plot-rate averaging window, s")
     queue: int = Field(
-        10_000, ge=10, le=1_000_000, description="Received messages waiting, at most"
+        10_000,
+        ge=10,
+        le=1_000_000,
+        description="Batches waiting in the reorder buffer (and messages in the receive "
+        "queue), at most; beyond it the publishers are slowed down",
     )
 
     def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
