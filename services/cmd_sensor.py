@@ -16,6 +16,7 @@ from .sensor import SensorConfig, SimulatedRadar
 from .transport import (
     TransportError,
     add_transport_arguments,
+    declare_liveliness,
     open_session,
     service_alive_key,
     transport_config,
@@ -48,9 +49,11 @@ def run(args: argparse.Namespace) -> int:
     stop = StopFlag().install()
     try:
         with open_session(tcfg) as session:
-            radar = None
+            radar = ready = None
             if cfg.replay is None:
                 radar = SimulatedRadar(session, cfg)  # declares the sensor's ready token
+            else:
+                ready = declare_liveliness(session, service_alive_key(f"sensor-{cfg.radar}"))
             try:
                 missing = wait_for_tokens(
                     session, [service_alive_key(n) for n in cfg.wait_for], cfg.wait_timeout, stop
@@ -90,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
             finally:
                 if radar is not None:
                     radar.close()
+                if ready is not None:
+                    ready.undeclare()
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED
