@@ -15,6 +15,7 @@ key expression                              payload                    direction
 ``skyfuse/@v1/fusion/{id}/snapshot``        queryable → TrackBatch     fusion
 ``skyfuse/@v1/sim/truth``                   :class:`Truth`             simulator →
 ``skyfuse/@v1/service/{name}/status``       :class:`Status`            any service
+``skyfuse/@v1/service/{name}/alive``        liveliness token           any service
 ==========================================  =========================  ===========
 """
 
@@ -71,6 +72,11 @@ def fusion_snapshot(fusion_id: str) -> str:
     return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/snapshot"
 
 
+def service_alive(name: str) -> str:
+    """Liveliness token of a running service (fusion, recorder, …)."""
+    return f"{PREFIX}/service/{check_id(name, 'service name')}/alive"
+
+
 def service_status(name: str) -> str:
     return f"{PREFIX}/service/{check_id(name, 'service name')}/status"
 
@@ -88,6 +94,7 @@ _PATTERNS = [
     (re.compile(rf"^{re.escape(PREFIX)}/radar/([^/]+)/(site|plots|alive)$"), None),
     (re.compile(rf"^{re.escape(PREFIX)}/fusion/([^/]+)/(tracks|events|status|snapshot)$"), None),
     (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/status$"), "service-status"),
+    (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/alive$"), "service-alive"),
 ]
 
 

@@ -137,17 +137,6 @@ def location_fixes(
     return fg.LocationFixes(fixes=fixes)
 
 
-_SCHEMAS: dict[type, bytes] = {}
-"""JSON Schema bytes per model (computing a schema costs milliseconds: once per model)."""
-
-
-class _FlushingWriter(RecordingWriter):
-    def flush(self) -> None:
-        """Finish the chunk in progress and flush it to the file."""
-        if not self._closed:
-            self._writer.flush()
-
-
 class Recorder:
     """Writes received samples to MCAP; the Zenoh side lives in ``cmd_record``."""
 
@@ -161,7 +150,7 @@ class Recorder:
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
         self._scan_plots: dict[str, list[PlotBatch]] = {}
-        self._writer: _FlushingWriter | None = None
+        self._writer: RecordingWriter | None = None
         self._opened_at = 0.0
         self._last_flush = time.monotonic()
         self._fg_schemas = {name: fg.LocationFixes.get_schema() for name in FOXGLOVE_TOPICS}
@@ -178,7 +167,7 @@ class Recorder:
         path = self._path(len(self.files))
         path.parent.mkdir(parents=True, exist_ok=True)
         meta = {**self.metadata, "file_index": str(len(self.files))}
-        self._writer = _FlushingWriter(path, metadata=meta, chunk_size=self.cfg.chunk_kb * 1024)
+        self._writer = RecordingWriter(path, metadata=meta, chunk_size=self.cfg.chunk_kb * 1024)
         self.files.append(path)
         self._opened_at = time.monotonic()
         log.info("recording to %s", path)
@@ -222,11 +211,8 @@ class Recorder:
 
     # --- messages ------------------------------------------------------------------
     def _write(self, topic: str, payload: bytes, log_time: int, pub_time: int, model) -> None:
-        schema = _SCHEMAS.get(model)
-        if schema is None:
-            schema = _SCHEMAS[model] = json_schema_bytes(model)
         cid = self._writer.channel_for(
-            topic, schema_name=SCHEMA_PREFIX + model.__name__, schema_data=schema
+            topic, schema_name=SCHEMA_PREFIX + model.__name__, schema_data=json_schema_bytes(model)
         )
         self._writer.write_raw(cid, payload, log_time, publish_time=pub_time)
         self.messages += 1

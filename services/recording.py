@@ -127,6 +127,12 @@ class RecordingWriter:
         self.messages += 1
         self.bytes += len(data)
 
+    def flush(self) -> None:
+        """Close the chunk in progress and flush it to the file, so a process killed after
+        this loses nothing written before it (costs compression ratio if done often)."""
+        if not self._closed:
+            self._writer.flush()
+
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         self._writer.add_metadata(name, {k: str(v) for k, v in data.items()})
 

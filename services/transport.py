@@ -301,7 +301,7 @@ def service_alive_key(name: str) -> str:
     """Liveliness token of a running service: ``skyfuse/@v1/service/{name}/alive``."""
     from schemas import keys
 
-    return f"{keys.PREFIX}/service/{keys.check_id(name, 'service name')}/alive"
+    return keys.service_alive(name)
 
 
 def wait_for_tokens(
