@@ -13,6 +13,22 @@ own options. Supported now:
         --seed 1 --out DIR [--json FILE]
 
 Every filter sees the same simulated plots in a run (seed + run index).
+
+* ``thesis-stt``, ``thesis-mtt-5/15/50``, ``lm-ipf-2/15`` — the existence trackers'
+  Monte Carlo evaluation of spec 03 §4 (:mod:`services.eval_montecarlo`): retention table
+  (Markdown + JSON rows ``tracker``, ``depth``, ``nCases``, ``nOK``, ``nSwitched``,
+  ``nLost``, ``merged``, ``cpu_s``), CTT / false-track / RMSE / GOSPA curves (PNG), the
+  full configuration, optional ψ_init calibration; resumable from ``--out``.
+
+    skyfuse eval thesis-mtt-5 --trackers its,lmits --depths 1,7 --runs 50 --seed 1 \
+        [--calibrate] [--workers 2] --out DIR [--json FILE] [--q 0.75 ...]
+
+* ``FILE.mcap`` — a recording (simulated: Truth messages and plot ``target_id``; real:
+  Mode-S addresses on plots) through one tracker (:mod:`services.eval_recording`):
+  completeness, track-id changes, confirmed false tracks per hour, time to confirm, and
+  with truth OSPA/GOSPA over time.
+
+    skyfuse eval r.mcap --tracker lmits --depth 3 [--config fusion.toml] --json FILE
 """
 
 from __future__ import annotations
@@ -403,29 +419,55 @@ EVALUATORS: dict[str, Callable[[argparse.Namespace], int]] = {}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from fusion.tracker import TrackerConfig
+
+    from .eval_montecarlo import TrackerEvalConfig
+
     p = sub.add_parser(
         "eval",
-        help="Monte Carlo evaluation on a named scenario (supported: crossing-4g)",
+        help="Monte Carlo evaluation on a named scenario, or of a recording (FILE.mcap)",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_model_arguments(p, CrossingEvalConfig, positional=("scenario",))
+    g = p.add_argument_group("tracker evaluation (thesis-*, lm-ipf-* scenarios)")
+    add_model_arguments(g, TrackerEvalConfig, skip=SHARED_FIELDS)
+    t = p.add_argument_group(
+        "tracker settings (scenario runs: override the source's settings; FILE.mcap: the tracker)"
+    )
+    add_model_arguments(t, TrackerConfig, skip=("p_gate",))
+    p.add_argument("--config", type=Path, default=None, help="TOML file with a [tracker] table")
     p.add_argument(
         "--json",
         dest="json_out",
         default=None,
         metavar="FILE",
-        help="Write the summary (RMSE per scan, swaps, configuration) as JSON",
+        help="Write the summary (tables, curves, configuration) as JSON",
     )
     p.set_defaults(func=run)
 
 
+#: Options of the crossing evaluator also used by the tracker evaluation.
+SHARED_FIELDS = ("scenario", "runs", "seed", "out", "workers")
+
+
 def run(args: argparse.Namespace) -> int:
+    from fusion.evaluation import PLANAR_SCENARIOS
+
     name = getattr(args, "scenario", None)
+    if name is not None and (name.endswith(".mcap") or Path(name).is_file()):
+        from .eval_recording import run_recording
+
+        return run_recording(args)
+    if name in PLANAR_SCENARIOS:
+        from .eval_montecarlo import run_tracker_eval
+
+        return run_tracker_eval(args)
     if name not in EVALUATORS:
         raise ConfigError(
-            f"scenario = {name!r}: skyfuse eval supports {', '.join(sorted(EVALUATORS))} "
-            "(tracker evaluation on other scenarios is not implemented yet)"
+            f"scenario = {name!r}: skyfuse eval supports {', '.join(sorted(EVALUATORS))}, "
+            f"{', '.join(PLANAR_SCENARIOS)} or a recording FILE.mcap (for other scenarios: "
+            "skyfuse simulate NAME --out r.mcap, then skyfuse eval r.mcap)"
         )
     return EVALUATORS[name](args)
 

@@ -64,7 +64,7 @@ def test_eval_is_deterministic_for_a_seed():
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["eval", "thesis-mtt-5", "--runs", "1"], "supports crossing-4g"),
+        (["eval", "regional", "--runs", "1"], "supports crossing-4g"),
         (["eval", "crossing-4g", "--filters", "kf,ukf", "--runs", "1"], "filter 'ukf'"),
         (["eval", "crossing-4g", "--runs", "0"], "runs"),
     ],

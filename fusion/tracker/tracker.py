@@ -231,6 +231,15 @@ class Tracker:
         self.confirmed[-1] = confirmed
         return int(self.ids[-1])
 
+    def delete_tracks(self, track_ids: np.ndarray) -> int:
+        """Remove the tracks with these ids at once, without events (evaluation: the true
+        tracks at the end of a Monte Carlo run, spec 03 §2 "Across runs"). Unknown ids are
+        ignored; returns the number of tracks removed."""
+        drop = np.isin(self.ids, np.asarray(track_ids, dtype=np.int64).reshape(-1))
+        if drop.any():
+            self._remove(~drop)
+        return int(drop.sum())
+
     def component_counts(self) -> dict[int, int]:
         """Number of mixture components of every track, by id."""
         counts = comp.components_per_track(self.mix, self.n)

@@ -1,0 +1,92 @@
+"""Reproduction of the source's tracker experiments (spec 03 §3-§5, issue 6 §5).
+
+Runs ``skyfuse eval`` on the thesis scenarios with ψ_init calibration and writes the
+tables, curves and JSON to ``docs/reproduction/`` (the cache for resuming goes to
+``out/reproduction-cache``, ignored by git). Experiments:
+
+* ``stt``:   thesis-stt, IPDA vs ITS N = 1, 2, 3;
+* ``mtt5``:  thesis-mtt-5, ITS vs LM-ITS, N = 1, 3, 5, 7, 9 (and 11);
+* ``mtt15``: thesis-mtt-15, ITS vs LM-ITS, N = 1, 3, 5, 7, 9;
+* ``mtt50``: thesis-mtt-50, ITS vs LM-ITS, N = 1, 3, 5, 7, 9.
+
+    python benchmarks/reproduction.py                       # all, default run counts
+    python benchmarks/reproduction.py mtt5 --runs 500 --calibration-runs 100
+    nohup python benchmarks/reproduction.py --workers 1 > out/repro.log 2>&1 &
+
+Interrupted runs continue from the cache. ``docs/reproduction/timing.json`` records the
+wall time of every experiment (calibration and runs) on this machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+from services.cli import main as skyfuse
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "docs" / "reproduction"
+CACHE = ROOT / "out" / "reproduction-cache"
+
+EXPERIMENTS = {
+    # name: (scenario, trackers, depths, default runs, default calibration runs)
+    "stt": ("thesis-stt", "ipda,its", "1,2,3", 150, 30),
+    "mtt5": ("thesis-mtt-5", "its,lmits", "1,3,5,7,9,11", 200, 50),
+    "mtt15": ("thesis-mtt-15", "its,lmits", "1,3,5,7,9", 100, 20),
+    "mtt50": ("thesis-mtt-50", "its,lmits", "1,3,5,7,9", 40, 10),
+}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("experiments", nargs="*", default=list(EXPERIMENTS), choices=[*EXPERIMENTS, []])
+    ap.add_argument("--runs", type=int, default=None, help="Runs (default per experiment)")
+    ap.add_argument("--calibration-runs", type=int, default=None)
+    ap.add_argument("--no-calibrate", action="store_true", help="Use OUT/calibration-*.json")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=OUT)
+    a = ap.parse_args()
+    a.out.mkdir(parents=True, exist_ok=True)
+    timing_path = a.out / "timing.json"
+    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
+    for name in a.experiments or list(EXPERIMENTS):
+        scenario, trackers, depths, runs, cal_runs = EXPERIMENTS[name]
+        runs = a.runs or runs
+        cal_runs = a.calibration_runs or cal_runs
+        argv = ["eval", scenario, "--trackers", trackers, "--depths", depths,
+                "--runs", str(runs), "--seed", str(a.seed), "--workers", str(a.workers),
+                "--out", str(a.out), "--cache", str(CACHE),
+                "--calibration-file", str(a.out / f"calibration-{scenario}.json"),
+                "--calibration-runs", str(cal_runs), "--no-progress"]  # fmt: skip
+        if not a.no_calibrate:
+            argv.append("--calibrate")
+        print(f"== {name}: skyfuse {' '.join(argv)}", flush=True)
+        t0 = time.perf_counter()
+        code = skyfuse(argv)
+        if code:
+            return code
+        summary = json.loads((a.out / f"{scenario}.json").read_text())
+        timing[name] = {
+            "scenario": scenario,
+            "runs": runs,
+            "calibration_runs": None if a.no_calibrate else cal_runs,
+            "variants": len(summary["rows"]),
+            "wall_s": round(time.perf_counter() - t0, 1),
+            "calibration_s": summary.get("calibration_s"),
+            "runs_s": summary.get("runs_s"),
+            "workers": a.workers,
+            "cpus": os.cpu_count(),
+            "machine": platform.processor() or platform.machine(),
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+        timing_path.write_text(json.dumps(timing, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,130 @@
+"""Calibration of ψ_init so that an experiment yields a target number of confirmed false
+tracks (spec 03 §2 "ψ_init": 15 ± 10 % per multi-target experiment, 20 ± 10 % single
+target, so that CTT curves compare at equal false-track counts; spec 02 §8).
+
+The count of confirmed false tracks over a fixed set of runs (fixed seeds) is a
+non-decreasing step function of ψ_init in practice (a higher initial existence confirms
+more tracks, true and false alike). :func:`calibrate_psi_init` searches log ψ_init:
+
+1. **bracket**: from ``psi0`` multiply or divide by ``factor`` until the count crosses the
+   target (or the bounds ``lo``/``hi`` are reached);
+2. **refine**: regula falsi on (log ψ, log(count + ½)) — the count grows roughly as a
+   power of ψ_init — with the new point kept at least 15 % of the bracket (in log ψ) from
+   either end;
+
+stopping when |count − target| ≤ tolerance or after ``max_evals`` evaluations. The
+result is the evaluated ψ with the count nearest the target (ties: the smaller ψ).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+
+@dataclass
+class Calibration:
+    """Result: ``psi_init``, its ``count``, the ``target`` and ``tolerance``, whether the
+    count is within tolerance (``converged``) and every (ψ, count) evaluated."""
+
+    psi_init: float
+    count: float
+    target: float
+    tolerance: float
+    converged: bool
+    evaluations: list[tuple[float, float]] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return {
+            "psi_init": self.psi_init,
+            "false_tracks": self.count,
+            "target": self.target,
+            "tolerance": self.tolerance,
+            "converged": self.converged,
+            "evaluations": [[round(p, 8), c] for p, c in self.evaluations],
+        }
+
+
+def calibrate_psi_init(
+    count: Callable[[float], float],
+    target: float,
+    tolerance: float,
+    *,
+    psi0: float = 0.01,
+    lo: float = 1e-6,
+    hi: float = 0.5,
+    factor: float = 4.0,
+    max_evals: int = 10,
+) -> Calibration:
+    """Search ψ_init in [lo, hi] with count(ψ) ≈ target (module docstring)."""
+    if not 0 < lo < hi < 1:
+        raise ValueError(f"lo = {lo}, hi = {hi}: need 0 < lo < hi < 1")
+    if not lo <= psi0 <= hi:
+        raise ValueError(f"psi0 = {psi0}: must be within [lo, hi] = [{lo}, {hi}]")
+    if target < 0 or tolerance < 0:
+        raise ValueError(f"target = {target}, tolerance = {tolerance}: must be >= 0")
+    if max_evals < 1:
+        raise ValueError(f"max_evals = {max_evals}: must be >= 1")
+    evals: list[tuple[float, float]] = []
+
+    def f(psi: float) -> float:
+        c = float(count(psi))
+        evals.append((psi, c))
+        return c
+
+    def done() -> Calibration:
+        best = min(evals, key=lambda e: (abs(e[1] - target), e[0]))
+        return Calibration(
+            best[0], best[1], target, tolerance, abs(best[1] - target) <= tolerance, evals
+        )
+
+    def ok(c: float) -> bool:
+        return abs(c - target) <= tolerance
+
+    psi = psi0
+    c = f(psi)
+    if ok(c):
+        return done()
+    # 1. bracket: a (count below target) < b (count above)
+    a = b = None
+    ca = cb = 0.0
+    if c < target:
+        a, ca = psi, c
+        while len(evals) < max_evals and psi < hi:
+            psi = min(psi * factor, hi)
+            c = f(psi)
+            if ok(c):
+                return done()
+            if c > target:
+                b, cb = psi, c
+                break
+            a, ca = psi, c
+    else:
+        b, cb = psi, c
+        while len(evals) < max_evals and psi > lo:
+            psi = max(psi / factor, lo)
+            c = f(psi)
+            if ok(c):
+                return done()
+            if c < target:
+                a, ca = psi, c
+                break
+            b, cb = psi, c
+    if a is None or b is None:
+        return done()
+    # 2. refine in log ψ
+    la, lb = math.log(a), math.log(b)
+    while len(evals) < max_evals and lb - la > 1e-3:
+        ya, yb, yt = math.log(ca + 0.5), math.log(cb + 0.5), math.log(target + 0.5)
+        t = (yt - ya) / (yb - ya) if yb > ya else 0.5
+        t = min(max(t, 0.15), 0.85)  # safeguard: never closer than 15 % to an end
+        lm = la + t * (lb - la)
+        c = f(math.exp(lm))
+        if ok(c):
+            break
+        if c < target:
+            la, ca = lm, c
+        else:
+            lb, cb = lm, c
+    return done()
