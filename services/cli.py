@@ -26,7 +26,25 @@ def command_modules() -> list[str]:
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _requested_command(argv: list[str]) -> str | None:
+    """The sub-command named on the command line, if it is one of ours (skipping the
+    top-level ``--log-level L`` option)."""
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--log-level":
+            i += 2
+            continue
+        if arg.startswith("-"):
+            return None
+        module = f"services.cmd_{arg}"
+        return arg if module in command_modules() else None
+    return None
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``skyfuse`` parser with every sub-command, or only ``only`` (importing a
+    command's module costs up to seconds: some import the tracker and SciPy)."""
     parser = argparse.ArgumentParser(
         prog="skyfuse",
         description="Distributed multi-radar fusion: simulate, track, record and replay.",
@@ -39,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in command_modules():
+    names = [f"services.cmd_{only}"] if only else command_modules()
+    for name in names:
         importlib.import_module(name).register(sub)
     return parser
 
@@ -53,7 +72,8 @@ def setup_logging(level: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(only=_requested_command(argv))
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     try:

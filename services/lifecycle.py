@@ -167,47 +167,12 @@ class RateWindow:
 
 
 def main_single(argv: list[str] | None = None) -> int:
-    """``python -m services.lifecycle COMMAND ARGS…``: run one ``skyfuse`` sub-command with
-    exactly its ``skyfuse`` arguments, registering only that command's module.
+    """``python -m services.lifecycle COMMAND ARGS…``: the same as ``skyfuse COMMAND
+    ARGS…`` (kept as an entry point for the demo and the tests; ``skyfuse`` itself loads
+    only the named command's module)."""
+    from .cli import main
 
-    The full ``skyfuse`` parser imports every command module (some import the tracker and
-    SciPy), which costs seconds per process; the demo and the tests start many service
-    processes, so they use this entry point."""
-    import argparse
-    import importlib
-
-    from .cli import EXIT_INTERRUPTED as CLI_INTERRUPTED
-    from .cli import setup_logging
-    from .config import ConfigError
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    pre = argparse.ArgumentParser(add_help=False)
-    pre.add_argument("--log-level", default="INFO")
-    _, rest = pre.parse_known_args(argv)
-    if not rest or rest[0].startswith("-"):
-        print("usage: python -m services.lifecycle [--log-level L] COMMAND ...", file=sys.stderr)
-        return EXIT_USAGE
-    parser = argparse.ArgumentParser(prog="skyfuse")
-    parser.add_argument(
-        "--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"]
-    )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-    try:
-        module = importlib.import_module(f"services.cmd_{rest[0]}")
-    except ModuleNotFoundError:
-        print(f"skyfuse: unknown command {rest[0]!r}", file=sys.stderr)
-        return EXIT_USAGE
-    module.register(sub)
-    args = parser.parse_args(argv)
-    setup_logging(args.log_level)
-    try:
-        return int(args.func(args) or 0)
-    except ConfigError as e:
-        print(f"skyfuse {args.command}: configuration error: {e}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        return CLI_INTERRUPTED
+    return main(argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

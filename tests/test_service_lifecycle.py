@@ -72,7 +72,7 @@ def test_single_command_entry_point_usage_errors():
         [sys.executable, "-m", "services.lifecycle", "nosuchcommand"],
         cwd=ROOT, capture_output=True, text=True, timeout=30,
     )  # fmt: skip
-    assert r.returncode == 2 and "unknown command" in r.stderr
+    assert r.returncode == 2 and "invalid choice: 'nosuchcommand'" in r.stderr
     r = subprocess.run(
         [sys.executable, "-m", "services.lifecycle", "record", "--out", "x.mcap",
          "--connect", "localhost:7447"],
