@@ -69,6 +69,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="FIELD=VALUE,...",
         help="Tracker settings, e.g. depth=2,p_gate=0.995",
     )
+    cat = p.add_argument_group("ASTERIX CAT062 output (see skyfuse cat062)")
+    cat.add_argument(
+        "--cat062-udp",
+        default=None,
+        metavar="HOST:PORT",
+        help="Also send every TrackBatch as CAT062 UDP datagrams to HOST:PORT",
+    )
+    cat.add_argument("--cat062-sac", type=int, default=0, help="I062/010 SAC (default: 0)")
+    cat.add_argument("--cat062-sic", type=int, default=1, help="I062/010 SIC (default: 1)")
     add_transport_arguments(p)
     p.set_defaults(func=run)
 
@@ -112,18 +121,31 @@ def run(args: argparse.Namespace) -> int:
     tracker_cfg = tracker_config(args)
     tcfg = transport_config(args, toml_path=args.config)
     core = FusionCore(cfg, make_pipeline_factory(tracker_cfg, cfg.fusion_id))
+    cat062 = None
+    if getattr(args, "cat062_udp", None):
+        from .cmd_cat062 import Cat062UdpSender
+
+        try:
+            cat062 = Cat062UdpSender(args.cat062_udp, sac=args.cat062_sac, sic=args.cat062_sic)
+        except ValueError as e:
+            raise ConfigError(str(e)) from None
     stop = StopFlag().install()
     try:
         with open_session(tcfg) as session:
-            serve(session, core, stop)
+            serve(session, core, stop, cat062=cat062)
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED
+    finally:
+        if cat062 is not None:
+            log.info("cat062 output: %s", dict(cat062.stats))
+            cat062.close()
     return EXIT_OK
 
 
-def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> None:
-    """The service loop: until ``stop`` is set (or ``duration`` s elapse)."""
+def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat062=None) -> None:
+    """The service loop: until ``stop`` is set (or ``duration`` s elapse). ``cat062``: a
+    :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output."""
     fid = core.cfg.fusion_id
     pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
     pub_events = declare_publisher(session, keys.fusion_events(fid))
@@ -157,8 +179,12 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None) -> 
             b = out.tracks
             payload = b.to_json_bytes()
             pub_tracks.put(payload)
+            if cat062 is not None:
+                cat062.send(b)
             for ev in out.events:
                 pub_events.put(ev.to_json_bytes())
+                if cat062 is not None:
+                    cat062.terminated(ev)
             latest["payload"] = payload
             core.published(out)
 

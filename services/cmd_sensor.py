@@ -2,6 +2,16 @@
 one simulated radar publishing its site and sector plot batches on Zenoh in (scaled) real
 time; ``--replay FILE.mcap`` publishes that radar's recorded batches instead.
 
+Real radar data (ASTERIX CAT048 plots with CAT034 service messages), every radar of the
+input served by this one process (``--radar SAC-SIC`` keeps one):
+
+    skyfuse sensor --asterix rec.pcap --sites sites.toml [--date 2024-05-17] [--speed 4]
+    skyfuse sensor --asterix-udp 127.0.0.1:30048 --sites sites.toml
+
+``--asterix`` decodes the file (pcap of UDP, or raw .ast) and publishes the sites (message,
+queryable, liveliness token per radar) and the sector batches paced by their times;
+``--asterix-udp`` listens for a live feed and publishes each sector as it completes.
+
 Exits 0 at the end of the scenario or on SIGINT/SIGTERM, 1 if the network fails, 2 on a
 bad configuration (e.g. a radar id the scenario does not have)."""
 
@@ -29,7 +39,7 @@ log = logging.getLogger("skyfuse.sensor")
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "sensor",
-        help="run one simulated radar publishing plots on Zenoh",
+        help="run a radar sensor (simulated, replayed or ASTERIX) publishing plots on Zenoh",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -44,6 +54,17 @@ def run(args: argparse.Namespace) -> int:
         SensorConfig, args, toml_path=args.config, section="sensor", env_prefix="SKYFUSE_SENSOR_"
     )
     tcfg = transport_config(args, toml_path=args.config)
+    modes = [m for m in ("replay", "asterix", "asterix_udp") if getattr(cfg, m) is not None]
+    if len(modes) > 1:
+        raise ConfigError(
+            "choose one input: "
+            + " and ".join("--" + m.replace("_", "-") for m in modes)
+            + " were both given"
+        )
+    if cfg.mode in ("asterix", "asterix-udp"):
+        return _run_asterix(cfg, tcfg)
+    if cfg.radar is None:
+        raise ConfigError("radar: --radar ID is required (except with --asterix/--asterix-udp)")
     if cfg.replay is not None and not cfg.replay.is_file():
         raise ConfigError(f"replay {str(cfg.replay)!r} does not exist")
     stop = StopFlag().install()
@@ -95,6 +116,45 @@ def run(args: argparse.Namespace) -> int:
                     radar.close()
                 if ready is not None:
                     ready.undeclare()
+    except TransportError as e:
+        log.error("%s", e)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _run_asterix(cfg, tcfg) -> int:
+    """``--asterix FILE`` or ``--asterix-udp HOST:PORT``: every radar of the input."""
+    from .sensor import AsterixRecordingSensor, AsterixUdpSensor
+
+    if cfg.asterix is not None and not cfg.asterix.is_file():
+        raise ConfigError(f"asterix {str(cfg.asterix)!r} does not exist")
+    stop = StopFlag().install()
+    try:
+        with open_session(tcfg) as session:
+            kind = AsterixRecordingSensor if cfg.asterix is not None else AsterixUdpSensor
+            sensor = kind(session, cfg)
+            try:
+                missing = wait_for_tokens(
+                    session, [service_alive_key(n) for n in cfg.wait_for], cfg.wait_timeout, stop
+                )
+                if missing:
+                    log.error("services not found after %.1f s: %s", cfg.wait_timeout, missing)
+                    return EXIT_FAILED
+                stats = sensor.run(stop)
+                if cfg.asterix is not None and not stop.is_set():
+                    stop.wait(cfg.linger)
+                by_radar = sensor.fleet.batches_by_radar
+                log.info(
+                    "published %d batches, %d plots of %d radars (%s)%s (late by up to %.3f s)",
+                    stats.published["plots"],
+                    stats.plots,
+                    len(by_radar),
+                    ", ".join(f"{r} {n}" for r, n in sorted(by_radar.items())),
+                    " (stopped)" if stats.interrupted else "",
+                    stats.late_s,
+                )
+            finally:
+                sensor.close()
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED

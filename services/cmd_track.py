@@ -1,4 +1,4 @@
-"""``skyfuse track FILE.mcap``: run the tracker offline over a recording.
+"""``skyfuse track FILE.mcap|FILE.pcap|FILE.ast``: run the tracker offline over a recording.
 
 Reads the radar sites (``skyfuse/@v1/radar/*/site``) and plot batches
 (``…/plots``) of a recording (simulated or real), applies the batches in time order
@@ -9,15 +9,26 @@ plots and batches processed, confirmed and false tracks, and — when the record
 simulation truth (``skyfuse/@v1/sim/truth``; plots carry ``target_id``) — the truth
 coverage and position error, plus timing.
 
+An ASTERIX recording (CAT048 plots with CAT034 service messages; pcap of UDP or a raw
+``.ast`` file, told apart from MCAP by its first bytes) is decoded with
+:func:`services.asterix.read_asterix` (``--sites`` TOML, ``--date`` of the first record)
+and its sector batches go through the same pipeline; its summary adds the reader's
+counts and the Mode-S label metrics (completeness, track-id changes, confirmed false
+tracks per hour, time to confirm: :mod:`services.eval_asterix`). Plots without a flight
+level (primary-only) get ``--assumed-altitude`` (default 3000 m for ASTERIX, ± 3000 m).
+
 Examples::
 
     skyfuse track r.mcap --tracker lmits --depth 3 --out t.mcap --json t.json
     skyfuse track r.mcap --config fusion.toml --frame ned        # [tracker] table
+    skyfuse track rec.pcap --sites sites.toml --date 2024-05-17 --tracker lmits --depth 3 \
+        --out t.mcap --json t.json
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import json
 import logging
 import time
@@ -31,6 +42,7 @@ from pydantic import BaseModel, Field
 from schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth, keys
 
 from .config import ConfigError, add_model_arguments, build_config
+from .eval_asterix import LABEL_WARMUP_S, PlotTrackRows, rejection_reasons
 from .progress import progress_bar
 from .recording import (
     SCHEMA_PREFIX,
@@ -46,7 +58,10 @@ log = logging.getLogger(__name__)
 class TrackCommandConfig(BaseModel):
     """Options of ``skyfuse track`` (the tracker itself is ``[tracker]`` / TrackerConfig)."""
 
-    file: Path = Field(description="Input recording (MCAP) with sites and plot batches")
+    file: Path = Field(
+        description="Input recording: MCAP with sites and plot batches, or ASTERIX CAT048/CAT034 "
+        "(.pcap of UDP, raw .ast)"
+    )
     out: Path = Field(Path("tracks.mcap"), description="Output MCAP with tracks and events")
     json_summary: Path | None = Field(None, description="Write a JSON summary to this file")
     frame: Literal["stereographic", "ned"] = Field(
@@ -59,6 +74,24 @@ class TrackCommandConfig(BaseModel):
     progress: bool | None = Field(None, description="Show a progress bar (default: on a terminal)")
     coverage_window: float = Field(
         15.0, gt=0, description="A target counts as inside coverage this long after a plot, s"
+    )
+    sites: Path | None = Field(
+        None, description="ASTERIX: sites TOML ([[radar]] sac, sic, lat, lon, alt, ...)"
+    )
+    date: dt.date | None = Field(
+        None,
+        description="ASTERIX: UTC date of the first record, YYYY-MM-DD (default: pcap capture "
+        "time, else today)",
+    )
+    sector_count: int = Field(
+        16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
+    )
+    assumed_altitude: float | None = Field(
+        None,
+        ge=-1000,
+        le=30000,
+        description="Height assumed for plots without altitude/elevation, m, ± 3000 m (default: "
+        "3000 for ASTERIX input, none for MCAP: such plots are rejected)",
     )
 
 
@@ -228,6 +261,47 @@ class Evaluation:
         return res
 
 
+ASTERIX_ASSUMED_ALTITUDE_M = 3000.0
+"""Height given to ASTERIX plots without a flight level (primary-only), m (± 3000 m)."""
+
+
+def is_mcap(path: Path) -> bool:
+    """True when the file starts with the MCAP magic (else: ASTERIX pcap or raw)."""
+    with open(path, "rb") as f:
+        return f.read(5) == b"\x89MCAP"
+
+
+def _truth_summary(ev: Evaluation, *, asterix: bool) -> dict:
+    """``ev.summary()``; ASTERIX plots carry no ``target_id``, so only the track count
+    is kept (the Mode-S label metrics are the evaluation there)."""
+    res = ev.summary()
+    return {"tracks_confirmed": res["tracks_confirmed"]} if asterix else res
+
+
+def _read_asterix_input(cfg: TrackCommandConfig):
+    from .asterix import SitesError, load_sites, read_asterix
+
+    try:
+        sites = load_sites(cfg.sites) if cfg.sites is not None else None
+    except (SitesError, OSError) as e:
+        raise ConfigError(str(e)) from None
+    try:
+        res = read_asterix(cfg.file, date=cfg.date, sites=sites, sector_count=cfg.sector_count)
+    except ValueError as e:
+        raise ConfigError(f"file: {e}") from None
+    for text in res.messages[:10]:
+        log.info("asterix: %s", text)
+    log.info(
+        "%s: %d plots in %d batches from %d radars (%s)",
+        cfg.file,
+        res.n_plots,
+        len(res.batches),
+        len(res.radars),
+        ", ".join(f"{r} {n}" for r, n in res.radars.items()),
+    )
+    return res
+
+
 def run(args: argparse.Namespace) -> int:
     from fusion.frames import SystemFrame
     from fusion.tracker.pipeline import TrackPipeline
@@ -243,15 +317,36 @@ def run(args: argparse.Namespace) -> int:
     keys.check_id(cfg.fusion_id, "fusion id")
     if not cfg.file.exists():
         raise ConfigError(f"file: {str(cfg.file)!r} does not exist")
-    sites, n_batches = _scan_recording(cfg.file)
-    if not sites:
-        log.error("%s: no radar site messages: cannot convert plots", cfg.file)
-        return 1
+    ax = None
+    if is_mcap(cfg.file):
+        for name in ("sites", "date"):
+            if getattr(cfg, name) is not None:
+                log.warning("--%s applies to ASTERIX input only: ignored for MCAP", name)
+        sites, n_batches = _scan_recording(cfg.file)
+        if not sites:
+            log.error("%s: no radar site messages: cannot convert plots", cfg.file)
+            return 1
+    else:
+        ax = _read_asterix_input(cfg)
+        sites, n_batches = dict(ax.sites), len(ax.batches)
+        if not sites:
+            log.error(
+                "%s: no radar has a site (radars: %s): give --sites with their positions",
+                cfg.file,
+                ", ".join(ax.radars) or "none",
+            )
+            return 1
+    assumed = cfg.assumed_altitude
+    if assumed is None and ax is not None:
+        assumed = ASTERIX_ASSUMED_ALTITUDE_M
     lat0 = float(np.mean([s.lat for s in sites.values()]))
     lon0 = float(np.mean([s.lon for s in sites.values()]))
     frame = SystemFrame(cfg.frame, lat0, lon0, 0.0)
-    pipe = TrackPipeline(frame, tcfg, fusion_id=cfg.fusion_id, publish=cfg.publish)
+    pipe = TrackPipeline(
+        frame, tcfg, fusion_id=cfg.fusion_id, publish=cfg.publish, assumed_altitude=assumed
+    )
     ev = Evaluation(frame, cfg.coverage_window)
+    rows = PlotTrackRows() if ax is not None else None
     stats = ReadStats()
     counts: Counter = Counter()
     step_ms: list[float] = []
@@ -280,8 +375,11 @@ def run(args: argparse.Namespace) -> int:
             schema_name=SCHEMA_PREFIX + "TrackEvent",
             schema_data=json_schema_bytes(TrackEvent),
         )
-        for rec in iter_recording(cfg.file, stats=stats):
-            msg = rec.message
+        if ax is not None:
+            messages = iter(ax.batches)
+        else:
+            messages = (rec.message for rec in iter_recording(cfg.file, stats=stats))
+        for msg in messages:
             if isinstance(msg, RadarSite):
                 sites[msg.radar_id] = msg
             elif isinstance(msg, Truth):
@@ -308,6 +406,8 @@ def run(args: argparse.Namespace) -> int:
                 counts["batches"] += 1
                 counts["plots"] += len(msg)
                 ev.on_output(out)
+                if rows is not None:
+                    rows.add(msg, out)
                 writer.write_raw(tracks_ch, tb.to_json_bytes(), msg.time_end)
                 for e in evs:
                     writer.write_raw(events_ch, e.to_json_bytes(), e.time)
@@ -323,9 +423,9 @@ def run(args: argparse.Namespace) -> int:
         "radars": sorted(sites),
         "batches": counts["batches"],
         "plots_processed": counts["plots"],
-        "plots_rejected": dict(pipe.rejected),
+        "plots_rejected": rejection_reasons(pipe.rejected),
         "counts": dict(counts),
-        **ev.summary(),
+        **_truth_summary(ev, asterix=ax is not None),
         "tracker_totals": dict(pipe.tracker.totals),
         "recording_rejected": dict(stats.rejected),
         "timing": {
@@ -337,6 +437,15 @@ def run(args: argparse.Namespace) -> int:
         },
         "config": tcfg.model_dump(mode="json"),
     }
+    if ax is not None:
+        summary["asterix"] = {
+            "radars": ax.radars,
+            "scan_period_source": ax.scan_period_source,
+            "assumed_altitude_m": assumed,
+            "counts": ax.stats,
+            "messages": ax.messages[:20],
+        }
+        summary["mode_s"] = rows.metrics(warmup_s=LABEL_WARMUP_S)
     text = json.dumps(summary, indent=2)
     if cfg.json_summary is not None:
         cfg.json_summary.write_text(text + "\n")
@@ -354,6 +463,9 @@ def run(args: argparse.Namespace) -> int:
     ):
         if k in summary:
             short[k] = summary[k]
+    if ax is not None:
+        for k in ("aircraft", "completeness", "confirmed_false_tracks_per_hour"):
+            short[k] = summary["mode_s"][k]
     short["wall_s"] = summary["timing"]["wall_s"]
     print(json.dumps(short))
     return 0
