@@ -16,11 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pymap3d
 
 from schemas import FrameKind, PlotBatch, RadarKind, RadarSite
 
-from .geodesy import normal_section_radius
+from .geodesy import enu_to_geodetic, normal_section_radius
 from .polar import (
     debiased_enu,
     elevation_from_altitude,
@@ -147,8 +146,7 @@ def convert_plots(
         z[idx] = (enu[idx] + site_pos)[:, :ndim]
         R[idx] = C[idx][:, :ndim, :ndim]
     elif idx.size:
-        pos = frame.enu_to_frame(enu[idx], site.lat, site.lon, site.alt)
-        Jf = frame.enu_jacobian(enu[idx], site.lat, site.lon, site.alt)
+        pos, Jf = frame.enu_to_frame_with_jacobian(enu[idx], site.lat, site.lon, site.alt)
         Rf = Jf @ C[idx] @ np.swapaxes(Jf, -1, -2)
         if frame.kind is not FrameKind.NED:
             # z is the height itself: keep a measured/assumed altitude exactly.
@@ -288,10 +286,7 @@ def _refine_elevation_on_ellipsoid(site, D, psi, h, theta0):
     for _ in range(_ELEVATION_NEWTON_STEPS):
         both = np.concatenate([theta, theta + step])
         enu = spherical_to_enu(np.tile(D, 2), np.tile(psi, 2), both)
-        _, _, alt = pymap3d.enu2geodetic(
-            enu[:, 0], enu[:, 1], enu[:, 2], site.lat, site.lon, site.alt
-        )
-        alt = np.asarray(alt, float)
+        _, _, alt = enu_to_geodetic(enu, site.lat, site.lon, site.alt)
         f0, f1 = alt[: D.size] - h, alt[D.size :] - h
         if np.abs(f0).max() < 1e-4:  # 0.1 mm in height: converged
             break

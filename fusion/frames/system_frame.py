@@ -24,19 +24,30 @@ import functools
 
 import numpy as np
 import pymap3d
+from pyproj import Proj
 
 from schemas import FrameKind, FrameSpec
 
-from .geodesy import enu_to_enu_rotation
+from .geodesy import (
+    WGS84_A,
+    enu_to_enu_rotation,
+    enu_to_geodetic,
+    meridian_radius,
+    prime_vertical_radius,
+)
 from .stereographic import Stereographic
-
-_JACOBIAN_STEP_M = 1.0  # central-difference step for the ENU → plane Jacobian
 
 
 @functools.lru_cache(maxsize=64)
 def _stereographic(lat0: float, lon0: float) -> Stereographic:
     """Shared projections: building pyproj transformers costs tens of ms."""
     return Stereographic(lat0, lon0)
+
+
+@functools.lru_cache(maxsize=64)
+def _plane_proj(lat0: float, lon0: float) -> Proj:
+    """The same projection as a ``pyproj.Proj`` (for ``get_factors``)."""
+    return Proj(_stereographic(lat0, lon0).crs)
 
 
 class SystemFrame:
@@ -134,30 +145,43 @@ class SystemFrame:
         """Points given in the local ENU frame of a site (m, 3) → frame positions (m, 3).
 
         ``ned``: exact affine map ENU(site) → ECEF → ENU(reference);
-        ``stereographic``/``planar``: ENU(site) → geodetic (pymap3d) → sterea plane + height.
+        ``stereographic``/``planar``: ENU(site) → ECEF → geodetic (PROJ) → sterea plane +
+        height (:func:`fusion.frames.geodesy.enu_to_geodetic`).
         """
         enu = np.asarray(enu, float).reshape(-1, 3)
-        lat, lon, alt = pymap3d.enu2geodetic(enu[:, 0], enu[:, 1], enu[:, 2], lat_s, lon_s, alt_s)
+        if self.kind is FrameKind.NED:
+            lat, lon, alt = pymap3d.enu2geodetic(
+                enu[:, 0], enu[:, 1], enu[:, 2], lat_s, lon_s, alt_s
+            )
+        else:
+            lat, lon, alt = enu_to_geodetic(enu, lat_s, lon_s, alt_s)
         return np.stack(self.from_geodetic(lat, lon, alt), axis=-1)
+
+    def enu_to_frame_with_jacobian(
+        self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`enu_to_frame` and :meth:`enu_jacobian` of the same points in one pass
+        (one geodetic conversion): positions (m, 3) and ∂(x, y, z)/∂(e, n, u) (m, 3, 3)."""
+        enu = np.asarray(enu, float).reshape(-1, 3)
+        m = enu.shape[0]
+        if self.kind is FrameKind.NED:
+            rot = enu_to_enu_rotation(lat_s, lon_s, self.lat0, self.lon0)
+            return self.enu_to_frame(enu, lat_s, lon_s, alt_s), np.broadcast_to(
+                rot, (m, 3, 3)
+            ).copy()
+        lat, lon, alt = enu_to_geodetic(enu, lat_s, lon_s, alt_s)
+        pos = np.stack(self.from_geodetic(lat, lon, alt), axis=-1)
+        # chain rule: site ENU → the point's own ENU (a rotation) → the plane
+        J = self.local_plane_jacobian(lat, lon, alt) @ enu_to_enu_rotation(lat_s, lon_s, lat, lon)
+        return pos, J
 
     def enu_jacobian(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
         """∂(x, y, z)/∂(e, n, u) of :meth:`enu_to_frame` at the given site-ENU points, (m, 3, 3).
 
         ``ned``: the constant rotation R_ref R_siteᵀ (exact); ``stereographic``/``planar``:
-        central differences (±1 m) through pymap3d and pyproj — to first order a rotation
-        by the grid convergence and a scale by the point scale factor (spec 01 §3)."""
-        enu = np.asarray(enu, float).reshape(-1, 3)
-        m = enu.shape[0]
-        if self.kind is FrameKind.NED:
-            rot = enu_to_enu_rotation(lat_s, lon_s, self.lat0, self.lon0)
-            return np.broadcast_to(rot, (m, 3, 3)).copy()
-        h = _JACOBIAN_STEP_M
-        steps = np.concatenate(
-            [enu + h * np.eye(3)[k] for k in range(3)] + [enu - h * np.eye(3)[k] for k in range(3)]
-        )
-        out = self.enu_to_frame(steps, lat_s, lon_s, alt_s).reshape(6, m, 3)
-        J = (out[:3] - out[3:]) / (2 * h)  # (3 = column k, m, 3 = row)
-        return np.transpose(J, (1, 2, 0))
+        the rotation from the site's ENU to the point's own ENU followed by
+        :meth:`local_plane_jacobian` (grid convergence and point scale, spec 01 §3)."""
+        return self.enu_to_frame_with_jacobian(enu, lat_s, lon_s, alt_s)[1]
 
     # --- velocities --------------------------------------------------------------------
     def velocity_to_enu(self, x, y, z, vx, vy, vz=None):
@@ -181,15 +205,29 @@ class SystemFrame:
 
     def local_plane_jacobian(self, lat, lon, alt) -> np.ndarray:
         """∂(x, y, z)/∂(e, n, u) of the frame map at geodetic points, with (e, n, u) the
-        local ENU at each point itself, shape (m, 3, 3) (central differences, ±1 m)."""
+        local ENU at each point itself, shape (m, 3, 3).
+
+        ``stereographic``/``planar`` (analytic): a step de east at height h moves the
+        longitude by de/((N + h) cos φ), a step dn north the latitude by dn/(M + h), and
+        PROJ's partial derivatives of the projection (``Proj.get_factors``: ∂x/∂λ, ∂x/∂φ,
+        ∂y/∂λ, ∂y/∂φ, per radian on the unit-axis ellipsoid, hence the factor a) give
+        the plane step — the grid-convergence rotation times the point scale, reduced
+        to height h. A step along the normal changes neither latitude nor longitude and
+        the height changes by du, so the z row and column are (0, 0, 1).
+        ``ned``: the rotation from the point's ENU to the reference ENU (exact)."""
         lat, lon, alt = (np.ravel(np.asarray(a, float)) for a in (lat, lon, alt))
         m = lat.size
-        h = _JACOBIAN_STEP_M
-        cols = []
-        for k in range(3):
-            d = np.zeros((3, m))
-            d[k] = h
-            plus = self.from_geodetic(*pymap3d.enu2geodetic(d[0], d[1], d[2], lat, lon, alt))
-            minus = self.from_geodetic(*pymap3d.enu2geodetic(-d[0], -d[1], -d[2], lat, lon, alt))
-            cols.append((np.stack(plus, -1) - np.stack(minus, -1)) / (2 * h))
-        return np.stack(cols, axis=-1)
+        if self.kind is FrameKind.NED:
+            return np.broadcast_to(
+                enu_to_enu_rotation(lat, lon, self.lat0, self.lon0), (m, 3, 3)
+            ).copy()
+        f = _plane_proj(self.lat0, self.lon0).get_factors(lon, lat)
+        de = WGS84_A / ((prime_vertical_radius(lat) + alt) * np.cos(np.radians(lat)))
+        dn = WGS84_A / (meridian_radius(lat) + alt)
+        J = np.zeros((m, 3, 3))
+        J[:, 0, 0] = np.asarray(f.dx_dlam) * de
+        J[:, 0, 1] = np.asarray(f.dx_dphi) * dn
+        J[:, 1, 0] = np.asarray(f.dy_dlam) * de
+        J[:, 1, 1] = np.asarray(f.dy_dphi) * dn
+        J[:, 2, 2] = 1.0
+        return J
