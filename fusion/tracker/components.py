@@ -54,12 +54,19 @@ class Mixture:
 def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
     """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
 
-    One ``np.bincount`` per flattened column: linear in C, no per-component Python."""
-    flat = values.reshape(len(values), int(np.prod(values.shape[1:], dtype=np.int64)))
-    out = np.empty((ngroups, flat.shape[1]))
-    for j in range(flat.shape[1]):
-        out[:, j] = np.bincount(group, weights=flat[:, j], minlength=ngroups)
-    return out.reshape((ngroups, *values.shape[1:]))
+    One ``np.add.reduceat`` over the components sorted by group (a stable sort, skipped
+    when ``group`` is already non-decreasing): linear in C, no per-component Python, and
+    the same summation order as a sequential sum."""
+    out = np.zeros((ngroups, *values.shape[1:]))
+    if len(values) == 0:
+        return out
+    group = np.asarray(group)
+    if len(group) > 1 and (group[1:] < group[:-1]).any():
+        order = np.argsort(group, kind="stable")
+        group, values = group[order], values[order]
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    out[group[starts]] = np.add.reduceat(values, starts, axis=0)
+    return out
 
 
 def moment_match(
@@ -69,6 +76,9 @@ def moment_match(
     ξ^μ = Σξ^n, x̂^μ = Σξ^n x̂^n / ξ^μ, P^μ = Σξ^n [P^n + (x̂^n−x̂^μ)(x̂^n−x̂^μ)ᵀ] / ξ^μ.
 
     Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean."""
+    if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
+        # one component per group (GNN/IPDA tracks): nothing to merge
+        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + np.swapaxes(P, 1, 2))
     W = np.bincount(group, weights=w, minlength=ngroups)
     zero = W <= 0.0
     ww = w.copy()
@@ -93,8 +103,13 @@ def singer_merge(mix: Mixture) -> Mixture:
     if len(mix) == 0:
         return mix
     keys = np.column_stack([mix.track, mix.hist])
-    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
+    # rows grouped as np.unique(keys, axis=0) would (lexicographic), by one lexsort
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    new = np.r_[True, (ks[1:] != ks[:-1]).any(axis=1)]
+    uniq = ks[new]
+    inv = np.empty(len(order), np.int64)
+    inv[order] = np.cumsum(new) - 1
     W, xm, Pm = moment_match(mix.w, mix.x, mix.P, inv, len(uniq))
     return Mixture(uniq[:, 0].copy(), W, xm, Pm, uniq[:, 1:].copy())
 

@@ -48,14 +48,14 @@ class ExistenceChain:
         """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
         t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
         lam_t = self._lam[None, :] ** t[:, None]
-        M = np.einsum("ij,nj,jk->nik", self._V, lam_t, self._Vinv)
+        M = (self._V[None, :, :] * lam_t[:, None, :]) @ self._Vinv
         return np.clip(M, 0.0, 1.0)
 
     def predict(self, state: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Predict ``state`` (n, 2) over ``dt`` (n,) seconds (3.40, 5.3)."""
         state = np.asarray(state, dtype=np.float64)
         full = np.column_stack([state, 1.0 - state.sum(axis=1)])
-        out = np.einsum("ni,nij->nj", full, self.power(dt))
+        out = (full[:, None, :] @ self.power(dt))[:, 0, :]
         return np.clip(out[:, :2], 0.0, 1.0)
 
     @staticmethod

@@ -22,15 +22,24 @@ from .ipda import AssociationResult, single_target
 
 def clusters(tp_track: np.ndarray, tp_plot: np.ndarray, ntracks: int, nplots: int) -> np.ndarray:
     """Cluster label of every track: tracks sharing a gated plot, directly or through a
-    chain of tracks, get the same label (spec 03 §1.1 step 1)."""
-    if ntracks == 0:
-        return np.zeros(0, np.int64)
-    rows = tp_track
-    cols = ntracks + tp_plot
-    N = ntracks + nplots
-    A = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(N, N))
-    _, labels = connected_components(A, directed=False)
-    return labels[:ntracks]
+    chain of tracks, get the same label (spec 03 §1.1 step 1). Labels are in
+    [0, 2 ntracks); a track that shares no plot is alone in its cluster.
+
+    Only the rows of plots gated by two or more tracks enter the graph search (scipy's
+    ``connected_components``); when no plot is shared it is skipped entirely."""
+    labels = np.arange(ntracks, dtype=np.int64)
+    if ntracks == 0 or len(tp_track) == 0:
+        return labels
+    shared = np.bincount(tp_plot, minlength=nplots)[tp_plot] > 1
+    if not shared.any():
+        return labels
+    trk, ti = np.unique(tp_track[shared], return_inverse=True)
+    plt, pi = np.unique(tp_plot[shared], return_inverse=True)
+    nt, N = len(trk), len(trk) + len(plt)
+    A = sp.csr_matrix((np.ones(len(ti)), (ti.reshape(-1), nt + pi.reshape(-1))), shape=(N, N))
+    _, sub = connected_components(A, directed=False)
+    labels[trk] = ntracks + sub[:nt]
+    return labels
 
 
 def feasible_events(

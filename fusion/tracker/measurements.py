@@ -64,6 +64,22 @@ class SectorCoverage:
         return self.time_start + np.round(frac * span).astype(np.int64)
 
 
+def _positive_definite(R: np.ndarray) -> np.ndarray:
+    """Sylvester's criterion for symmetric (m, k, k) matrices: all leading principal minors
+    positive (closed form for k ≤ 3, the smallest eigenvalue otherwise)."""
+    k = R.shape[-1]
+    if len(R) == 0:
+        return np.zeros(0, bool)
+    if k > 3:
+        return np.linalg.eigvalsh(R)[:, 0] > 0.0
+    ok = R[:, 0, 0] > 0.0
+    if k >= 2:
+        ok &= R[:, 0, 0] * R[:, 1, 1] - R[:, 0, 1] * R[:, 1, 0] > 0.0
+    if k == 3:
+        ok &= np.linalg.det(R) > 0.0
+    return ok
+
+
 @dataclass
 class MeasurementBatch:
     """One batch of plots in the system frame.
@@ -128,7 +144,7 @@ class MeasurementBatch:
         )
         reject(asym, "covariance not symmetric")
         Rs = np.where(ok[:, None, None], Rs, np.eye(ndim))
-        reject(np.linalg.eigvalsh(Rs)[:, 0] <= 0.0, "covariance not positive definite")
+        reject(~_positive_definite(Rs), "covariance not positive definite")
 
         def sel(a):
             return None if a is None else np.asarray(a)[ok]
