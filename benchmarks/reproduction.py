@@ -50,9 +50,10 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--timing", type=Path, default=None, help="Default: OUT/timing.json")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
-    timing_path = a.out / "timing.json"
+    timing_path = a.timing or a.out / "timing.json"
     timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
     for name in a.experiments or list(EXPERIMENTS):
         scenario, trackers, depths, runs, cal_runs = EXPERIMENTS[name]

@@ -71,7 +71,9 @@ class TrackerEvalConfig(BaseModel):
     )
     block: int = Field(10, ge=1, description="Runs per cached block (resume granularity)")
     cache: Path | None = Field(None, description="Cache directory for resuming (default OUT/cache)")
-    no_carry: bool = Field(False, description="Delete every track at the end of a run")
+    carry_false_tracks: bool = Field(
+        True, description="Carry false tracks into the next run (spec 03 §2); else delete all"
+    )
     progress: bool | None = Field(None, description="Progress bar (default: on a terminal)")
 
 
@@ -377,7 +379,7 @@ def run_tracker_eval(args) -> int:
             runs=cfg.runs,
             seed=cfg.seed,
             tracker_settings=settings,
-            carry_false_tracks=not cfg.no_carry,
+            carry_false_tracks=cfg.carry_false_tracks,
             **({"default_psi_init": psi} if psi is not None else {}),
         )
         for v in exp.variants():

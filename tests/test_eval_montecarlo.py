@@ -130,9 +130,10 @@ def test_tracker_delete_tracks_removes_only_the_given_ids():
     assert out.ids.tolist() == [ids[0], ids[2]]
 
 
-def _scripted_run(n_scans: int = 40, lose_after: int = 20) -> RunInput:
+def _scripted_run(n_scans: int = 40, lose_after: int = 20, empty: int = 25) -> RunInput:
     """Two targets 2 km apart flying east at 10 m/s, detected every scan with 1 m noise;
-    target 1 stops being detected after scan ``lose_after`` (its track must die)."""
+    target 1 stops being detected after scan ``lose_after`` (its track must die); scan
+    ``empty`` has no plot at all."""
     rng = np.random.default_rng(0)
     k = np.arange(1, n_scans + 1)
     x = np.stack([10.0 * k, 10.0 * k], axis=1)  # (K, 2)
@@ -140,7 +141,7 @@ def _scripted_run(n_scans: int = 40, lose_after: int = 20) -> RunInput:
     state = np.stack([x, np.full_like(x, 10.0), y, np.zeros_like(x)], axis=-1)
     z, origin = [], []
     for j in range(n_scans):
-        seen = [0, 1] if k[j] <= lose_after else [0]
+        seen = [0, 1] if k[j] <= lose_after else [] if k[j] == empty else [0]
         z.append(np.column_stack([x[j, seen], y[j, seen]]) + rng.normal(0, 1.0, (len(seen), 2)))
         origin.append(np.array(seen, dtype=np.int64))
     return RunInput(

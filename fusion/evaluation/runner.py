@@ -193,8 +193,10 @@ class VariantRunner:
             t0 = time.process_time()
             out = trk.step(batch)
             cpu += time.process_time() - t0
-            origin = out.batch.target_ids
-            sel = np.where(out.assigned_plot >= 0, origin[np.maximum(out.assigned_plot, 0)], FALSE)
+            origin = np.asarray(out.batch.target_ids, dtype=np.int64)
+            sel = np.full(len(out.ids), FALSE, dtype=np.int64)
+            got = out.assigned_plot >= 0
+            sel[got] = origin[out.assigned_plot[got]]
             alive = d.truth_alive[j]
             label = lab.step(
                 out.ids,
