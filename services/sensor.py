@@ -517,6 +517,7 @@ class AsterixUdpSensor:
         self.datagrams = 0
         self.filtered = 0
         self._new_site_check = -1e9
+        self._published: dict[str, RadarSite] = {}
         self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}")
 
     def _publish(self, batches: list[PlotBatch], stamp_ns: int) -> None:
@@ -527,11 +528,22 @@ class AsterixUdpSensor:
             self.fleet.plots(b, stamp_ns)
 
     def _sites(self) -> None:
+        """Publish the sites of the radars heard so far: new ones, and changed ones — a
+        scan period estimated from the plots only when it moved by more than 1 %."""
         sites, _ = self.decoder.current_sites()
+        heard = self.decoder.radars
         for rid, site in sites.items():
-            if self.cfg.radar is None or rid == self.cfg.radar:
-                if rid in self.decoder.radars or rid in self.fleet.sites:
-                    self.fleet.site(site)
+            if self.cfg.radar is not None and rid != self.cfg.radar:
+                continue
+            if rid not in heard:
+                continue
+            old = self._published.get(rid)
+            if old is not None:
+                same = old.model_copy(update={"scan_period": site.scan_period}) == site
+                if same and abs(site.scan_period - old.scan_period) <= 0.01 * old.scan_period:
+                    continue
+            if self.fleet.site(site):
+                self._published[rid] = site
 
     def run(self, stop, duration: float | None = None) -> SensorStats:
         log.info("listening for ASTERIX on udp %s:%d", *self.address)
