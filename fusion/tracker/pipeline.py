@@ -95,27 +95,7 @@ class TrackPipeline:
             heading = np.mod(np.arctan2(ve, vn), TWO_PI)
             heading = np.where(heading >= TWO_PI, 0.0, heading)
             speed = np.hypot(ve, vn)
-            for j, r in enumerate(rows):
-                tracks.append(
-                    Track(
-                        track_id=int(out.ids[r]),
-                        time=out.time_ns,
-                        status=TrackStatus.CONFIRMED if out.confirmed[r] else TrackStatus.TENTATIVE,
-                        existence=float(np.clip(out.existence[r], 0.0, 1.0)),
-                        state=x[j].tolist(),
-                        covariance=out.covariances[r].tolist(),
-                        lat=float(lat[j]),
-                        lon=float(lon[j]),
-                        alt=float(alt[j]) if k == 3 else None,
-                        vel_east=float(ve[j]),
-                        vel_north=float(vn[j]),
-                        vel_up=float(vu[j]) if k == 3 else 0.0,
-                        speed=float(speed[j]),
-                        heading=float(heading[j]),
-                        radars=out.radars_of(r),
-                        updates=int(out.updates[r]),
-                    )
-                )
+            tracks = self._tracks(out, rows, x, lat, lon, alt, ve, vn, vu, speed, heading)
         return TrackBatch(
             fusion_id=self.fusion_id,
             cycle=self.cycle,
@@ -126,6 +106,60 @@ class TrackPipeline:
             source_seq=None if batch is None else batch.seq,
             tracks=tracks,
         )
+
+    def _tracks(self, out, rows, x, lat, lon, alt, ve, vn, vu, speed, heading) -> list[Track]:
+        """Track messages of output rows ``rows``. The wire constraints (finite
+        covariance, lat/lon/heading ranges, non-negative ids) are checked for all rows at
+        once; when they hold the models are built without re-validating each field (the
+        shapes hold by construction), otherwise through the validating constructor,
+        which names the offending field."""
+        k = self.cfg.ndim
+        P = out.covariances[rows]
+        ok = (
+            np.isfinite(P).all()
+            and np.isfinite(x).all()
+            and ((lat >= -90.0) & (lat <= 90.0)).all()
+            and ((lon >= -180.0) & (lon <= 180.0)).all()
+            and ((heading >= 0.0) & (heading < TWO_PI)).all()
+            and np.isfinite(speed).all()
+            and (out.ids[rows] >= 0).all()
+            and out.time_ns >= 0
+        )
+        make = Track.model_construct if ok else Track
+        masks_u, first = np.unique(out.radar_mask[rows], return_index=True)
+        names = {int(m): out.radars_of(int(rows[r])) for m, r in zip(masks_u, first)}
+        ids = out.ids[rows].tolist()
+        conf = out.confirmed[rows].tolist()
+        exist = np.clip(out.existence[rows], 0.0, 1.0).tolist()
+        masks = out.radar_mask[rows].tolist()
+        upd = out.updates[rows].tolist()
+        cols = [a.tolist() for a in (lat, lon, ve, vn, speed, heading)]
+        alts = alt.tolist() if k == 3 else [None] * len(rows)
+        vus = vu.tolist() if k == 3 else [0.0] * len(rows)
+        states, covs = x.tolist(), P.tolist()
+        tracks = []
+        for j in range(len(rows)):
+            tracks.append(
+                make(
+                    track_id=ids[j],
+                    time=out.time_ns,
+                    status=TrackStatus.CONFIRMED if conf[j] else TrackStatus.TENTATIVE,
+                    existence=exist[j],
+                    state=states[j],
+                    covariance=covs[j],
+                    lat=cols[0][j],
+                    lon=cols[1][j],
+                    alt=alts[j],
+                    vel_east=cols[2][j],
+                    vel_north=cols[3][j],
+                    vel_up=vus[j],
+                    speed=cols[4][j],
+                    heading=cols[5][j],
+                    radars=list(names[masks[j]]),
+                    updates=upd[j],
+                )
+            )
+        return tracks
 
     def track_events(self, out: TrackerOutput) -> list[TrackEvent]:
         return [
