@@ -307,3 +307,74 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
             # I500 σx from the covariance (x east, stereographic frame)
             sx = math.sqrt(tr.covariance[0][0])
             assert _close(c.sigma_x, min(sx, 32767.5), 0.25)
+
+
+def test_cat062_command_line(tmp_path):
+    """``skyfuse cat062 --udp … --count 2`` (run in a thread: the same code as the
+    process, without its start-up time) forwards two published TrackBatches; bad
+    addresses are configuration errors (exit 2) for the bridge and for the fusion flag."""
+    from services.cli import main
+
+    site_ll = {"lat": 45.0, "lon": 20.0}
+    t0 = 1_767_226_200 * 10**9
+    batches = [
+        TrackBatch(
+            fusion_id="main",
+            cycle=k,
+            time=t0 + k * 10**9,
+            frame={"kind": "stereographic", "lat0": 45.0, "lon0": 20.0},
+            state_labels=["x", "vx", "y", "vy"],
+            tracks=[
+                {
+                    "track_id": 70000 + k,  # beyond 16 bits: I040 carries it mod 65536
+                    "time": t0 + k * 10**9,
+                    "status": "confirmed",
+                    "existence": 0.99,
+                    "state": [0.0, 50.0, 0.0, -20.0],
+                    "covariance": [
+                        [100.0, 0, 0, 0],
+                        [0, 4.0, 0, 0],
+                        [0, 0, 100.0, 0],
+                        [0, 0, 0, 4.0],
+                    ],
+                    **site_ll,
+                    "alt": 9144.0,
+                    "vel_east": 50.0,
+                    "vel_north": -20.0,
+                    "speed": math.hypot(50, 20),
+                    "heading": 1.95,
+                    "radars": ["a", "b"],
+                }
+            ],
+        )
+        for k in (1, 2)
+    ]
+    rx, port = udp_receiver()
+    ep = loopback_endpoint(free_port())
+    result: dict = {}
+    argv = ["cat062", "--udp", f"127.0.0.1:{port}", "--sac", "3", "--sic", "4", "--count", "2"]
+    with open_session(peer(listen=ep)) as s:
+        worker = threading.Thread(
+            target=lambda: result.setdefault("rc", main([*argv, "--connect", ep]))
+        )
+        worker.start()
+        try:
+            assert wait_for_tokens(s, [service_alive_key("cat062-main")], 10.0) == []
+            pub = s.declare_publisher(keys.fusion_tracks("main"))
+            for b in batches:
+                pub.put(b.to_json_bytes())
+            worker.join(10)
+        finally:
+            if worker.is_alive():
+                worker.join(5)
+    assert result.get("rc") == 0
+    got = [t for d in drain_udp(rx) for t in decode_cat062(d)]
+    rx.close()
+    assert [(c.sac, c.sic, c.track_number) for c in got] == [
+        (3, 4, 70001 - 65536),
+        (3, 4, 70002 - 65536),
+    ]
+    assert all(c.flight_level == pytest.approx(300.0, abs=0.125) for c in got)
+    assert all(not c.mono and c.confirmed for c in got)
+    assert main(["cat062", "--udp", "no-port"]) == 2
+    assert main(["fusion", "--cat062-udp", "no-port"]) == 2
