@@ -116,6 +116,10 @@ def test_calibration_finds_a_power_law_count_within_tolerance():
     # unreachable target: not converged, best effort reported
     flat = calibrate_psi_init(lambda p: 0.0, target=15.0, tolerance=1.5, max_evals=6)
     assert not flat.converged and len(flat.evaluations) <= 6 and flat.count == 0.0
+    # ... at the largest ψ tried: the soonest confirmation at the same false-track count
+    assert flat.psi_init == 0.5
+    high = calibrate_psi_init(lambda p: 40.0, target=15.0, tolerance=1.5, lo=1e-4, max_evals=5)
+    assert not high.converged and high.psi_init == min(p for p, _ in high.evaluations)
     with pytest.raises(ValueError, match="psi0"):
         calibrate_psi_init(count, 15.0, 1.5, psi0=0.9)
 

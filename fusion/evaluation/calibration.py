@@ -13,7 +13,9 @@ more tracks, true and false alike). :func:`calibrate_psi_init` searches log ψ_i
    either end;
 
 stopping when |count − target| ≤ tolerance or after ``max_evals`` evaluations. The
-result is the evaluated ψ with the count nearest the target (ties: the smaller ψ).
+result is the evaluated ψ with the count nearest the target (:func:`best_evaluation`:
+among equal counts below the target the largest ψ, above it the smallest; so when even
+``hi`` gives fewer false tracks than the target, ψ_init = ``hi``).
 """
 
 from __future__ import annotations
@@ -46,6 +48,14 @@ class Calibration:
         }
 
 
+def best_evaluation(evals: list[tuple[float, float]], target: float) -> tuple[float, float]:
+    """The (ψ, count) nearest the target; among equal counts below the target the largest
+    ψ (it confirms true tracks soonest at that false-track count), above it the smallest."""
+    if not evals:
+        raise ValueError("evals: empty: nothing to choose from")
+    return min(evals, key=lambda e: (abs(e[1] - target), -e[0] if e[1] < target else e[0]))
+
+
 def calibrate_psi_init(
     count: Callable[[float], float],
     target: float,
@@ -74,7 +84,7 @@ def calibrate_psi_init(
         return c
 
     def done() -> Calibration:
-        best = min(evals, key=lambda e: (abs(e[1] - target), e[0]))
+        best = best_evaluation(evals, target)
         return Calibration(
             best[0], best[1], target, tolerance, abs(best[1] - target) <= tolerance, evals
         )
