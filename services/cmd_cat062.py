@@ -40,6 +40,10 @@ from .transport import (
 
 log = logging.getLogger("skyfuse.cat062")
 
+FORGET_AFTER_NS = 600 * 10**9
+"""A track not in any batch for this long (and never terminated by an event) is
+forgotten: no TSE is sent for it."""
+
 
 class Cat062Config(BaseModel):
     udp: str = Field(description="Send CAT062 datagrams to HOST:PORT")
@@ -116,6 +120,10 @@ class Cat062UdpSender:
         sent = self._send_blocks(blocks)
         fid = batch.fusion_id
         self._latest[fid] = max(self._latest.get(fid, batch.time), batch.time)
+        if self.stats["batches"] % 1000 == 0:  # forget tracks that ended without an event
+            old = self._latest[fid] - FORGET_AFTER_NS
+            for tid in [i for i, (t, _, _) in last.items() if t.time < old]:
+                del last[tid]
         if self._pending:
             due = [e for e in self._pending if e.fusion_id == fid and e.time <= batch.time]
             self._pending = [e for e in self._pending if e not in due]
