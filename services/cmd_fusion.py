@@ -103,13 +103,15 @@ def tracker_config(args: argparse.Namespace):
     )
 
 
-def make_pipeline_factory(tracker_cfg, fusion_id: str):
+def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None):
     """``frame -> pipeline``: the conversion + tracker + TrackBatch code path shared with
     ``skyfuse track``."""
     from fusion.tracker.pipeline import TrackPipeline
 
     def factory(frame):
-        return TrackPipeline(frame, tracker_cfg, fusion_id=fusion_id)
+        return TrackPipeline(
+            frame, tracker_cfg, fusion_id=fusion_id, assumed_altitude=assumed_altitude
+        )
 
     return factory
 
@@ -120,7 +122,10 @@ def run(args: argparse.Namespace) -> int:
     )
     tracker_cfg = tracker_config(args)
     tcfg = transport_config(args, toml_path=args.config)
-    core = FusionCore(cfg, make_pipeline_factory(tracker_cfg, cfg.fusion_id))
+    core = FusionCore(
+        cfg,
+        make_pipeline_factory(tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude),
+    )
     cat062 = None
     if getattr(args, "cat062_udp", None):
         from .cmd_cat062 import Cat062UdpSender

@@ -79,6 +79,14 @@ class FusionConfig(BaseModel):
     sites: list[RadarSite] = Field(
         default_factory=list, description="Known radar sites (TOML [[fusion.sites]])"
     )
+    assumed_altitude: float | None = Field(
+        None,
+        ge=-1000,
+        le=30000,
+        description="Height assumed for plots without altitude or elevation (primary-only "
+        "ASTERIX plots), m, carried with a ±3000 m uncertainty (default: such plots are "
+        "rejected and counted)",
+    )
     status_interval: float = Field(1.0, gt=0, description="Status publication period, s")
     latency_window: int = Field(
         20_000, ge=10, description="Latency percentiles over the last N publications"

@@ -121,3 +121,30 @@ def test_liveliness_updates_radar_health(alive):
     c, _ = core()
     c.on_alive(keys.radar_alive("R3"), alive)
     assert c.status().radars[0].alive is alive
+
+
+def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
+    """2-D plots without a flight level: rejected (counted) by default, tracked with an
+    assumed altitude when the fusion configuration gives one."""
+    from fusion.tracker.config import TrackerConfig
+    from services.cmd_fusion import make_pipeline_factory
+
+    rng = np.random.default_rng(5)
+    batch = make_batch("R1", 0, 0, 4, 6, rng)
+    batch = batch.model_copy(update={"altitude": [None] * len(batch)})
+    results = {}
+    for assumed in (None, 3000.0):
+        cfg = FusionConfig(reorder_wait=0.0, assumed_altitude=assumed, frame_lat0=45,
+                           frame_lon0=20)  # fmt: skip
+        c = FusionCore(
+            cfg,
+            make_pipeline_factory(TrackerConfig(), cfg.fusion_id, assumed_altitude=assumed),
+        )
+        c.on_site(make_site("R1", 45.0, 20.0))
+        assert c.on_plots_payload(keys.radar_plots("R1"), batch.to_json_bytes(), 0.0)
+        c.poll(1.0)
+        results[assumed] = sum(
+            n for reason, n in c.status().rejected.items() if reason.startswith("plot:")
+        )
+    assert results[None] == len(batch)  # every plot rejected, with its reason counted
+    assert results[3000.0] == 0
