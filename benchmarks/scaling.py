@@ -13,7 +13,8 @@ clutter, and clutter 0 … 10,000 at fixed targets; plus the target point (1,000
 over the same scans (tracemalloc slows allocation; NumPy reports its buffers to it).
 The largest case of each sweep is profiled (cProfile) and the time split by tracker
 stage. A log–log fit of ms/scan against the swept variable over its upper half gives the
-growth exponent.
+growth exponent (also over the last two points, and for clutter the exponent of the cost
+above the no-clutter run, i.e. the part the clutter adds).
 
     python benchmarks/scaling.py                 # full grid, ~3-5 min on 2 cores
     python benchmarks/scaling.py --quick         # small grid, ~30 s
@@ -26,6 +27,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import json
+import os
 import platform
 import pstats
 import sys
@@ -55,7 +57,7 @@ STAGES = [
     ("association", ("_associate",)),
     ("components (update, merge, prune)", ("component_update", "singer_merge", "prune")),
     ("moment match (output)", ("moment_match",)),
-    ("management (duplicates, terminate)", ("duplicates", "to_terminate", "to_confirm")),
+    ("management", ("duplicates", "shared_plot_pairs", "to_terminate", "to_confirm")),
     ("initiation", ("_initiate",)),
     ("output prediction", ("_predict_out",)),
 ]
@@ -254,6 +256,7 @@ def main(argv: list[str] | None = None) -> int:
             "python": platform.python_version(),
             "numpy": np.__version__,
             "platform": platform.platform(),
+            "load_average_1_5_15_min": [round(v, 2) for v in os.getloadavg()],
         },
         "targets_sweep": [],
         "clutter_sweep": [],
@@ -286,12 +289,24 @@ def main(argv: list[str] | None = None) -> int:
             rows = [r for r in res[sweep] if r["tracker"] == kind and r[xkey] > 0]
             upper = rows[len(rows) // 2 :]
             if len(upper) >= 2:
-                res["exponents"][f"{kind}_{sweep}"] = round(
-                    fit_exponent(
-                        [r[xkey] for r in upper], [r["ms_per_scan_median"] for r in upper]
-                    ),
-                    2,
+                x = [r[xkey] for r in upper]
+                y = [r["ms_per_scan_median"] for r in upper]
+                res["exponents"][f"{kind}_{sweep}"] = round(fit_exponent(x, y), 2)
+                res["exponents"][f"{kind}_{sweep}_last_segment"] = round(
+                    fit_exponent(x[-2:], y[-2:]), 2
                 )
+        # the clutter-driven part alone: cost above the no-clutter run
+        rows = [r for r in res["clutter_sweep"] if r["tracker"] == kind]
+        base = [r["ms_per_scan_median"] for r in rows if r["clutter_per_scan"] == 0]
+        inc = [
+            (r["clutter_per_scan"], r["ms_per_scan_median"] - base[0])
+            for r in rows
+            if base and r["clutter_per_scan"] >= 1000 and r["ms_per_scan_median"] > base[0]
+        ]
+        if len(inc) >= 2:
+            res["exponents"][f"{kind}_clutter_increment"] = round(
+                fit_exponent([a for a, _ in inc], [b for _, b in inc]), 2
+            )
     if not args.quick:
         r = run_case("lmits", 1000, 5000, args.scans, args.warmup)
         res["target_point"].append(r)
