@@ -19,7 +19,7 @@ import time
 
 from schemas import keys
 
-from .config import ConfigError, _split_list, add_model_arguments, build_config
+from .config import ConfigError, _split_list, add_model_arguments, build_config, parse_key_values
 from .fusion_service import FusionConfig, FusionCore
 from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from .transport import (
@@ -84,13 +84,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def tracker_config(args: argparse.Namespace):
     """The TrackerConfig: defaults < TOML [tracker] < SKYFUSE_TRACKER_* < flags."""
-    from .cmd_simulate import parse_params
 
     overrides = {}
     for item in getattr(args, "tracker_set", []):
         if "=" not in item:
             raise ConfigError(f"tracker-set {item!r} is not FIELD=VALUE")
-    overrides.update(parse_params(getattr(args, "tracker_set", [])))
+    overrides.update(parse_key_values(getattr(args, "tracker_set", [])))
     if hasattr(args, "tracker"):
         overrides["tracker"] = args.tracker
     return build_config(

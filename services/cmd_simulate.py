@@ -12,24 +12,18 @@ import time
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import Field
 
 from .config import ConfigError, add_model_arguments, build_config
 from .progress import progress_bar
+from .scenario_config import ScenarioSelection
 
 log = logging.getLogger(__name__)
 
 
-class SimulateConfig(BaseModel):
+class SimulateConfig(ScenarioSelection):
     """Configuration of ``skyfuse simulate`` (TOML table ``[simulate]``)."""
 
-    scenario: str = Field("regional", description="Scenario name (see --list)")
-    seed: int = Field(1, ge=0, description="Random seed: the same seed gives the same file")
-    duration: float | None = Field(None, gt=0, description="Duration in seconds (scenario default)")
-    targets: int | None = Field(None, ge=0, description="Number of targets (scenario default)")
-    param: list[str] = Field(
-        default_factory=list, description="Scenario parameter overrides KEY=VALUE,KEY=VALUE"
-    )
     out: Path = Field(Path("sim.mcap"), description="Output file")
     format: Literal["mcap", "asterix"] = Field(
         "mcap",
@@ -38,26 +32,6 @@ class SimulateConfig(BaseModel):
     )
     asterix_sac: int = Field(0, ge=0, le=255, description="SAC of simulated radars in ASTERIX")
     progress: bool | None = Field(None, description="Show a progress bar (default: on a terminal)")
-
-    @field_validator("param")
-    @classmethod
-    def _kv(cls, v: list[str]) -> list[str]:
-        for item in v:
-            if "=" not in item or not item.split("=", 1)[0].strip():
-                raise ValueError(f"param {item!r} is not KEY=VALUE")
-        return v
-
-
-def parse_params(items: list[str]) -> dict[str, object]:
-    """``["a=1", "b=x"]`` → ``{"a": 1, "b": "x"}`` with numbers and booleans parsed."""
-    out: dict[str, object] = {}
-    for item in items:
-        key, value = (s.strip() for s in item.split("=", 1))
-        try:
-            out[key] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key] = value
-    return out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -74,18 +48,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _build(cfg: SimulateConfig):
     """The scenario and its simulator, or a ConfigError naming the bad parameter."""
-    from fusion.sim import Simulator, build_scenario
+    from fusion.sim import Simulator
 
-    try:
-        scenario = build_scenario(
-            cfg.scenario,
-            seed=cfg.seed,
-            duration=cfg.duration,
-            targets=cfg.targets,
-            **parse_params(cfg.param),
-        )
-    except ValueError as e:
-        raise ConfigError(str(e)) from None
+    scenario = cfg.build_scenario()
     return scenario, Simulator(scenario, seed=cfg.seed)
 
 

@@ -6,6 +6,7 @@ command-line flag maps to a model field of the same name (``--scan-period`` ↔
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import tomllib
 import types
@@ -32,6 +33,21 @@ def _unwrap_optional(ann: Any) -> Any:
 
 def _split_list(text: str) -> list[str]:
     return [part.strip() for part in text.split(",") if part.strip()]
+
+
+def parse_key_values(items: list[str]) -> dict[str, Any]:
+    """``["a=1", "b=x"]`` → ``{"a": 1, "b": "x"}``: values parsed as JSON where they are
+    (numbers, booleans, lists), else kept as strings."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"{item!r} is not KEY=VALUE")
+        try:
+            out[key.strip()] = json.loads(value.strip())
+        except json.JSONDecodeError:
+            out[key.strip()] = value.strip()
+    return out
 
 
 def add_model_arguments(

@@ -26,28 +26,22 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import Field, field_validator
 
 from schemas import PlotBatch, RadarSite, Status, keys
 
 from .config import ConfigError
+from .scenario_config import ScenarioSelection
 from .transport import declare_liveliness, declare_publisher, service_alive_key, wall_stamp
 
 log = logging.getLogger(__name__)
 
 
-class SensorConfig(BaseModel):
+class SensorConfig(ScenarioSelection):
     radar: str | None = Field(
         None,
         description="Radar id in the scenario (e.g. R1); with --asterix/--asterix-udp: only "
         "this radar (SAC-SIC, e.g. 25-201)",
-    )
-    scenario: str = Field("regional", description="Scenario name (skyfuse simulate --list)")
-    seed: int = Field(1, ge=0, description="Scenario seed (same seed as the other sensors)")
-    duration: float | None = Field(None, gt=0, description="Scenario duration, s")
-    targets: int | None = Field(None, ge=0, description="Number of targets")
-    param: list[str] = Field(
-        default_factory=list, description="Scenario parameter overrides KEY=VALUE,KEY=VALUE"
     )
     speed: float = Field(1.0, gt=0, le=1000, description="Time scale: 10 = ten times faster")
     replay: Path | None = Field(None, description="Publish this radar's batches from an MCAP")
@@ -135,23 +129,7 @@ def parse_host_port(text: str, what: str = "address") -> tuple[str, int]:
 
 def load_scenario(cfg: SensorConfig):
     """The scenario of ``cfg`` and this radar's site (``ConfigError`` if absent)."""
-    from fusion.sim import build_scenario
-
-    from .cmd_simulate import parse_params
-
-    bad = [p for p in cfg.param if "=" not in p]
-    if bad:
-        raise ConfigError(f"param {bad[0]!r} is not KEY=VALUE")
-    try:
-        sc = build_scenario(
-            cfg.scenario,
-            seed=cfg.seed,
-            duration=cfg.duration,
-            targets=cfg.targets,
-            **parse_params(cfg.param),
-        )
-    except (ValueError, TypeError) as e:
-        raise ConfigError(str(e)) from None
+    sc = cfg.build_scenario()
     ids = [s.radar_id for s in sc.sites]
     if cfg.radar not in ids:
         raise ConfigError(
