@@ -42,3 +42,33 @@ def test_eval_recording_scores_labels_and_truth(recording, tmp_path, capsys):
 def test_eval_recording_missing_file_is_a_clear_error(tmp_path, capsys):
     assert main(["eval", str(tmp_path / "nope.mcap"), "--tracker", "its"]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_eval_recording_with_mode_s_labels_only(tmp_path, capsys):
+    """A 'real' recording: plots carry Mode-S addresses (one per target, none on clutter)
+    and neither target_id nor Truth; the label metrics come from the addresses."""
+    from fusion.sim import Simulator, build_scenario
+    from services.recording import RecordingWriter
+
+    sim = Simulator(build_scenario("thesis-mtt-5", seed=2, clutter_density=2e-6))
+    path = tmp_path / "real.mcap"
+    with RecordingWriter(path) as w:
+        for ev in sim.run(truth=False):
+            msg = ev.message
+            if ev.kind == "plots":
+                tid = msg.target_id
+                msg = msg.model_copy(
+                    update={
+                        "target_id": None,
+                        "mode_s": [None if t < 0 else 0xA00000 + t for t in tid],
+                    }
+                )
+            w.write(ev.topic, msg, ev.time)
+    out = tmp_path / "r.json"
+    assert main(["eval", str(path), "--tracker", "its", "--depth", "2", "--q", "0.75",
+                 "--json", str(out)]) == 0  # fmt: skip
+    d = json.loads(out.read_text())
+    assert d["labels"] == "mode_s" and "gospa" not in d
+    lm = d["label_metrics"]
+    assert lm["aircraft"] == 5 and lm["completeness"] == 1.0
+    assert lm["confirmed_tracks"] >= 5 and lm["false_tracks"] <= 1
