@@ -436,6 +436,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "tracker settings (scenario runs: override the source's settings; FILE.mcap: the tracker)"
     )
     add_model_arguments(t, TrackerConfig, skip=("p_gate",))
+    r = p.add_argument_group("ASTERIX recordings (FILE.ast, FILE.pcap)")
+    r.add_argument(
+        "--sites", type=Path, default=None, help="Sites TOML ([[radar]] sac, sic, lat, lon, alt)"
+    )
+    r.add_argument(
+        "--date",
+        default=None,
+        help="UTC date of the first record, YYYY-MM-DD (default: pcap capture time, else today)",
+    )
     p.add_argument("--config", type=Path, default=None, help="TOML file with a [tracker] table")
     p.add_argument(
         "--json",

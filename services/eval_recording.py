@@ -207,6 +207,10 @@ def run_recording(args) -> int:
         section="tracker",
         env_prefix="SKYFUSE_TRACKER_",
     )
+    from .cmd_track import is_mcap
+
+    if not is_mcap(path):
+        return _run_asterix(path, tcfg, args)
     try:
         summary = evaluate_recording(path, tcfg)
     except ValueError as e:
@@ -222,4 +226,28 @@ def run_recording(args) -> int:
         short["gospa_mean_m"] = summary["gospa"]["mean_m"]
     short["wall_s"] = summary["wall_s"]
     print(json.dumps(short))
+    return 0
+
+
+def _run_asterix(path: Path, tcfg, args) -> int:
+    """``skyfuse eval FILE.ast|FILE.pcap --sites sites.toml``: track a real ASTERIX
+    recording and score it by the Mode-S addresses on its plots (label metrics)."""
+    from .asterix.sites import SitesError
+    from .config import ConfigError
+    from .eval_asterix import evaluate_asterix
+
+    sites = getattr(args, "sites", None)
+    try:
+        res = evaluate_asterix(path, sites=sites, date=getattr(args, "date", None),
+                               tracker_cfg=tcfg)  # fmt: skip
+    except SitesError as e:
+        raise ConfigError(str(e)) from None
+    except ValueError as e:
+        log.error("%s", e)
+        return 1
+    json_out = getattr(args, "json_out", None)
+    if json_out:
+        Path(json_out).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_out).write_text(json.dumps(res, indent=1, default=str) + "\n")
+    print(json.dumps(res["metrics"], default=str))
     return 0
