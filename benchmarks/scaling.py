@@ -16,8 +16,8 @@ stage. A log–log fit of ms/scan against the swept variable over its upper half
 growth exponent (also over the last two points, and for clutter the exponent of the cost
 above the no-clutter run, i.e. the part the clutter adds).
 
-    python benchmarks/scaling.py                 # full grid, ~3-5 min on 2 cores
-    python benchmarks/scaling.py --quick         # small grid, ~30 s
+    python benchmarks/scaling.py                 # full grid, ~1 min (4 min on a loaded machine)
+    python benchmarks/scaling.py --quick         # small grid, ~10 s
 
 Writes ``benchmarks/results/scaling.json`` and ``docs/performance/scaling.png``.
 """
