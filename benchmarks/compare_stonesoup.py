@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import gc
 import json
 import math
 import os
@@ -434,6 +435,7 @@ def bench_case(
         for r in range(max(repeats, n_ss)):
             order = ("sf", "ss") if r % 2 == 0 else ("ss", "sf")
             for who in order:
+                gc.collect()  # neither side pays for the other's garbage
                 if who == "sf" and r < repeats:
                     ms, sf_est = run_skyfuse(setup, scans, sf_kind)
                     sf_ms.append(float(np.mean(ms)))
