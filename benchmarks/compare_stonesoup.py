@@ -15,7 +15,7 @@ through :class:`fusion.tracker.TrackPipeline` (plot conversion into the system f
 included in the time). Stone Soup runs ``GNNWith2DAssignment`` with a Kalman filter
 (cartesian) or an extended Kalman filter with ``CartesianToBearingRange`` (polar), and
 ``JPDA`` + Kalman with ``MultiTargetMixtureTracker`` (cartesian). Stone Soup's settings
-(the "fair setting", documented in docs/performance-tracker.md):
+(the "fair setting", documented in docs/performance.md):
 
 * the same constant-velocity model with the same velocity process noise per scan (Stone
   Soup's continuous ``ConstantVelocity(q)``, skyfuse's discrete q/T), the same measurement
@@ -475,7 +475,7 @@ def bench_case(
 
 
 def markdown_table(paths: list[Path]) -> str:
-    """Markdown table of the cases in result files (for docs/performance-tracker.md)."""
+    """Markdown table of the cases in result files (for docs/performance.md)."""
     lines = [
         "| kind | targets | plots/scan | skyfuse | Stone Soup | skyfuse ms/scan "
         "| Stone Soup ms/scan | speed-up | GOSPA skyfuse (loc/miss/false) "
