@@ -1,6 +1,6 @@
 """Encode/decode rate of a 500-plot PlotBatch (JSON via pydantic), the wire format.
 
-    python benchmarks/schema_codec.py [--plots 500] [--seconds 2] [--json out.json]
+python benchmarks/schema_codec.py [--plots 500] [--seconds 2] [--json out.json]
 """
 
 from __future__ import annotations

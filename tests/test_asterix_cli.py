@@ -385,8 +385,8 @@ def test_regional_two_d_radars_fuse_to_the_same_tracks_through_asterix(tmp_path)
     simulator's batches and from their CAT048/CAT034 encoding read back: as many in every
     cycle, paired one to one by position with the same pairing all along. Tentative
     tracks in the ground-clutter rings may differ (a clutter plot quantised across a gate
-    edge), and then the track ids after them, but not the confirmed tracks. (Beograd and Novi Sad are 3-D: CAT048 has no elevation,
-    so they are not comparable.)"""
+    edge), and then the track ids after them, but not the confirmed tracks. (Beograd and
+    Novi Sad are 3-D: CAT048 has no elevation, so they are not comparable.)"""
     from fusion.frames import SystemFrame
     from fusion.sim import Simulator, build_scenario
     from fusion.tracker import TrackerConfig

@@ -16,8 +16,16 @@ from services.recording import ReadStats, RecordingWriter, iter_recording, read_
 
 
 def _batch(i: int) -> PlotBatch:
-    return PlotBatch(radar_id="r1", scan=i // 4, seq=i, time_start=i * 10, time_end=i * 10 + 9,
-                     time=[i * 10, i * 10 + 5], range=[1000.0 + i, 2000.0], azimuth=[0.1, 0.2])
+    return PlotBatch(
+        radar_id="r1",
+        scan=i // 4,
+        seq=i,
+        time_start=i * 10,
+        time_end=i * 10 + 9,
+        time=[i * 10, i * 10 + 5],
+        range=[1000.0 + i, 2000.0],
+        azimuth=[0.1, 0.2],
+    )
 
 
 def _write(path, n=50, **kw):
@@ -85,7 +93,8 @@ def test_killed_writer_keeps_complete_chunks(tmp_path):
 def test_pymcap_doctor_passes(tmp_path):
     path = tmp_path / "d.mcap"
     _write(path, n=20)
-    res = subprocess.run(["pymcap-cli", "doctor", str(path)], capture_output=True, text=True,
-                         timeout=120)
+    res = subprocess.run(
+        ["pymcap-cli", "doctor", str(path)], capture_output=True, text=True, timeout=120
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "passed" in res.stdout

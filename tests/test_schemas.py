@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -84,8 +85,16 @@ def test_polar_and_cartesian_are_exclusive_and_complete():
         PlotBatch(**make_batch(2, x=[1.0, 2.0], y=[1.0, 2.0], altitude=None, mode_s=None))
     with pytest.raises(ValidationError, match="'azimuth' is missing"):
         PlotBatch(**make_batch(2, azimuth=None, altitude=None, mode_s=None))
-    cart = PlotBatch(radar_id="c", scan=0, seq=0, time_start=0, time_end=0,
-                     time=[0, 0], x=[1.0, -2.0], y=[3.0, 4.0])
+    cart = PlotBatch(
+        radar_id="c",
+        scan=0,
+        seq=0,
+        time_start=0,
+        time_end=0,
+        time=[0, 0],
+        x=[1.0, -2.0],
+        y=[3.0, 4.0],
+    )
     assert cart.is_cartesian
 
 
@@ -126,7 +135,7 @@ def test_hypothesis_unequal_lengths_rejected(n, drop):
 def test_hypothesis_time_order(times):
     n = len(times)
     base = make_batch(n, time=times, time_start=0, time_end=10**12)
-    if all(a <= b for a, b in zip(times, times[1:])):
+    if all(a <= b for a, b in itertools.pairwise(times)):
         assert len(PlotBatch(**base)) == n
     else:
         with pytest.raises(ValidationError, match="non-decreasing"):
@@ -141,7 +150,11 @@ def test_hypothesis_time_order(times):
 def test_hypothesis_valid_round_trip(n, seed):
     rng = np.random.default_rng(seed)
     b = PlotBatch(
-        radar_id="rr", scan=1, seq=2, time_start=0, time_end=10**9,
+        radar_id="rr",
+        scan=1,
+        seq=2,
+        time_start=0,
+        time_end=10**9,
         time=sorted(rng.integers(0, 10**9, n).tolist()),
         range=rng.uniform(0, 3e5, n).tolist(),
         azimuth=rng.uniform(0, 2 * math.pi, n).clip(0, 2 * math.pi - 1e-9).tolist(),
@@ -168,9 +181,21 @@ def test_radar_site_validation():
 
 def _track(**kw):
     d = dict(
-        track_id=1, time=5, status="confirmed", existence=0.99, state=[1.0, 2.0, 3.0, 4.0],
-        covariance=np.eye(4).tolist(), lat=44.0, lon=20.0, alt=3000.0, vel_east=1.0,
-        vel_north=2.0, speed=2.236, heading=0.46, radars=["a", "b"], updates=7,
+        track_id=1,
+        time=5,
+        status="confirmed",
+        existence=0.99,
+        state=[1.0, 2.0, 3.0, 4.0],
+        covariance=np.eye(4).tolist(),
+        lat=44.0,
+        lon=20.0,
+        alt=3000.0,
+        vel_east=1.0,
+        vel_north=2.0,
+        speed=2.236,
+        heading=0.46,
+        radars=["a", "b"],
+        updates=7,
     )
     d.update(kw)
     return d
@@ -178,8 +203,12 @@ def _track(**kw):
 
 def test_track_batch_round_trip_and_checks():
     tb = TrackBatch(
-        fusion_id="main", cycle=3, time=5, frame={"kind": "stereographic", "lat0": 44.0, "lon0": 20.0},
-        state_labels=["x", "vx", "y", "vy"], tracks=[Track(**_track())],
+        fusion_id="main",
+        cycle=3,
+        time=5,
+        frame={"kind": "stereographic", "lat0": 44.0, "lon0": 20.0},
+        state_labels=["x", "vx", "y", "vy"],
+        tracks=[Track(**_track())],
     )
     assert TrackBatch.from_json_bytes(tb.to_json_bytes()) == tb
     with pytest.raises(ValidationError, match="covariance"):
@@ -187,24 +216,62 @@ def test_track_batch_round_trip_and_checks():
     with pytest.raises(ValidationError, match="existence"):
         Track(**_track(existence=1.5))
     with pytest.raises(ValidationError, match="state_labels"):
-        TrackBatch(fusion_id="m", cycle=0, time=0, frame={"kind": "ned"},
-                   state_labels=["x", "y"], tracks=[Track(**_track())])
-    ev = TrackEvent(fusion_id="m", time=1, kind="merged", track_id=3, other_track_id=1, existence=0.5)
+        TrackBatch(
+            fusion_id="m",
+            cycle=0,
+            time=0,
+            frame={"kind": "ned"},
+            state_labels=["x", "y"],
+            tracks=[Track(**_track())],
+        )
+    ev = TrackEvent(
+        fusion_id="m", time=1, kind="merged", track_id=3, other_track_id=1, existence=0.5
+    )
     assert TrackEvent.from_json_bytes(ev.to_json_bytes()) == ev
 
 
 def test_truth_and_status():
-    t = Truth(time=1, target_id=[1, 2], lat=[44.0, 45.0], lon=[20.0, 21.0], alt=[1e3, 2e3],
-              vel_east=[1.0, 2.0], vel_north=[0.0, 1.0], vel_up=[0.0, 0.0])
+    t = Truth(
+        time=1,
+        target_id=[1, 2],
+        lat=[44.0, 45.0],
+        lon=[20.0, 21.0],
+        alt=[1e3, 2e3],
+        vel_east=[1.0, 2.0],
+        vel_north=[0.0, 1.0],
+        vel_up=[0.0, 0.0],
+    )
     assert Truth.from_json_bytes(t.to_json_bytes()) == t
     with pytest.raises(ValidationError, match="unique"):
-        Truth(time=1, target_id=[1, 1], lat=[0, 0], lon=[0, 0], alt=[0, 0], vel_east=[0, 0],
-              vel_north=[0, 0], vel_up=[0, 0])
+        Truth(
+            time=1,
+            target_id=[1, 1],
+            lat=[0, 0],
+            lon=[0, 0],
+            alt=[0, 0],
+            vel_east=[0, 0],
+            vel_north=[0, 0],
+            vel_up=[0, 0],
+        )
     with pytest.raises(ValidationError, match="has 1 values"):
-        Truth(time=1, target_id=[1, 2], lat=[0], lon=[0, 0], alt=[0, 0], vel_east=[0, 0],
-              vel_north=[0, 0], vel_up=[0, 0])
-    st_ = Status(service="fusion", service_id="main", time=1, uptime_s=2.0, counters={"plots": 5},
-                 rejected={"invalid PlotBatch": 1})
+        Truth(
+            time=1,
+            target_id=[1, 2],
+            lat=[0],
+            lon=[0, 0],
+            alt=[0, 0],
+            vel_east=[0, 0],
+            vel_north=[0, 0],
+            vel_up=[0, 0],
+        )
+    st_ = Status(
+        service="fusion",
+        service_id="main",
+        time=1,
+        uptime_s=2.0,
+        counters={"plots": 5},
+        rejected={"invalid PlotBatch": 1},
+    )
     assert Status.from_json_bytes(st_.to_json_bytes()) == st_
 
 
@@ -234,9 +301,15 @@ def test_json_schemas_written(tmp_path):
 
     paths = write_schemas(tmp_path)
     names = {p.name for p in paths}
-    assert {"PlotBatch.schema.json", "RadarSite.schema.json", "TrackBatch.schema.json",
-            "Truth.schema.json", "Status.schema.json", "TrackEvent.schema.json",
-            "keys.json"} <= names
+    assert {
+        "PlotBatch.schema.json",
+        "RadarSite.schema.json",
+        "TrackBatch.schema.json",
+        "Truth.schema.json",
+        "Status.schema.json",
+        "TrackEvent.schema.json",
+        "keys.json",
+    } <= names
     plot_schema = json.loads((tmp_path / "PlotBatch.schema.json").read_text())
     assert "range" in plot_schema["properties"]
     assert "m" in plot_schema["properties"]["range"]["description"]
