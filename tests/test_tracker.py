@@ -277,3 +277,26 @@ def test_three_dimensional_tracking_estimates_climb():
     assert out.states.shape[1] == 6 and out.confirmed.sum() == 1
     est = out.states[out.confirmed][0]
     assert abs(est[4] - x[4]) < 60 and abs(est[5] - 10.0) < 5 and abs(est[1] - 200) < 10
+
+
+@pytest.mark.parametrize("max_coast", [120.0, None])
+def test_track_outside_every_coverage_ends_after_max_coast(max_coast):
+    """No radar sees the track, so misses never erode its existence (Δ11 alone keeps it
+    above τ_t for minutes): ``max_coast`` ends it, with a reason on the event."""
+    tr = Tracker(cfg(tracker="lmits", depth=2, initiation="none", max_coast=max_coast))
+    tid = tr.add_track([200_000, 0, 0, 0], np.diag([25.0] * 4), 0, existence=0.99,
+                       confirmed=True)  # fmt: skip
+    cov = SectorCoverage(np.zeros(2), 0.0, 50_000.0, 0.0, 2 * np.pi, 0, 0)  # 150 km short
+    ended_at, reasons = None, []
+    for k in range(1, 21):
+        out = tr.step(MeasurementBatch(10 * k * NS, "A", np.zeros((0, 2)), R, 0.9, 1e-8,
+                                       coverage=cov))  # fmt: skip
+        reasons += [e.reason for e in out.events if e.kind == "terminated"]
+        if tid not in out.ids:
+            ended_at = 10 * k
+            break
+    if max_coast is None:
+        assert ended_at is None and out.existence[0] > 1e-3
+    else:
+        assert ended_at == 130  # first batch more than 120 s after the last update (t = 0)
+        assert reasons == ["no plot for max_coast"]

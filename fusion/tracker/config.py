@@ -49,6 +49,12 @@ class TrackerConfig(BaseModel):
     tau_terminate: float = Field(
         1e-3, gt=0.0, lt=1.0, description="Termination threshold τ_t on existence"
     )
+    max_coast: float | None = Field(
+        120.0,
+        gt=0.0,
+        description="Terminate a track that no plot has updated for this long, s (a track "
+        "outside every radar's coverage is never eroded by misses); None: existence alone",
+    )
     confirm_min_updates: int = Field(
         2,
         ge=0,

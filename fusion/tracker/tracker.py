@@ -406,7 +406,10 @@ class Tracker:
         psi_now = self.chain.existence(
             self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
         )
-        term = to_terminate(psi_now, cfg.tau_terminate) & keep
+        coasting = np.zeros(self.n, bool)
+        if cfg.max_coast is not None:
+            coasting = (t_batch - self.last_update) > round(cfg.max_coast / NS)
+        term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(
                 TrackEventRecord(
@@ -414,7 +417,7 @@ class Tracker:
                     "terminated",
                     int(self.ids[r]),
                     float(psi_now[r]),
-                    reason="existence below tau_t",
+                    reason="no plot for max_coast" if coasting[r] else "existence below tau_t",
                 )
             )
         keep &= ~term
