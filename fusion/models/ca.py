@@ -48,19 +48,15 @@ def block_diag_axes(blocks: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
-class ConstantAcceleration:
-    """CA model over ``ndim`` axes (1, 2 or 3); q: jerk spectral density, m²/s⁵."""
+class PositionVelocityAcceleration:
+    """State layout shared by CA and Singer: ``[x, vx, ax, y, vy, ay(, z, vz, az)]`` over
+    ``self.ndim`` axes (metres, m/s, m/s²)."""
 
-    q: float = 1.0
-    ndim: int = 2
-    q_vertical: float | None = None
+    ndim: int
 
-    def __post_init__(self) -> None:
+    def _check_ndim(self) -> None:
         if self.ndim not in (1, 2, 3):
             raise ValueError(f"ndim = {self.ndim}: must be 1, 2 or 3")
-        if not self.q >= 0:
-            raise ValueError(f"q = {self.q}: must be >= 0 m²/s⁵")
 
     @property
     def dim(self) -> int:
@@ -73,6 +69,20 @@ class ConstantAcceleration:
     @property
     def position_index(self) -> tuple[int, ...]:
         return tuple(range(0, self.dim, 3))
+
+
+@dataclass(frozen=True)
+class ConstantAcceleration(PositionVelocityAcceleration):
+    """CA model over ``ndim`` axes (1, 2 or 3); q: jerk spectral density, m²/s⁵."""
+
+    q: float = 1.0
+    ndim: int = 2
+    q_vertical: float | None = None
+
+    def __post_init__(self) -> None:
+        self._check_ndim()
+        if not self.q >= 0:
+            raise ValueError(f"q = {self.q}: must be >= 0 m²/s⁵")
 
     def F(self, dt: float | np.ndarray) -> np.ndarray:
         t, scalar = as_dt_array(dt)

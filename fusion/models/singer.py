@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import as_dt_array
-from .ca import AXIS_LABELS, block_diag_axes
+from .ca import PositionVelocityAcceleration, block_diag_axes
 
 _SERIES_BELOW = 0.05
 _SERIES_TERMS = 14
@@ -100,7 +100,7 @@ def singer_axis_q(t: np.ndarray, alpha: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Singer:
+class Singer(PositionVelocityAcceleration):
     """Singer model over ``ndim`` axes. tau: manoeuvre time constant (s);
     sigma_m: acceleration standard deviation (m/s²). Use :meth:`from_maneuver` for the
     source's parametrisation (τ = 10 s, A_max = 40 m/s², P_max, P_0)."""
@@ -111,8 +111,7 @@ class Singer:
     sigma_m_vertical: float | None = None
 
     def __post_init__(self) -> None:
-        if self.ndim not in (1, 2, 3):
-            raise ValueError(f"ndim = {self.ndim}: must be 1, 2 or 3")
+        self._check_ndim()
         if not self.tau > 0:
             raise ValueError(f"tau = {self.tau}: must be > 0 s")
         if not self.sigma_m >= 0:
@@ -127,18 +126,6 @@ class Singer:
     @property
     def alpha(self) -> float:
         return 1.0 / self.tau
-
-    @property
-    def dim(self) -> int:
-        return 3 * self.ndim
-
-    @property
-    def labels(self) -> tuple[str, ...]:
-        return tuple(lab for ax in AXIS_LABELS[: self.ndim] for lab in ax)
-
-    @property
-    def position_index(self) -> tuple[int, ...]:
-        return tuple(range(0, self.dim, 3))
 
     def F(self, dt: float | np.ndarray) -> np.ndarray:
         t, scalar = as_dt_array(dt)
