@@ -14,8 +14,7 @@ import platform
 import time
 
 import numpy as np
-
-from fusion.association import assign_auction, assign_jv
+from skyfuse.fusion.association import assign_auction, assign_jv
 
 
 def gnn_like_problem(n: int, rng: np.random.Generator, density: float = 3.0):

@@ -65,14 +65,14 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from fusion.frames import Stereographic  # noqa: E402
-from fusion.sim import Simulator  # noqa: E402
-from fusion.sim.scenario import DEFAULT_START_TIME, Scenario  # noqa: E402
-from fusion.sim.sensor import SensorConfig  # noqa: E402
-from fusion.sim.trajectories import TargetSet, TrajectoryBuilder  # noqa: E402
-from fusion.tracker import TrackerConfig  # noqa: E402
-from fusion.tracker.pipeline import TrackPipeline  # noqa: E402
-from schemas import FrameKind, FrameSpec, RadarSite  # noqa: E402
+from skyfuse.fusion.frames import Stereographic  # noqa: E402
+from skyfuse.fusion.sim import Simulator  # noqa: E402
+from skyfuse.fusion.sim.scenario import DEFAULT_START_TIME, Scenario  # noqa: E402
+from skyfuse.fusion.sim.sensor import SensorConfig  # noqa: E402
+from skyfuse.fusion.sim.trajectories import TargetSet, TrajectoryBuilder  # noqa: E402
+from skyfuse.fusion.tracker import TrackerConfig  # noqa: E402
+from skyfuse.fusion.tracker.pipeline import TrackPipeline  # noqa: E402
+from skyfuse.schemas import FrameKind, FrameSpec, RadarSite  # noqa: E402
 
 LAT0, LON0 = 44.8, 20.45
 GATE_P = 0.99

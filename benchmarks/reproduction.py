@@ -28,7 +28,7 @@ import platform
 import time
 from pathlib import Path
 
-from services.cli import main as skyfuse
+from skyfuse.services.cli import main as skyfuse
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "reproduction"
@@ -48,8 +48,7 @@ def confirmation_delay(runs: int = 15, seed: int = 7) -> dict:
     target 0 of thesis-mtt-5 (ITS N = 1, no carry-over), per ψ_init, with the
     non-parametric clutter estimate and with a known density of 1e-6 m⁻²; 99 = never."""
     import numpy as np
-
-    from fusion.evaluation import Experiment, Variant, VariantRunner
+    from skyfuse.fusion.evaluation import Experiment, Variant, VariantRunner
 
     out = {}
     for clutter, extra in (("estimated", {}), ("known", {"clutter_density_floor": 1e-6})):

@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig  # noqa: E402
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig  # noqa: E402
 
 SIDE = 200_000.0
 SPEED = 200.0

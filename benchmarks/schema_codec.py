@@ -12,8 +12,7 @@ import platform
 import time
 
 import numpy as np
-
-from schemas import PlotBatch
+from skyfuse.schemas import PlotBatch
 
 
 def make_batch(n: int, seed: int = 0) -> PlotBatch:

@@ -26,10 +26,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fusion.sim import Simulator, build_scenario  # noqa: E402
-from schemas import Status, keys  # noqa: E402
-from services.demo import Child  # noqa: E402
-from services.transport import (  # noqa: E402
+from skyfuse.fusion.sim import Simulator, build_scenario  # noqa: E402
+from skyfuse.schemas import Status, keys  # noqa: E402
+from skyfuse.services.demo import Child  # noqa: E402
+from skyfuse.services.transport import (  # noqa: E402
     Inbox,
     TransportConfig,
     declare_liveliness,

@@ -24,9 +24,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from schemas import PlotBatch, RadarKind, RadarSite, Status, keys  # noqa: E402
-from services.recording import iter_recording  # noqa: E402
-from services.transport import (  # noqa: E402
+from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, Status, keys  # noqa: E402
+from skyfuse.services.recording import iter_recording  # noqa: E402
+from skyfuse.services.transport import (  # noqa: E402
     Inbox,
     TransportConfig,
     declare_publisher,
@@ -64,7 +64,7 @@ def run_once(payloads: list[bytes], plots: int, foxglove: bool, tmp: Path) -> di
     args += ["--status-interval", "0.1"]
     args.append("--foxglove" if foxglove else "--no-foxglove")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "services.lifecycle", "--log-level", "WARNING", *args],
+        [sys.executable, "-m", "skyfuse.services.lifecycle", "--log-level", "WARNING", *args],
         cwd=ROOT,
         stderr=open(tmp / f"rec-{foxglove}.log", "wb"),
     )

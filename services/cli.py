@@ -20,7 +20,7 @@ from .config import ConfigError
 def command_modules() -> list[str]:
     """Every ``services/cmd_*.py`` module, sorted: each registers one sub-command."""
     here = Path(__file__).parent
-    return sorted(f"services.{p.stem}" for p in here.glob("cmd_*.py"))
+    return sorted(f"skyfuse.services.{p.stem}" for p in here.glob("cmd_*.py"))
 
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -37,7 +37,7 @@ def _requested_command(argv: list[str]) -> str | None:
             continue
         if arg.startswith("-"):
             return None
-        module = f"services.cmd_{arg}"
+        module = f"skyfuse.services.cmd_{arg}"
         return arg if module in command_modules() else None
     return None
 
@@ -57,7 +57,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    names = [f"services.cmd_{only}"] if only else command_modules()
+    names = [f"skyfuse.services.cmd_{only}"] if only else command_modules()
     for name in names:
         importlib.import_module(name).register(sub)
     return parser

@@ -23,8 +23,7 @@ import time
 from collections import Counter
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
-
-from schemas import TrackBatch, TrackEvent, TrackEventKind, TrackStatus, keys
+from skyfuse.schemas import TrackBatch, TrackEvent, TrackEventKind, TrackStatus, keys
 
 from .config import ConfigError, add_model_arguments, build_config
 from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag

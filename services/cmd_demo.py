@@ -21,8 +21,7 @@ import time
 from pathlib import Path
 
 from pydantic import ValidationError
-
-from schemas import Status, TrackBatch, TrackStatus, keys
+from skyfuse.schemas import Status, TrackBatch, TrackStatus, keys
 
 from .config import ConfigError, add_model_arguments, build_config
 from .demo import Child, DemoConfig, evaluate_recording, plot_tracks_vs_truth
@@ -61,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
             check_endpoint(cfg.listen)
         except ValueError as e:
             raise ConfigError(f"listen: {e}") from None
-    from fusion.sim import build_scenario
+    from skyfuse.fusion.sim import build_scenario
 
     try:
         sc = build_scenario(
@@ -299,7 +298,7 @@ class _View:
                 if fox is not None:
                     _fox_tracks(fox, self.tracks)
             elif item.tag == "truth" and fox is not None:
-                from schemas import Truth
+                from skyfuse.schemas import Truth
 
                 from .recorder import location_fixes
 

@@ -107,14 +107,14 @@ class CrossingEvalConfig(BaseModel):
 # crossing-4g: the computation (no I/O)
 # --------------------------------------------------------------------------------------
 def make_filter(name: str, cfg: CrossingEvalConfig):
-    from fusion.filters import (
+    from skyfuse.fusion.filters import (
         SOURCE_TPM_IMM2,
         TYPICAL_TPM_IMM2,
         ConvertedMeasurementKF,
         imm2_pcwpa,
         imm3_cv_singer_ct,
     )
-    from fusion.models import ConstantVelocity, Singer
+    from skyfuse.fusion.models import ConstantVelocity, Singer
 
     if name == "kf":
         return ConvertedMeasurementKF(ConstantVelocity(q=cfg.kf_sigma**2), "kf")
@@ -133,7 +133,7 @@ def make_filter(name: str, cfg: CrossingEvalConfig):
 
 
 def _scan_batch(scan):
-    from schemas import PlotBatch
+    from skyfuse.schemas import PlotBatch
 
     alt = None if scan.altitude is None else scan.altitude.tolist()
     el = None if scan.elevation is None else scan.elevation.tolist()
@@ -162,9 +162,9 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
     or is farther than ``follow_distance`` from both; ``first_cross_scan``: the first scan
     at which a target's track is nearest the other target (None if never); and the track
     positions."""
-    from fusion.association import CONFIRMED, GNNConfig, GNNTracker
-    from fusion.frames import SystemFrame, convert_plots
-    from fusion.sim import Simulator, build_scenario
+    from skyfuse.fusion.association import CONFIRMED, GNNConfig, GNNTracker
+    from skyfuse.fusion.frames import SystemFrame, convert_plots
+    from skyfuse.fusion.sim import Simulator, build_scenario
 
     seed = cfg.seed * 100_003 + run
     sc = build_scenario("crossing-4g", seed=cfg.seed, sigma_az_mrad=cfg.sigma_az_mrad)
@@ -419,7 +419,7 @@ EVALUATORS: dict[str, Callable[[argparse.Namespace], int]] = {}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker import TrackerConfig
 
     from .eval_montecarlo import TrackerEvalConfig
 
@@ -461,7 +461,7 @@ SHARED_FIELDS = ("scenario", "runs", "seed", "out", "workers")
 
 
 def run(args: argparse.Namespace) -> int:
-    from fusion.evaluation import PLANAR_SCENARIOS
+    from skyfuse.fusion.evaluation import PLANAR_SCENARIOS
 
     name = getattr(args, "scenario", None)
     if name is not None and (name.endswith(".mcap") or Path(name).is_file()):
@@ -523,7 +523,7 @@ def run_crossing(args: argparse.Namespace) -> int:
 
 
 def _scenario_params(cfg: CrossingEvalConfig) -> dict:
-    from fusion.sim import build_scenario
+    from skyfuse.fusion.sim import build_scenario
 
     return build_scenario("crossing-4g", seed=cfg.seed, sigma_az_mrad=cfg.sigma_az_mrad).params
 

@@ -17,7 +17,7 @@ import argparse
 import logging
 import time
 
-from schemas import keys
+from skyfuse.schemas import keys
 
 from .config import ConfigError, _split_list, add_model_arguments, build_config, parse_key_values
 from .fusion_service import FusionConfig, FusionCore
@@ -38,7 +38,7 @@ log = logging.getLogger("skyfuse.fusion")
 
 
 def _tracker_config_model():
-    from fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker import TrackerConfig
 
     return TrackerConfig
 
@@ -105,7 +105,7 @@ def tracker_config(args: argparse.Namespace):
 def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None):
     """``frame -> pipeline``: the conversion + tracker + TrackBatch code path shared with
     ``skyfuse track``."""
-    from fusion.tracker.pipeline import TrackPipeline
+    from skyfuse.fusion.tracker.pipeline import TrackPipeline
 
     def factory(frame):
         return TrackPipeline(

@@ -12,8 +12,7 @@ from pathlib import Path
 from pydantic import BaseModel, Field
 from rich.console import Console
 from rich.table import Table
-
-import schemas
+from skyfuse import schemas
 
 from .config import add_model_arguments, build_config
 from .recording import ReadStats, iter_recording, read_metadata

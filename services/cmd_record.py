@@ -10,7 +10,7 @@ import json
 import logging
 import time
 
-from schemas import Status, keys
+from skyfuse.schemas import Status, keys
 
 from .config import add_model_arguments, build_config
 from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag

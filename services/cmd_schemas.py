@@ -7,8 +7,7 @@ import json
 from pathlib import Path
 
 from pydantic import BaseModel, Field
-
-import schemas
+from skyfuse import schemas
 
 from .config import add_model_arguments, build_config
 

@@ -48,7 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _build(cfg: SimulateConfig):
     """The scenario and its simulator, or a ConfigError naming the bad parameter."""
-    from fusion.sim import Simulator
+    from skyfuse.fusion.sim import Simulator
 
     scenario = cfg.build_scenario()
     return scenario, Simulator(scenario, seed=cfg.seed)
@@ -189,7 +189,7 @@ def simulate_to_asterix(cfg: SimulateConfig) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     if args.list:
-        from fusion.sim import SCENARIOS
+        from skyfuse.fusion.sim import SCENARIOS
 
         for name, desc in SCENARIOS.items():
             print(f"{name:16s} {desc}")

@@ -38,8 +38,7 @@ from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field
-
-from schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth, keys
+from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth, keys
 
 from .config import ConfigError, add_model_arguments, build_config
 from .eval_asterix import LABEL_WARMUP_S, PlotTrackRows, rejection_reasons
@@ -96,7 +95,7 @@ class TrackCommandConfig(BaseModel):
 
 
 def _tracker_config_model():
-    from fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker import TrackerConfig
 
     return TrackerConfig
 
@@ -303,8 +302,8 @@ def _read_asterix_input(cfg: TrackCommandConfig):
 
 
 def run(args: argparse.Namespace) -> int:
-    from fusion.frames import SystemFrame
-    from fusion.tracker.pipeline import TrackPipeline
+    from skyfuse.fusion.frames import SystemFrame
+    from skyfuse.fusion.tracker.pipeline import TrackPipeline
 
     cfg = build_config(TrackCommandConfig, args)
     tcfg = build_config(

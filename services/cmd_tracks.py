@@ -17,8 +17,7 @@ import sys
 import time
 
 from pydantic import BaseModel, Field, ValidationError
-
-from schemas import TrackBatch, TrackEvent, TrackStatus, keys
+from skyfuse.schemas import TrackBatch, TrackEvent, TrackStatus, keys
 
 from .config import add_model_arguments, build_config
 from .lifecycle import EXIT_FAILED, EXIT_OK, StopFlag

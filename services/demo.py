@@ -28,8 +28,7 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, Field
-
-from schemas import FrameSpec, PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
+from skyfuse.schemas import FrameSpec, PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
 
 from .recording import ReadStats, iter_recording
 
@@ -76,7 +75,7 @@ class Child:
     def start(self, cwd: Path | None = None) -> None:
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "services.lifecycle", *self.args],
+            [sys.executable, "-m", "skyfuse.services.lifecycle", *self.args],
             stdin=subprocess.DEVNULL,
             stdout=self._log,
             stderr=subprocess.STDOUT,
@@ -166,8 +165,8 @@ def evaluate_recording(
     only), the last one within ``window_s`` s; GOSPA is over the targets in coverage. A
     target is *detectable* if it has ``min_detections`` detections in the whole run, and
     *confirmed* if a confirmed track was assigned to it (distance < c) at some truth time."""
-    from fusion.frames import Stereographic
-    from fusion.metrics.gospa import gospa
+    from skyfuse.fusion.frames import Stereographic
+    from skyfuse.fusion.metrics.gospa import gospa
 
     stats = ReadStats()
     truths: list[Truth] = []

@@ -25,8 +25,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-
-from schemas import PlotBatch, RadarSite
+from skyfuse.schemas import PlotBatch, RadarSite
 
 NO_LABEL = -1
 LABEL_WARMUP_S = 60.0
@@ -95,7 +94,7 @@ class PlotTrackRows:
 
     def metrics(self, *, warmup_s: float = 0.0, min_label_share: float = 0.5) -> dict:
         """The label metrics of the rows as a JSON-ready dict (see :func:`metrics_dict`)."""
-        from fusion.metrics.label_metrics import label_metrics
+        from skyfuse.fusion.metrics.label_metrics import label_metrics
 
         t, label, track, conf = self.arrays()
         lm = label_metrics(
@@ -159,9 +158,9 @@ def evaluate_asterix(
     radar), ``sites`` used, ``batches``, ``plots_processed``, ``plots_rejected``,
     ``asterix`` (reader counts), ``tracker``, ``timing``. Raises ``ValueError`` for an
     unusable input (no radar with a site, unreadable sites file)."""
-    from fusion.frames import SystemFrame
-    from fusion.tracker import TrackerConfig
-    from fusion.tracker.pipeline import TrackPipeline
+    from skyfuse.fusion.frames import SystemFrame
+    from skyfuse.fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker.pipeline import TrackPipeline
 
     from .asterix import load_sites, read_asterix
 

@@ -34,8 +34,7 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, Field
-
-from fusion.evaluation import (
+from skyfuse.fusion.evaluation import (
     Experiment,
     RunBlock,
     Variant,
@@ -43,9 +42,9 @@ from fusion.evaluation import (
     calibrate_psi_init,
     summarise,
 )
-from fusion.evaluation.experiment import SOURCE_RUNS
-from fusion.evaluation.summary import false_at_confirmation
-from fusion.metrics.retention import ROW_KEYS, retention_markdown
+from skyfuse.fusion.evaluation.experiment import SOURCE_RUNS
+from skyfuse.fusion.evaluation.summary import false_at_confirmation
+from skyfuse.fusion.metrics.retention import ROW_KEYS, retention_markdown
 
 Advance = Callable[[int], None]
 
@@ -348,7 +347,7 @@ def save_calibration(path: Path, exp: Experiment, runs: int, values: dict[str, d
 def _tracker_settings(args) -> tuple[dict, float | None]:
     """TrackerConfig fields given as flags (or in the --config [tracker] table), minus the
     ones the experiment sets per variant; and ψ_init if given (the default ψ_init)."""
-    from fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker import TrackerConfig
 
     from .config import load_toml
 

@@ -25,8 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, Field
-
-from schemas import PlotBatch, RadarSite, Truth
+from skyfuse.schemas import PlotBatch, RadarSite, Truth
 
 log = logging.getLogger(__name__)
 
@@ -46,10 +45,10 @@ class RecordingEvalOptions(BaseModel):
 
 def evaluate_recording(path: Path, tcfg, opts: RecordingEvalOptions | None = None) -> dict:
     """Run ``tcfg`` over the recording at ``path``; return the summary dict."""
-    from fusion.frames import SystemFrame
-    from fusion.metrics.gospa import gospa_over_time
-    from fusion.metrics.label_metrics import label_metrics
-    from fusion.tracker.pipeline import TrackPipeline
+    from skyfuse.fusion.frames import SystemFrame
+    from skyfuse.fusion.metrics.gospa import gospa_over_time
+    from skyfuse.fusion.metrics.label_metrics import label_metrics
+    from skyfuse.fusion.tracker.pipeline import TrackPipeline
 
     from .cmd_track import _scan_recording
     from .recording import iter_recording
@@ -193,7 +192,7 @@ def evaluate_recording(path: Path, tcfg, opts: RecordingEvalOptions | None = Non
 
 def run_recording(args) -> int:
     """``skyfuse eval FILE.mcap``: tracker from ``--config`` [tracker] and the flags."""
-    from fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker import TrackerConfig
 
     from .config import ConfigError, build_config
 

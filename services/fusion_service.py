@@ -38,8 +38,7 @@ from typing import Protocol
 
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError
-
-from schemas import (
+from skyfuse.schemas import (
     FrameKind,
     FrameSpec,
     LatencyStats,

@@ -30,9 +30,8 @@ import numpy as np
 import pymap3d
 from foxglove import messages as fg
 from pydantic import BaseModel, Field, ValidationError
-
-import schemas
-from schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
+from skyfuse import schemas
+from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
 
 from .recording import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from .transport import Received

@@ -23,9 +23,8 @@ from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import CompressionType, IndexType, Writer
 from pydantic import ValidationError
-
-import schemas
-from schemas.base import WireModel
+from skyfuse import schemas
+from skyfuse.schemas.base import WireModel
 
 log = logging.getLogger(__name__)
 

@@ -19,7 +19,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from schemas import keys
+from skyfuse.schemas import keys
 
 from .recording import ReadStats, iter_recording
 from .transport import declare_liveliness, declare_publisher, wall_stamp

@@ -30,7 +30,7 @@ class ScenarioSelection(BaseModel):
     def build_scenario(self):
         """The :class:`fusion.sim.Scenario`, or a :class:`ConfigError` naming the bad
         parameter and the valid choices."""
-        from fusion.sim import build_scenario
+        from skyfuse.fusion.sim import build_scenario
 
         try:
             return build_scenario(

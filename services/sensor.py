@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pydantic import Field, field_validator
-
-from schemas import PlotBatch, RadarSite, Status, keys
+from skyfuse.schemas import PlotBatch, RadarSite, Status, keys
 
 from .config import ConfigError
 from .scenario_config import ScenarioSelection
@@ -206,7 +205,7 @@ class SimulatedRadar:
 
     def run(self, stop) -> SensorStats:
         """Publish until the scenario ends or ``stop`` is set."""
-        from fusion.sim import Simulator
+        from skyfuse.fusion.sim import Simulator
 
         cfg = self.cfg
         self.publish_site()

@@ -299,7 +299,7 @@ def query(session: zenoh.Session, key_expr: str, timeout: float = 2.0) -> list[t
 
 def service_alive_key(name: str) -> str:
     """Liveliness token of a running service: ``skyfuse/@v1/service/{name}/alive``."""
-    from schemas import keys
+    from skyfuse.schemas import keys
 
     return keys.service_alive(name)
 

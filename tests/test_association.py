@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from fusion.association import (
+from skyfuse.fusion.association import (
     CONFIRMED,
     GNNConfig,
     GNNTracker,
@@ -21,9 +20,9 @@ from fusion.association import (
     split_clusters,
     total_cost,
 )
-from fusion.association.assignment import EPS_FINAL_RELATIVE
-from fusion.filters import ConvertedMeasurementKF, imm2_pcwpa
-from fusion.models import ConstantVelocity
+from skyfuse.fusion.association.assignment import EPS_FINAL_RELATIVE
+from skyfuse.fusion.filters import ConvertedMeasurementKF, imm2_pcwpa
+from skyfuse.fusion.models import ConstantVelocity
 
 
 def test_gate_threshold_is_the_chi_square_quantile():
@@ -169,7 +168,7 @@ def test_gnn_deletes_a_confirmed_track_after_max_misses():
 def test_gnn_with_per_mode_imm_gating_keeps_a_4g_turning_target():
     """003 gates per model: the sharp mode's wider gate keeps the track through a 4 g turn
     where the mode-mixed gate loses it (T = 4 s, 300 m/s, 100 m noise)."""
-    from fusion.filters import TYPICAL_TPM_IMM2
+    from skyfuse.fusion.filters import TYPICAL_TPM_IMM2
 
     T, v, g = 4.0, 300.0, 9.80665
     pos, vel = np.array([0.0, 0.0]), np.array([v, 0.0])

@@ -22,11 +22,10 @@ from types import SimpleNamespace
 import numpy as np
 import pymap3d
 import pytest
-
-from schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent
-from services.asterix import AsterixPlotWriter, decode_cat062, load_sites, read_asterix
-from services.cli import main
-from services.recording import iter_recording
+from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent
+from skyfuse.services.asterix import AsterixPlotWriter, decode_cat062, load_sites, read_asterix
+from skyfuse.services.cli import main
+from skyfuse.services.recording import iter_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT.parent / "shared" / "data" / "cat_034_048.pcap"
@@ -224,7 +223,7 @@ def test_track_asterix_errors_are_clear(tmp_path, capsys):
 
 
 def test_evaluate_asterix_straight_flights(tmp_path, capsys):
-    from services.eval_asterix import evaluate_asterix
+    from skyfuse.services.eval_asterix import evaluate_asterix
 
     site, batches = straight_flights(120.0, AIRCRAFT)
     ast, sites = write_ast(tmp_path, site, batches)
@@ -252,7 +251,7 @@ def test_evaluate_asterix_straight_flights(tmp_path, capsys):
 
 
 def test_plot_track_rows_against_brute_force():
-    from services.eval_asterix import PlotTrackRows
+    from skyfuse.services.eval_asterix import PlotTrackRows
 
     rng = np.random.default_rng(3)
     rows = PlotTrackRows()
@@ -301,7 +300,7 @@ def test_plot_track_rows_against_brute_force():
 
 
 def test_cat062_sender_sends_tse_after_an_overtaking_event():
-    from services.cmd_cat062 import Cat062UdpSender
+    from skyfuse.services.cmd_cat062 import Cat062UdpSender
 
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind(("127.0.0.1", 0))
@@ -373,7 +372,7 @@ def test_sensor_asterix_configuration_errors(tmp_path, capsys):
 
 
 def test_date_option_parses(tmp_path):
-    from services.sensor import SensorConfig
+    from skyfuse.services.sensor import SensorConfig
 
     cfg = SensorConfig(asterix=tmp_path / "a.ast", date="2024-05-17")
     assert cfg.date == dt.date(2024, 5, 17) and cfg.mode == "asterix"
@@ -387,11 +386,11 @@ def test_regional_two_d_radars_fuse_to_the_same_tracks_through_asterix(tmp_path)
     tracks in the ground-clutter rings may differ (a clutter plot quantised across a gate
     edge), and then the track ids after them, but not the confirmed tracks. (Beograd and
     Novi Sad are 3-D: CAT048 has no elevation, so they are not comparable.)"""
-    from fusion.frames import SystemFrame
-    from fusion.sim import Simulator, build_scenario
-    from fusion.tracker import TrackerConfig
-    from fusion.tracker.pipeline import TrackPipeline
-    from services.cmd_simulate import asterix_sac_sic
+    from skyfuse.fusion.frames import SystemFrame
+    from skyfuse.fusion.sim import Simulator, build_scenario
+    from skyfuse.fusion.tracker import TrackerConfig
+    from skyfuse.fusion.tracker.pipeline import TrackPipeline
+    from skyfuse.services.cmd_simulate import asterix_sac_sic
 
     sc = build_scenario("regional", seed=2, duration=60.0, targets=25)
     sites = {s.radar_id: s for s in sc.sites}

@@ -9,10 +9,9 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from services.asterix import cat034, cat048
-from services.asterix.pcap import iter_file_datagrams, split_datablocks
-from services.asterix.records import RecordError, iter_records
+from skyfuse.services.asterix import cat034, cat048
+from skyfuse.services.asterix.pcap import iter_file_datagrams, split_datablocks
+from skyfuse.services.asterix.records import RecordError, iter_records
 
 PCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "cat_034_048.pcap"
 
@@ -151,7 +150,7 @@ def test_cat034_encoder_matches_libasterix(values):
 
 @pytest.mark.skipif(not PCAP.exists(), reason="../shared/data sample absent")
 def test_reader_gives_the_same_batches_with_and_without_the_fast_path():
-    from services.asterix import read_asterix
+    from skyfuse.services.asterix import read_asterix
 
     fast = read_asterix(PCAP, dedup=False)
     slow = read_asterix(PCAP, dedup=False, fast=False)

@@ -8,10 +8,9 @@ from collections import Counter
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from services.asterix import AsterixStreamDecoder, cat034, cat048, read_asterix
-from services.asterix.pcap import Datagram, build_pcap, iter_pcap, split_datablocks
-from services.asterix.writer import datablock
+from skyfuse.services.asterix import AsterixStreamDecoder, cat034, cat048, read_asterix
+from skyfuse.services.asterix.pcap import Datagram, build_pcap, iter_pcap, split_datablocks
+from skyfuse.services.asterix.writer import datablock
 
 T0 = 1_700_000_000 * 10**9  # 2023-11-14 22:13:20 UTC
 

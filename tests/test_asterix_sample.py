@@ -15,8 +15,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-
-from services.asterix import read_asterix
+from skyfuse.services.asterix import read_asterix
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PCAP = DATA / "cat_034_048.pcap"
@@ -198,8 +197,8 @@ def test_stream_decoder_on_the_sample_datagrams():
     """Datagram by datagram, sectors emitted at once (max_plot_delay = 0): the same
     plots come out, and the plots that three radars deliver after their sector
     message are counted as late instead of being lost."""
-    from services.asterix import AsterixStreamDecoder
-    from services.asterix.pcap import iter_file_datagrams
+    from skyfuse.services.asterix import AsterixStreamDecoder
+    from skyfuse.services.asterix.pcap import iter_file_datagrams
 
     dec = AsterixStreamDecoder()
     batches = []

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-
-from services.asterix import estimate_scan_period
+from skyfuse.services.asterix import estimate_scan_period
 
 
 def rotating_radar_plots(period, n, duration, seed, sigma_az=0.002):

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
-
-from services.asterix import SitesError, cat034, load_sites, radar_id_for, sac_sic_of
-from services.asterix.reader import AsterixStreamDecoder
-from services.asterix.writer import datablock
+from skyfuse.services.asterix import SitesError, cat034, load_sites, radar_id_for, sac_sic_of
+from skyfuse.services.asterix.reader import AsterixStreamDecoder
+from skyfuse.services.asterix.writer import datablock
 
 GOOD = """
 [[radar]]

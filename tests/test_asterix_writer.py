@@ -9,11 +9,10 @@ from collections import Counter
 
 import numpy as np
 import pytest
-
-from schemas import PlotBatch, RadarSite
-from services.asterix import AsterixStreamDecoder, read_asterix
-from services.asterix.pcap import build_pcap, split_datablocks
-from services.asterix.writer import AsterixPlotWriter
+from skyfuse.schemas import PlotBatch, RadarSite
+from skyfuse.services.asterix import AsterixStreamDecoder, read_asterix
+from skyfuse.services.asterix.pcap import build_pcap, split_datablocks
+from skyfuse.services.asterix.writer import AsterixPlotWriter
 
 NM = 1852.0
 LSB_T = 1e9 / 128  # ns
@@ -230,8 +229,8 @@ def test_writer_rejects_what_cat048_cannot_carry():
 
 def test_simulator_batches_round_trip(tmp_path):
     """The project's own simulator (4 radars, two of them 3-D) → CAT048/CAT034 → reader."""
-    from fusion.sim.scenarios import build_scenario
-    from fusion.sim.simulator import Simulator
+    from skyfuse.fusion.sim.scenarios import build_scenario
+    from skyfuse.fusion.sim.simulator import Simulator
 
     scenario = build_scenario("regional", duration=20.0, targets=6)
     sent = [e.message for e in Simulator(scenario).run() if e.kind == "plots"]

@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 import pytest
-
-from fusion.frames import SystemFrame
-from fusion.frames.geodesy import enu_to_geodetic
+from skyfuse.fusion.frames import SystemFrame
+from skyfuse.fusion.frames.geodesy import enu_to_geodetic
 
 ROOT = Path(__file__).resolve().parents[1]
 SITE = (45.3, 19.9, 150.0)

@@ -11,10 +11,9 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
-
-from fusion.tracker import components as comp
-from fusion.tracker.jits import clusters
-from fusion.tracker.measurements import _positive_definite
+from skyfuse.fusion.tracker import components as comp
+from skyfuse.fusion.tracker.jits import clusters
+from skyfuse.fusion.tracker.measurements import _positive_definite
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -9,10 +9,9 @@ import sys
 
 import pytest
 from mcap.reader import make_reader
+from skyfuse.schemas import keys
 
-from schemas import keys
-
-SKYFUSE = [sys.executable, "-m", "services.cli"]
+SKYFUSE = [sys.executable, "-m", "skyfuse.services.cli"]
 
 
 def run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
@@ -89,8 +88,8 @@ def test_simulated_file_passes_doctor(tmp_path):
 
 
 def test_simulate_asterix_reads_back_same_plots(tmp_path):
-    from services.asterix.reader import read_asterix
-    from services.asterix.sites import load_sites
+    from skyfuse.services.asterix.reader import read_asterix
+    from skyfuse.services.asterix.sites import load_sites
 
     out = tmp_path / "sim.pcap"
     res = run(

@@ -13,10 +13,9 @@ import re
 from pathlib import Path
 
 import pytest
-
-from services.cli import build_parser
-from services.config import build_config
-from services.transport import ENDPOINT_RE, transport_config
+from skyfuse.services.cli import build_parser
+from skyfuse.services.config import build_config
+from skyfuse.services.transport import ENDPOINT_RE, transport_config
 
 yaml = pytest.importorskip("yaml")
 
@@ -61,20 +60,20 @@ def test_every_command_is_a_valid_skyfuse_invocation(compose, monkeypatch):
             assert tcfg.mode == "client" and tcfg.connect, name
             module = args.func.__module__
             if module.endswith("cmd_fusion"):
-                from services.cmd_fusion import tracker_config
-                from services.fusion_service import FusionConfig
+                from skyfuse.services.cmd_fusion import tracker_config
+                from skyfuse.services.fusion_service import FusionConfig
 
                 build_config(FusionConfig, args, toml_path=args.config, section="fusion",
                              env_prefix="SKYFUSE_FUSION_")  # fmt: skip
                 assert tracker_config(args).tracker == "lmits"
             elif module.endswith("cmd_record"):
-                from services.recorder import RecorderConfig
+                from skyfuse.services.recorder import RecorderConfig
 
                 rc = build_config(RecorderConfig, args, toml_path=args.config, section="record")
                 data_volumes = [v.split(":")[1] for v in svc.get("volumes", [])]
                 assert any(str(rc.out).startswith(d) for d in data_volumes), rc.out
             elif module.endswith("cmd_sensor"):
-                from services.sensor import SensorConfig, load_scenario
+                from skyfuse.services.sensor import SensorConfig, load_scenario
 
                 sc_cfg = build_config(SensorConfig, args)
                 # the radar exists in the scenario (a short one: the ids do not depend on it)
@@ -114,7 +113,7 @@ def test_endpoints_and_ports_agree(compose, monkeypatch):
 def test_fusion_frame_is_the_scenario_frame(compose):
     import tomllib
 
-    from fusion.sim import build_scenario
+    from skyfuse.fusion.sim import build_scenario
 
     fusion_toml = tomllib.loads((ROOT / "deploy" / "fusion.toml").read_text())["fusion"]
     radars = {n for n in skyfuse_services(compose) if n.startswith("sensor-")}

@@ -8,8 +8,8 @@ import sys
 
 
 def skyfuse(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "services.cli", *args], capture_output=True,
-                          text=True, timeout=timeout)  # fmt: skip
+    cmd = [sys.executable, "-m", "skyfuse.services.cli", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 
 def test_eval_asterix_recording_reports_label_metrics(tmp_path):

@@ -7,9 +7,8 @@ import json
 
 import numpy as np
 import pytest
-
-from services.cli import main
-from services.cmd_eval import (
+from skyfuse.services.cli import main
+from skyfuse.services.cmd_eval import (
     CrossingEvalConfig,
     evaluate_crossing,
     markdown_table,

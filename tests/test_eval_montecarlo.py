@@ -9,8 +9,7 @@ import math
 
 import numpy as np
 import pytest
-
-from fusion.evaluation import (
+from skyfuse.fusion.evaluation import (
     Experiment,
     RunInput,
     Variant,
@@ -18,11 +17,11 @@ from fusion.evaluation import (
     calibrate_psi_init,
     summarise,
 )
-from fusion.metrics.labelling import FALSE
-from fusion.metrics.retention import ROW_KEYS
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
-from services.cli import main
-from services.eval_montecarlo import evaluate, run_experiment
+from skyfuse.fusion.metrics.labelling import FALSE
+from skyfuse.fusion.metrics.retention import ROW_KEYS
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.services.cli import main
+from skyfuse.services.eval_montecarlo import evaluate, run_experiment
 
 
 def _small(runs: int = 3) -> Experiment:

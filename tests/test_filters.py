@@ -7,8 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import stats
-
-from fusion.filters import (
+from skyfuse.fusion.filters import (
     IMM,
     TYPICAL_TPM_IMM2,
     ConvertedMeasurementKF,
@@ -19,7 +18,7 @@ from fusion.filters import (
     kalman,
     wrap_angle,
 )
-from fusion.models import ConstantVelocity, CoordinatedTurn, Singer
+from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 
 G0 = 9.80665
 
@@ -149,7 +148,7 @@ def test_imm_mixing_matches_the_explicit_spec_formulas():
     Ps = [_spd(rng, 1, 4) for _ in range(2)]
     mu = np.array([[0.3, 0.7]])
     p = np.asarray(TYPICAL_TPM_IMM2)
-    from fusion.filters import IMMState
+    from skyfuse.fusion.filters import IMMState
 
     x0, P0, c = imm.mix(IMMState(xs, Ps, mu))
     for j in range(2):

@@ -8,9 +8,8 @@ import pymap3d
 import pytest
 from pyproj import CRS, Proj, Transformer
 from scipy import stats
-
-from fusion.frames import Stereographic, SystemFrame, convert_plots
-from schemas import FrameKind, FrameSpec, PlotBatch, RadarSite
+from skyfuse.fusion.frames import Stereographic, SystemFrame, convert_plots
+from skyfuse.schemas import FrameKind, FrameSpec, PlotBatch, RadarSite
 
 LAT0, LON0 = 44.8, 20.45
 
@@ -314,7 +313,7 @@ def test_velocity_to_enu_matches_displacement_of_the_true_target(frame):
 def test_elevation_from_altitude_matches_sphere_geometry_and_its_derivatives():
     """spec 01 §3 formula vs the elevation of a point placed on a sphere directly
     (radar at radius a, target at radius b, central angle γ), incl. the 4/3-Earth radius."""
-    from fusion.frames.polar import elevation_from_altitude
+    from skyfuse.fusion.frames.polar import elevation_from_altitude
 
     for R in (6_371e3, 4 / 3 * 6_371e3):
         hR = 300.0

@@ -11,8 +11,7 @@ import math
 
 import numpy as np
 import pytest
-
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
 
 T = 1.0
 Q_ACC = 0.75

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
-from fusion.tracker.components import Mixture, singer_merge
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker.components import Mixture, singer_merge
 
 R = 25.0 * np.eye(2)
 X0 = np.array([0.0, 10.0, 0.0, 5.0])

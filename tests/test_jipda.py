@@ -7,9 +7,8 @@ import math
 
 import numpy as np
 import pytest
-
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
-from fusion.tracker.jits import event_count, feasible_events
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker.jits import event_count, feasible_events
 
 T = 1.0
 QT = 0.75 * np.array([[0.25, 0.5], [0.5, 1.0]])

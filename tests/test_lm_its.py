@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
-from fusion.tracker.lm_its import modified_clutter_density
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker.lm_its import modified_clutter_density
 
 R = 25.0 * np.eye(2)
 P0 = np.diag([50.0, 50.0, 50.0, 50.0])

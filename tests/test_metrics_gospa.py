@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from fusion.metrics.gospa import UNASSIGNED, gospa, gospa_over_time
-from fusion.metrics.ospa import ospa
+from skyfuse.fusion.metrics.gospa import UNASSIGNED, gospa, gospa_over_time
+from skyfuse.fusion.metrics.ospa import ospa
 
 E = np.zeros((0, 2))
 

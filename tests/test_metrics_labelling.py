@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from fusion.metrics.labelling import FALSE, TruthLabeller, two_point_covariance
+from skyfuse.fusion.metrics.labelling import FALSE, TruthLabeller, two_point_covariance
 
 # Per axis P_{2|2} = [[25, 25], [25, 50]]; its inverse is (1/625)[[50, -25], [-25, 25]]
 # = [[0.08, -0.04], [-0.04, 0.04]], so for an error (e, ev) on one axis

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-
-from fusion.metrics.label_metrics import label_metrics
+from skyfuse.fusion.metrics.label_metrics import label_metrics
 
 A, B, C = 0xABC, 0x123, 0x777
 N = -1

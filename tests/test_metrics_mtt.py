@@ -7,15 +7,19 @@ import math
 
 import numpy as np
 import pytest
-
-from fusion.metrics.history import TrackHistory, TruthHistory
-from fusion.metrics.mtt_measures import (
+from skyfuse.fusion.metrics.history import TrackHistory, TruthHistory
+from skyfuse.fusion.metrics.mtt_measures import (
     confirmed_false_tracks,
     ctt_rate,
     gospa_curves,
     rmse_confirmed_true,
 )
-from fusion.metrics.retention import ROW_KEYS, RetentionCounts, retention_counts, retention_markdown
+from skyfuse.fusion.metrics.retention import (
+    ROW_KEYS,
+    RetentionCounts,
+    retention_counts,
+    retention_markdown,
+)
 
 F = -1  # false label
 

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
-
-from fusion.models import (
+from skyfuse.fusion.models import (
     ConstantAcceleration,
     ConstantVelocity,
     CoordinatedTurn,

@@ -10,9 +10,8 @@ import subprocess
 
 import pytest
 from mcap.reader import make_reader
-
-from schemas import PlotBatch, RadarSite, keys
-from services.recording import ReadStats, RecordingWriter, iter_recording, read_metadata
+from skyfuse.schemas import PlotBatch, RadarSite, keys
+from skyfuse.services.recording import ReadStats, RecordingWriter, iter_recording, read_metadata
 
 
 def _batch(i: int) -> PlotBatch:

@@ -9,8 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from services.cmd_inspect import inspect_recording
+from skyfuse.services.cmd_inspect import inspect_recording
 
 SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "regional-demo.mcap"
 
@@ -33,7 +32,7 @@ def test_offline_tracking_of_the_sample(tmp_path, tracker):
         [
             sys.executable,
             "-m",
-            "services.cli",
+            "skyfuse.services.cli",
             "track",
             str(SAMPLE),
             "--tracker",

@@ -11,9 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import ValidationError
-
-import schemas
-from schemas import PlotBatch, RadarSite, Status, Track, TrackBatch, TrackEvent, Truth, keys
+from skyfuse import schemas
+from skyfuse.schemas import PlotBatch, RadarSite, Status, Track, TrackBatch, TrackEvent, Truth, keys
 
 
 def make_batch(n: int = 5, **overrides) -> dict:
@@ -297,7 +296,7 @@ def test_key_space_and_models():
 
 
 def test_json_schemas_written(tmp_path):
-    from services.cmd_schemas import write_schemas
+    from skyfuse.services.cmd_schemas import write_schemas
 
     paths = write_schemas(tmp_path)
     names = {p.name for p in paths}

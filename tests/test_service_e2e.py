@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_demo_three_radars_end_to_end(tmp_path):
     out, js = tmp_path / "demo.mcap", tmp_path / "demo.json"
     cmd = [
-        sys.executable, "-m", "services.cli", "demo", "--radars", "3", "--targets", "6",
+        sys.executable, "-m", "skyfuse.services.cli", "demo", "--radars", "3", "--targets", "6",
         "--duration", "60", "--speed", "15", "--seed", "2", "--out", str(out),
         "--json", str(js), "--workdir", str(tmp_path), "--no-live",
     ]  # fmt: skip

@@ -9,10 +9,8 @@ import time
 
 import numpy as np
 import pytest
-from test_service_support import make_batch, make_site, peer, skyfuse, stop
-
-from schemas import Status, TrackBatch, keys
-from services.transport import (
+from skyfuse.schemas import Status, TrackBatch, keys
+from skyfuse.services.transport import (
     Inbox,
     declare_liveliness,
     declare_publisher,
@@ -24,6 +22,7 @@ from services.transport import (
     wait_for_tokens,
     wall_stamp,
 )
+from test_service_support import make_batch, make_site, peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 

@@ -12,12 +12,10 @@ import time
 from collections import Counter
 
 import pytest
-from test_service_support import make_batch, make_site, peer, skyfuse, stop, synthetic_recording
-
-from schemas import keys
-from services.recording import ReadStats, iter_recording
-from services.replay import replay
-from services.transport import (
+from skyfuse.schemas import keys
+from skyfuse.services.recording import ReadStats, iter_recording
+from skyfuse.services.replay import replay
+from skyfuse.services.transport import (
     declare_publisher,
     free_port,
     loopback_endpoint,
@@ -25,6 +23,7 @@ from services.transport import (
     service_alive_key,
     wait_for_tokens,
 )
+from test_service_support import make_batch, make_site, peer, skyfuse, stop, synthetic_recording
 
 pytestmark = pytest.mark.service
 
@@ -112,9 +111,8 @@ def test_killed_recorder_keeps_flushed_chunks_and_rotation(tmp_path):
 def test_foxglove_plot_positions_match_geodesic_range_and_bearing():
     import numpy as np
     from pyproj import Geod
-
-    from schemas import PlotBatch, RadarKind, RadarSite
-    from services.recorder import plot_positions
+    from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
+    from skyfuse.services.recorder import plot_positions
 
     site = RadarSite(radar_id="R", lat=45.0, lon=20.0, alt=0.0, kind=RadarKind.THREE_D)
     for n in (1, 3):  # a single plot must work too

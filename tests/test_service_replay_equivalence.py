@@ -9,13 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_service_support import peer, skyfuse, stop
-
-from schemas import PlotBatch, RadarSite, TrackBatch, keys
-from services.lifecycle import main_single as skyfuse_main
-from services.recording import iter_recording
-from services.replay import replay
-from services.transport import (
+from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
+from skyfuse.services.lifecycle import main_single as skyfuse_main
+from skyfuse.services.recording import iter_recording
+from skyfuse.services.replay import replay
+from skyfuse.services.transport import (
     Inbox,
     free_port,
     loopback_endpoint,
@@ -23,6 +21,7 @@ from services.transport import (
     service_alive_key,
     wait_for_tokens,
 )
+from test_service_support import peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 

@@ -8,11 +8,9 @@ import signal
 import time
 
 import pytest
-from test_service_support import peer, skyfuse, stop
-
-from fusion.sim import Simulator, build_scenario
-from schemas import PlotBatch, RadarSite, keys
-from services.transport import (
+from skyfuse.fusion.sim import Simulator, build_scenario
+from skyfuse.schemas import PlotBatch, RadarSite, keys
+from skyfuse.services.transport import (
     Inbox,
     alive_tokens,
     free_port,
@@ -22,6 +20,7 @@ from services.transport import (
     service_alive_key,
     wait_for_tokens,
 )
+from test_service_support import peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 

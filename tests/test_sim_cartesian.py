@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 from scipy import stats
-
-from fusion.sim import Simulator, build_scenario
+from skyfuse.fusion.sim import Simulator, build_scenario
 
 
 def test_detection_rate_within_binomial_bounds():
@@ -110,7 +109,7 @@ def test_thesis_stt_process_noise_has_the_discrete_white_acceleration_covariance
 
 
 def test_batched_snapshot_path_equals_the_per_scan_path():
-    from fusion.sim.cartesian import cartesian_scan
+    from skyfuse.fusion.sim.cartesian import cartesian_scan
 
     sc = build_scenario("thesis-stt", seed=2, clutter_density=1e-5)
     sim = Simulator(sc, seed=7)

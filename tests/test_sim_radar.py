@@ -10,9 +10,8 @@ import numpy as np
 import pymap3d
 import pytest
 from scipy import stats
-
-from fusion.frames import Stereographic
-from fusion.sim import Simulator, build_scenario
+from skyfuse.fusion.frames import Stereographic
+from skyfuse.fusion.sim import Simulator, build_scenario
 
 TWO_PI = 2 * math.pi
 

@@ -11,10 +11,9 @@ import numpy as np
 import pymap3d
 import pytest
 from scipy import stats
-
-from fusion.sim import SCENARIOS, Simulator, build_scenario, scenario_parameters
-from fusion.sim.trajectories import G0
-from schemas import FrameKind, PlotBatch, RadarSite, Truth, keys
+from skyfuse.fusion.sim import SCENARIOS, Simulator, build_scenario, scenario_parameters
+from skyfuse.fusion.sim.trajectories import G0
+from skyfuse.schemas import FrameKind, PlotBatch, RadarSite, Truth, keys
 
 EXPECTED = {
     "thesis-stt", "thesis-mtt-5", "thesis-mtt-15", "thesis-mtt-50",

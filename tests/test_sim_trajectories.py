@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-
-from fusion.sim.trajectories import G0, TargetSet, TrajectoryBuilder, propagate
+from skyfuse.fusion.sim.trajectories import G0, TargetSet, TrajectoryBuilder, propagate
 
 
 def _ode(omega, acc):

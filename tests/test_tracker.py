@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from fusion.tracker import MeasurementBatch, SectorCoverage, Tracker, TrackerConfig
-from fusion.tracker.existence import markov_chain_one, markov_chain_two
-from fusion.tracker.gating import gate, window_pairs
+from skyfuse.fusion.tracker import MeasurementBatch, SectorCoverage, Tracker, TrackerConfig
+from skyfuse.fusion.tracker.existence import markov_chain_one, markov_chain_two
+from skyfuse.fusion.tracker.gating import gate, window_pairs
 
 R = 25.0 * np.eye(2)
 NS = 10**9

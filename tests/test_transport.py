@@ -7,10 +7,8 @@ import json
 import time
 
 import pytest
-from test_service_support import peer, wait_for
-
-from services.config import ConfigError
-from services.transport import (
+from skyfuse.services.config import ConfigError
+from skyfuse.services.transport import (
     Inbox,
     TransportConfig,
     alive_tokens,
@@ -26,6 +24,7 @@ from services.transport import (
     wall_stamp,
     zenoh_config,
 )
+from test_service_support import peer, wait_for
 
 pytestmark = pytest.mark.service
 
@@ -97,7 +96,7 @@ def test_pubsub_liveliness_and_query_on_loopback():
 
 
 def test_listen_port_taken_is_a_clear_error():
-    from services.transport import TransportError
+    from skyfuse.services.transport import TransportError
 
     ep = loopback_endpoint(free_port())
     with open_session(peer(listen=ep)):

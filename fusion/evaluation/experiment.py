@@ -25,8 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
-
-from fusion.tracker.config import SINGLE_GAUSSIAN_KINDS, TrackerConfig
+from skyfuse.fusion.tracker.config import SINGLE_GAUSSIAN_KINDS, TrackerConfig
 
 #: Scenarios with the planar cartesian sensor the fast Monte Carlo path supports.
 PLANAR_SCENARIOS = (

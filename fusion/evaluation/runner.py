@@ -31,12 +31,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-
-from fusion.metrics.history import TrackHistory, TruthHistory
-from fusion.metrics.labelling import FALSE, TruthLabeller, two_point_covariance
-from fusion.sim import Simulator, build_scenario
-from fusion.tracker import MeasurementBatch, Tracker
-from fusion.tracker.initiation import PlotBuffer
+from skyfuse.fusion.metrics.history import TrackHistory, TruthHistory
+from skyfuse.fusion.metrics.labelling import FALSE, TruthLabeller, two_point_covariance
+from skyfuse.fusion.sim import Simulator, build_scenario
+from skyfuse.fusion.tracker import MeasurementBatch, Tracker
+from skyfuse.fusion.tracker.initiation import PlotBuffer
 
 from .experiment import Experiment, Variant, run_seed
 

@@ -19,15 +19,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from fusion.metrics.history import TrackHistory
-from fusion.metrics.mtt_measures import (
+from skyfuse.fusion.metrics.history import TrackHistory
+from skyfuse.fusion.metrics.mtt_measures import (
     confirmed_false_tracks,
     ctt_rate,
     gospa_curves,
     rmse_confirmed_true,
 )
-from fusion.metrics.retention import retention_counts
+from skyfuse.fusion.metrics.retention import retention_counts
 
 from .experiment import Experiment, Variant
 from .runner import RunBlock

@@ -16,8 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from schemas import FrameKind, PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas import FrameKind, PlotBatch, RadarKind, RadarSite
 
 from .geodesy import enu_to_geodetic, normal_section_radius
 from .polar import (

@@ -25,8 +25,7 @@ import functools
 import numpy as np
 import pymap3d
 from pyproj import Proj
-
-from schemas import FrameKind, FrameSpec
+from skyfuse.schemas import FrameKind, FrameSpec
 
 from .geodesy import (
     WGS84_A,

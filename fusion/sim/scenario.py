@@ -11,9 +11,8 @@ from datetime import datetime
 from typing import Any
 
 import numpy as np
-
-from fusion.frames import Stereographic
-from schemas import FrameKind, FrameSpec, RadarSite
+from skyfuse.fusion.frames import Stereographic
+from skyfuse.schemas import FrameKind, FrameSpec, RadarSite
 
 from .sensor import SensorConfig
 from .trajectories import TargetSet

@@ -45,9 +45,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
-from fusion.frames import Stereographic
-from schemas import FrameKind, FrameSpec, RadarSite
+from skyfuse.fusion.frames import Stereographic
+from skyfuse.schemas import FrameKind, FrameSpec, RadarSite
 
 from .scenario import (
     DEFAULT_START_TIME,

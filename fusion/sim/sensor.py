@@ -8,8 +8,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from schemas import RadarSite
+from skyfuse.schemas import RadarSite
 
 
 @dataclass(frozen=True)

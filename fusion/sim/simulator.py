@@ -22,8 +22,7 @@ from typing import Any
 
 import numpy as np
 import pymap3d
-
-from schemas import PlotBatch, RadarSite, Truth, keys
+from skyfuse.schemas import PlotBatch, RadarSite, Truth, keys
 
 from .cartesian import cartesian_scan
 from .radar import radar_scan

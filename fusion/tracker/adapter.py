@@ -13,8 +13,7 @@ import re
 from collections import Counter
 
 import numpy as np
-
-from schemas import PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
 
 from .measurements import MeasurementBatch, SectorCoverage
 

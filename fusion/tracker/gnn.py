@@ -15,8 +15,7 @@ The chosen plot gets β = 1 and existence is updated with that plot alone:
 from __future__ import annotations
 
 import numpy as np
-
-from fusion.association import assign_jv
+from skyfuse.fusion.association import assign_jv
 
 from .ipda import AssociationResult, existence_update, likelihood_ratio
 from .jits import clusters

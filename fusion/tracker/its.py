@@ -10,8 +10,7 @@ LM-IPDA β it is the multi-target update. The child's plot history is the new pl
 from __future__ import annotations
 
 import numpy as np
-
-from fusion.filters.kalman import gain, joseph_covariance
+from skyfuse.fusion.filters.kalman import gain, joseph_covariance
 
 from .components import Mixture
 from .gating import GatedPairs

@@ -10,9 +10,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from fusion.frames import SystemFrame, convert_plots
-from schemas import (
+from skyfuse.fusion.frames import SystemFrame, convert_plots
+from skyfuse.schemas import (
     FrameSpec,
     PlotBatch,
     RadarSite,

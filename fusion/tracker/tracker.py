@@ -29,9 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2
-
-from fusion.filters.kalman import predict
-from fusion.models.cv import ConstantVelocity
+from skyfuse.fusion.filters.kalman import predict
+from skyfuse.fusion.models.cv import ConstantVelocity
 
 from . import components as comp
 from .config import TrackerConfig

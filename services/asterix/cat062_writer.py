@@ -34,8 +34,7 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
-
-from schemas import FrameKind, Track, TrackBatch, TrackStatus
+from skyfuse.schemas import FrameKind, Track, TrackBatch, TrackStatus
 
 from . import cat062
 from .layout import RecordLayout, build_fspec

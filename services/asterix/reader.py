@@ -73,8 +73,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from schemas import PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
 
 from . import cat034, cat048
 from .pcap import Datagram, iter_file_datagrams, split_datablocks

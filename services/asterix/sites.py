@@ -29,8 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
-
-from schemas import RadarSite
+from skyfuse.schemas import RadarSite
 
 #: Keys a ``[[radar]]`` table may hold besides ``sac``/``sic``.
 SITE_KEYS = tuple(k for k in RadarSite.model_fields if k != "radar_id")

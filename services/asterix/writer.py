@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 
-from schemas import PlotBatch, RadarSite
+from skyfuse.schemas import PlotBatch, RadarSite
 
 from . import cat034, cat048
 from .reader import NM, altitude_to_flight_level
