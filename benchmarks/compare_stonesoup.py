@@ -71,8 +71,8 @@ from skyfuse.fusion.sim.scenario import DEFAULT_START_TIME, Scenario  # noqa: E4
 from skyfuse.fusion.sim.sensor import SensorConfig  # noqa: E402
 from skyfuse.fusion.sim.trajectories import TargetSet, TrajectoryBuilder  # noqa: E402
 from skyfuse.fusion.tracker import TrackerConfig  # noqa: E402
-from skyfuse.fusion.tracker.pipeline import TrackPipeline  # noqa: E402
 from skyfuse.schemas import FrameKind, FrameSpec, RadarSite  # noqa: E402
+from skyfuse.services.fusion.pipeline import TrackPipeline  # noqa: E402
 
 LAT0, LON0 = 44.8, 20.45
 GATE_P = 0.99

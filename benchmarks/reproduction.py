@@ -28,7 +28,7 @@ import platform
 import time
 from pathlib import Path
 
-from skyfuse.services.cli import main as skyfuse
+from skyfuse.services.cli.main import main as skyfuse
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "reproduction"

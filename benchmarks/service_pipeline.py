@@ -28,8 +28,8 @@ sys.path.insert(0, str(ROOT))
 
 from skyfuse.fusion.sim import Simulator, build_scenario  # noqa: E402
 from skyfuse.schemas import Status, keys  # noqa: E402
-from skyfuse.services.demo import Child  # noqa: E402
-from skyfuse.services.transport import (  # noqa: E402
+from skyfuse.services.evaluation.demo import Child  # noqa: E402
+from skyfuse.services.runtime.transport import (  # noqa: E402
     Inbox,
     TransportConfig,
     declare_liveliness,

@@ -21,12 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+LIFECYCLE = "skyfuse.services.runtime.lifecycle"
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, Status, keys  # noqa: E402
-from skyfuse.services.recording import iter_recording  # noqa: E402
-from skyfuse.services.transport import (  # noqa: E402
+from skyfuse.services.recording.mcap_io import iter_recording  # noqa: E402
+from skyfuse.services.runtime.transport import (  # noqa: E402
     Inbox,
     TransportConfig,
     declare_publisher,
@@ -64,7 +65,7 @@ def run_once(payloads: list[bytes], plots: int, foxglove: bool, tmp: Path) -> di
     args += ["--status-interval", "0.1"]
     args.append("--foxglove" if foxglove else "--no-foxglove")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "skyfuse.services.lifecycle", "--log-level", "WARNING", *args],
+        [sys.executable, "-m", LIFECYCLE, "--log-level", "WARNING", *args],
         cwd=ROOT,
         stderr=open(tmp / f"rec-{foxglove}.log", "wb"),
     )

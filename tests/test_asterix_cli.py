@@ -24,8 +24,8 @@ import pymap3d
 import pytest
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent
 from skyfuse.services.asterix import AsterixPlotWriter, decode_cat062, load_sites, read_asterix
-from skyfuse.services.cli import main
-from skyfuse.services.recording import iter_recording
+from skyfuse.services.cli.main import main
+from skyfuse.services.recording.mcap_io import iter_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT.parent / "shared" / "data" / "cat_034_048.pcap"
@@ -223,7 +223,7 @@ def test_track_asterix_errors_are_clear(tmp_path, capsys):
 
 
 def test_evaluate_asterix_straight_flights(tmp_path, capsys):
-    from skyfuse.services.eval_asterix import evaluate_asterix
+    from skyfuse.services.evaluation.asterix import evaluate_asterix
 
     site, batches = straight_flights(120.0, AIRCRAFT)
     ast, sites = write_ast(tmp_path, site, batches)
@@ -251,7 +251,7 @@ def test_evaluate_asterix_straight_flights(tmp_path, capsys):
 
 
 def test_plot_track_rows_against_brute_force():
-    from skyfuse.services.eval_asterix import PlotTrackRows
+    from skyfuse.services.evaluation.asterix import PlotTrackRows
 
     rng = np.random.default_rng(3)
     rows = PlotTrackRows()
@@ -300,7 +300,7 @@ def test_plot_track_rows_against_brute_force():
 
 
 def test_cat062_sender_sends_tse_after_an_overtaking_event():
-    from skyfuse.services.cmd_cat062 import Cat062UdpSender
+    from skyfuse.services.cli.cmd_cat062 import Cat062UdpSender
 
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind(("127.0.0.1", 0))
@@ -372,7 +372,7 @@ def test_sensor_asterix_configuration_errors(tmp_path, capsys):
 
 
 def test_date_option_parses(tmp_path):
-    from skyfuse.services.sensor import SensorConfig
+    from skyfuse.services.sensors.sensor import SensorConfig
 
     cfg = SensorConfig(asterix=tmp_path / "a.ast", date="2024-05-17")
     assert cfg.date == dt.date(2024, 5, 17) and cfg.mode == "asterix"
@@ -389,8 +389,8 @@ def test_regional_two_d_radars_fuse_to_the_same_tracks_through_asterix(tmp_path)
     from skyfuse.fusion.frames import SystemFrame
     from skyfuse.fusion.sim import Simulator, build_scenario
     from skyfuse.fusion.tracker import TrackerConfig
-    from skyfuse.fusion.tracker.pipeline import TrackPipeline
-    from skyfuse.services.cmd_simulate import asterix_sac_sic
+    from skyfuse.services.cli.cmd_simulate import asterix_sac_sic
+    from skyfuse.services.fusion.pipeline import TrackPipeline
 
     sc = build_scenario("regional", seed=2, duration=60.0, targets=25)
     sites = {s.radar_id: s for s in sc.sites}

@@ -23,7 +23,7 @@ import pytest
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
 from skyfuse.services.asterix import AsterixStreamDecoder, decode_cat062, load_sites, read_asterix
 from skyfuse.services.asterix.pcap import iter_file_datagrams
-from skyfuse.services.transport import (
+from skyfuse.services.runtime.transport import (
     Inbox,
     declare_liveliness,
     free_port,
@@ -103,7 +103,7 @@ def drain_udp(s: socket.socket) -> list[bytes]:
 
 
 def simulated_pcap(tmp_path: Path, scenario: str, duration: float, params: str = "") -> Path:
-    from skyfuse.services.cmd_simulate import SimulateConfig, simulate_to_asterix
+    from skyfuse.services.cli.cmd_simulate import SimulateConfig, simulate_to_asterix
 
     out = tmp_path / f"{scenario}.pcap"
     cfg = SimulateConfig(
@@ -224,10 +224,10 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
     three services run in this process (threads, one Zenoh session each) to keep the
     test fast; the command-line wiring is checked in test_asterix_cli.py."""
     from skyfuse.fusion.tracker import TrackerConfig
-    from skyfuse.services.cmd_cat062 import Cat062Config, Cat062UdpSender, bridge
-    from skyfuse.services.cmd_fusion import make_pipeline_factory, serve
-    from skyfuse.services.fusion_service import FusionConfig, FusionCore
-    from skyfuse.services.sensor import AsterixRecordingSensor, SensorConfig
+    from skyfuse.services.cli.cmd_cat062 import Cat062Config, Cat062UdpSender, bridge
+    from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
+    from skyfuse.services.fusion.service import FusionConfig, FusionCore
+    from skyfuse.services.sensors.sensor import AsterixRecordingSensor, SensorConfig
 
     pcap = simulated_pcap(tmp_path, "crossing-4g", 80.0)
     sites_path = Path(str(pcap) + ".sites.toml")
@@ -312,7 +312,7 @@ def test_cat062_command_line(tmp_path):
     """``skyfuse cat062 --udp … --count 2`` (run in a thread: the same code as the
     process, without its start-up time) forwards two published TrackBatches; bad
     addresses are configuration errors (exit 2) for the bridge and for the fusion flag."""
-    from skyfuse.services.cli import main
+    from skyfuse.services.cli.main import main
 
     site_ll = {"lat": 45.0, "lon": 20.0}
     t0 = 1_767_226_200 * 10**9

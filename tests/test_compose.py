@@ -13,9 +13,9 @@ import re
 from pathlib import Path
 
 import pytest
-from skyfuse.services.cli import build_parser
-from skyfuse.services.config import build_config
-from skyfuse.services.transport import ENDPOINT_RE, transport_config
+from skyfuse.services.cli.config import build_config
+from skyfuse.services.cli.main import build_parser
+from skyfuse.services.runtime.transport import ENDPOINT_RE, transport_config
 
 yaml = pytest.importorskip("yaml")
 
@@ -60,20 +60,20 @@ def test_every_command_is_a_valid_skyfuse_invocation(compose, monkeypatch):
             assert tcfg.mode == "client" and tcfg.connect, name
             module = args.func.__module__
             if module.endswith("cmd_fusion"):
-                from skyfuse.services.cmd_fusion import tracker_config
-                from skyfuse.services.fusion_service import FusionConfig
+                from skyfuse.services.cli.cmd_fusion import tracker_config
+                from skyfuse.services.fusion.service import FusionConfig
 
                 build_config(FusionConfig, args, toml_path=args.config, section="fusion",
                              env_prefix="SKYFUSE_FUSION_")  # fmt: skip
                 assert tracker_config(args).tracker == "lmits"
             elif module.endswith("cmd_record"):
-                from skyfuse.services.recorder import RecorderConfig
+                from skyfuse.services.recording.recorder import RecorderConfig
 
                 rc = build_config(RecorderConfig, args, toml_path=args.config, section="record")
                 data_volumes = [v.split(":")[1] for v in svc.get("volumes", [])]
                 assert any(str(rc.out).startswith(d) for d in data_volumes), rc.out
             elif module.endswith("cmd_sensor"):
-                from skyfuse.services.sensor import SensorConfig, load_scenario
+                from skyfuse.services.sensors.sensor import SensorConfig, load_scenario
 
                 sc_cfg = build_config(SensorConfig, args)
                 # the radar exists in the scenario (a short one: the ids do not depend on it)

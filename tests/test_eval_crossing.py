@@ -7,8 +7,8 @@ import json
 
 import numpy as np
 import pytest
-from skyfuse.services.cli import main
-from skyfuse.services.cmd_eval import (
+from skyfuse.services.cli.main import main
+from skyfuse.services.evaluation.crossing import (
     CrossingEvalConfig,
     evaluate_crossing,
     markdown_table,

@@ -20,8 +20,8 @@ from skyfuse.fusion.evaluation import (
 from skyfuse.fusion.metrics.labelling import FALSE
 from skyfuse.fusion.metrics.retention import ROW_KEYS
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
-from skyfuse.services.cli import main
-from skyfuse.services.eval_montecarlo import evaluate, run_experiment
+from skyfuse.services.cli.main import main
+from skyfuse.services.evaluation.montecarlo import evaluate, run_experiment
 
 
 def _small(runs: int = 3) -> Experiment:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from skyfuse.services.cli import main
+from skyfuse.services.cli.main import main
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def test_eval_recording_with_mode_s_labels_only(tmp_path, capsys):
     """A 'real' recording: plots carry Mode-S addresses (one per target, none on clutter)
     and neither target_id nor Truth; the label metrics come from the addresses."""
     from skyfuse.fusion.sim import Simulator, build_scenario
-    from skyfuse.services.recording import RecordingWriter
+    from skyfuse.services.recording.mcap_io import RecordingWriter
 
     sim = Simulator(build_scenario("thesis-mtt-5", seed=2, clutter_density=2e-6))
     path = tmp_path / "real.mcap"

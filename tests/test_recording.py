@@ -11,7 +11,12 @@ import subprocess
 import pytest
 from mcap.reader import make_reader
 from skyfuse.schemas import PlotBatch, RadarSite, keys
-from skyfuse.services.recording import ReadStats, RecordingWriter, iter_recording, read_metadata
+from skyfuse.services.recording.mcap_io import (
+    ReadStats,
+    RecordingWriter,
+    iter_recording,
+    read_metadata,
+)
 
 
 def _batch(i: int) -> PlotBatch:

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from skyfuse.services.cmd_inspect import inspect_recording
+from skyfuse.services.cli.cmd_inspect import inspect_recording
 
 SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "regional-demo.mcap"
 

@@ -296,7 +296,7 @@ def test_key_space_and_models():
 
 
 def test_json_schemas_written(tmp_path):
-    from skyfuse.services.cmd_schemas import write_schemas
+    from skyfuse.services.cli.cmd_schemas import write_schemas
 
     paths = write_schemas(tmp_path)
     names = {p.name for p in paths}

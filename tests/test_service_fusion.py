@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 from skyfuse.schemas import Status, TrackBatch, keys
-from skyfuse.services.transport import (
+from skyfuse.services.runtime.transport import (
     Inbox,
     declare_liveliness,
     declare_publisher,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from skyfuse.schemas import FrameKind, FrameSpec, TrackBatch, keys
-from skyfuse.services.fusion_service import FusionConfig, FusionCore, ReorderBuffer
+from skyfuse.services.fusion.service import FusionConfig, FusionCore, ReorderBuffer
 from test_service_support import make_batch, make_site
 
 
@@ -126,7 +126,7 @@ def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
     """2-D plots without a flight level: rejected (counted) by default, tracked with an
     assumed altitude when the fusion configuration gives one."""
     from skyfuse.fusion.tracker.config import TrackerConfig
-    from skyfuse.services.cmd_fusion import make_pipeline_factory
+    from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
 
     rng = np.random.default_rng(5)
     batch = make_batch("R1", 0, 0, 4, 6, rng)

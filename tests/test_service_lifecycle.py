@@ -12,14 +12,14 @@ import textwrap
 import time
 from pathlib import Path
 
-from skyfuse.services.sensor import SensorConfig, start_time_ns
+from skyfuse.services.sensors.sensor import SensorConfig, start_time_ns
 
 ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = textwrap.dedent(
     """
     import os, sys, time
-    from skyfuse.services.lifecycle import StopFlag
+    from skyfuse.services.runtime.lifecycle import StopFlag
     stop = StopFlag(grace=float(sys.argv[1])).install()
     print("ready", flush=True)
     if sys.argv[2] == "blocked":
@@ -69,12 +69,12 @@ def test_third_signal_exits_at_once():
 
 def test_single_command_entry_point_usage_errors():
     r = subprocess.run(
-        [sys.executable, "-m", "skyfuse.services.lifecycle", "nosuchcommand"],
+        [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "nosuchcommand"],
         cwd=ROOT, capture_output=True, text=True, timeout=30,
     )  # fmt: skip
     assert r.returncode == 2 and "invalid choice: 'nosuchcommand'" in r.stderr
     r = subprocess.run(
-        [sys.executable, "-m", "skyfuse.services.lifecycle", "record", "--out", "x.mcap",
+        [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "record", "--out", "x.mcap",
          "--connect", "localhost:7447"],
         cwd=ROOT, capture_output=True, text=True, timeout=30,
     )  # fmt: skip

@@ -13,9 +13,8 @@ from collections import Counter
 
 import pytest
 from skyfuse.schemas import keys
-from skyfuse.services.recording import ReadStats, iter_recording
-from skyfuse.services.replay import replay
-from skyfuse.services.transport import (
+from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
+from skyfuse.services.runtime.transport import (
     declare_publisher,
     free_port,
     loopback_endpoint,
@@ -23,6 +22,7 @@ from skyfuse.services.transport import (
     service_alive_key,
     wait_for_tokens,
 )
+from skyfuse.services.sensors.replay import replay
 from test_service_support import make_batch, make_site, peer, skyfuse, stop, synthetic_recording
 
 pytestmark = pytest.mark.service
@@ -112,7 +112,7 @@ def test_foxglove_plot_positions_match_geodesic_range_and_bearing():
     import numpy as np
     from pyproj import Geod
     from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
-    from skyfuse.services.recorder import plot_positions
+    from skyfuse.services.recording.recorder import plot_positions
 
     site = RadarSite(radar_id="R", lat=45.0, lon=20.0, alt=0.0, kind=RadarKind.THREE_D)
     for n in (1, 3):  # a single plot must work too

@@ -10,10 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
-from skyfuse.services.lifecycle import main_single as skyfuse_main
-from skyfuse.services.recording import iter_recording
-from skyfuse.services.replay import replay
-from skyfuse.services.transport import (
+from skyfuse.services.recording.mcap_io import iter_recording
+from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
+from skyfuse.services.runtime.transport import (
     Inbox,
     free_port,
     loopback_endpoint,
@@ -21,6 +20,7 @@ from skyfuse.services.transport import (
     service_alive_key,
     wait_for_tokens,
 )
+from skyfuse.services.sensors.replay import replay
 from test_service_support import peer, skyfuse, stop
 
 pytestmark = pytest.mark.service

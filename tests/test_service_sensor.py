@@ -10,7 +10,7 @@ import time
 import pytest
 from skyfuse.fusion.sim import Simulator, build_scenario
 from skyfuse.schemas import PlotBatch, RadarSite, keys
-from skyfuse.services.transport import (
+from skyfuse.services.runtime.transport import (
     Inbox,
     alive_tokens,
     free_port,

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, keys
-from skyfuse.services.recording import RecordingWriter
-from skyfuse.services.transport import TransportConfig
+from skyfuse.services.recording.mcap_io import RecordingWriter
+from skyfuse.services.runtime.transport import TransportConfig
 
 EPOCH = 1_700_000_000_000_000_000
 
@@ -91,7 +91,7 @@ def skyfuse(
     ``services.lifecycle`` (only that command's module is imported: a faster start), or
     with ``full_cli`` through ``services.cli`` (the ``skyfuse`` entry point itself)."""
     err = open(log_path, "wb") if log_path else subprocess.DEVNULL
-    entry = "skyfuse.services.cli" if full_cli else "skyfuse.services.lifecycle"
+    entry = "skyfuse.services.cli" if full_cli else "skyfuse.services.runtime.lifecycle"
     return subprocess.Popen(
         [sys.executable, "-m", entry, *args],
         stdout=subprocess.PIPE,

@@ -9,8 +9,8 @@ import numpy as np
 import pymap3d
 import pytest
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth, keys
-from skyfuse.services.cli import main
-from skyfuse.services.recording import RecordingWriter, iter_recording
+from skyfuse.services.cli.main import main
+from skyfuse.services.recording.mcap_io import RecordingWriter, iter_recording
 
 T0 = 1_767_225_600 * 10**9
 LAT, LON = 45.0, 20.0
@@ -148,7 +148,7 @@ def test_track_command_bad_configuration_is_exit_2(tmp_path, capsys):
 
 def test_adapter_builds_sector_coverage_and_counts_invalid_plots():
     from skyfuse.fusion.frames import SystemFrame, convert_plots
-    from skyfuse.fusion.tracker.adapter import measurement_batch_from
+    from skyfuse.services.fusion.adapter import measurement_batch_from
 
     site = RadarSite(
         radar_id="r2",

@@ -7,8 +7,8 @@ import json
 import time
 
 import pytest
-from skyfuse.services.config import ConfigError
-from skyfuse.services.transport import (
+from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.transport import (
     Inbox,
     TransportConfig,
     alive_tokens,
@@ -96,7 +96,7 @@ def test_pubsub_liveliness_and_query_on_loopback():
 
 
 def test_listen_port_taken_is_a_clear_error():
-    from skyfuse.services.transport import TransportError
+    from skyfuse.services.runtime.transport import TransportError
 
     ep = loopback_endpoint(free_port())
     with open_session(peer(listen=ep)):

@@ -1,0 +1,2 @@
+"""The ``skyfuse`` command line: entry point, configuration loading, progress and one
+module per command."""

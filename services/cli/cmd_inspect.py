@@ -1,0 +1,176 @@
+"""``skyfuse inspect FILE.mcap [--json]``: what a recording holds — radars and their
+sites, plots per radar, scans, duration, targets, tracks, topics and metadata."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from pydantic import BaseModel, Field
+from rich.console import Console
+from rich.table import Table
+from skyfuse import schemas
+from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.recording.mcap_io import ReadStats, iter_recording, read_metadata
+
+
+class InspectConfig(BaseModel):
+    file: Path = Field(description="MCAP recording to inspect")
+    json_out: bool = Field(False, description="Print JSON instead of tables")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("inspect", help="summarise an MCAP recording", description=__doc__)
+    add_model_arguments(p, InspectConfig, positional=("file",), skip=("json_out",))
+    p.add_argument("--json", dest="json_out", action="store_true", help="print JSON")
+    p.set_defaults(func=run)
+
+
+def inspect_recording(path: Path) -> dict:
+    """Scan a recording once and summarise it (pure data, used by tests and the CLI)."""
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    stats = ReadStats()
+    topics: dict[str, int] = defaultdict(int)
+    radars: dict[str, dict] = {}
+    target_ids: set[int] = set()
+    track_ids: set[int] = set()
+    confirmed_ids: set[int] = set()
+    first = last = None
+    truth_messages = 0
+
+    def radar(rid: str) -> dict:
+        return radars.setdefault(
+            rid,
+            {
+                "radar_id": rid,
+                "site": None,
+                "batches": 0,
+                "plots": 0,
+                "scans": set(),
+                "first_time": None,
+                "last_time": None,
+                "detections": 0,
+                "clutter": 0,
+            },
+        )
+
+    for rec in iter_recording(path, stats=stats):
+        topics[rec.topic] += 1
+        first = rec.log_time if first is None else min(first, rec.log_time)
+        last = rec.log_time if last is None else max(last, rec.log_time)
+        msg = rec.message
+        if isinstance(msg, schemas.RadarSite):
+            radar(msg.radar_id)["site"] = msg.model_dump(mode="json")
+        elif isinstance(msg, schemas.PlotBatch):
+            r = radar(msg.radar_id)
+            r["batches"] += 1
+            r["plots"] += len(msg)
+            r["scans"].add(msg.scan)
+            r["first_time"] = msg.time_start if r["first_time"] is None else r["first_time"]
+            r["last_time"] = msg.time_end
+            if msg.target_id is not None:
+                n_clutter = sum(1 for t in msg.target_id if t < 0)
+                r["clutter"] += n_clutter
+                r["detections"] += len(msg.target_id) - n_clutter
+        elif isinstance(msg, schemas.Truth):
+            truth_messages += 1
+            target_ids.update(msg.target_id)
+        elif isinstance(msg, schemas.TrackBatch):
+            for t in msg.tracks:
+                track_ids.add(t.track_id)
+                if t.status == schemas.TrackStatus.CONFIRMED:
+                    confirmed_ids.add(t.track_id)
+    radar_list = []
+    for r in sorted(radars.values(), key=lambda r: r["radar_id"]):
+        r["scans"] = len(r["scans"])
+        radar_list.append(r)
+    return {
+        "file": str(path),
+        "size_bytes": path.stat().st_size,
+        "messages": stats.messages,
+        "duration_s": (last - first) / 1e9 if first is not None else 0.0,
+        "start_time_ns": first,
+        "end_time_ns": last,
+        "radars": radar_list,
+        "plots": sum(r["plots"] for r in radar_list),
+        "truth_messages": truth_messages,
+        "targets": len(target_ids),
+        "tracks": len(track_ids),
+        "confirmed_tracks": len(confirmed_ids),
+        "topics": dict(sorted(topics.items())),
+        "metadata": read_metadata(path),
+        "rejected": stats.rejected,
+        "truncated": stats.truncated,
+        "errors": stats.errors,
+    }
+
+
+def print_report(info: dict, console: Console) -> None:
+    console.print(
+        f"[bold]{info['file']}[/] {info['size_bytes'] / 1e6:.2f} MB, {info['messages']} messages, "
+        f"{info['duration_s']:.1f} s"
+    )
+    if info["truncated"]:
+        console.print("[yellow]recording has no summary (writer killed?): read linearly[/]")
+    t = Table(title="radars")
+    for c in (
+        "radar",
+        "kind",
+        "lat",
+        "lon",
+        "scan period s",
+        "batches",
+        "scans",
+        "plots",
+        "clutter",
+    ):
+        t.add_column(c, justify="right" if c not in ("radar", "kind") else "left")
+    for r in info["radars"]:
+        s = r["site"] or {}
+        t.add_row(
+            r["radar_id"],
+            str(s.get("kind", "?")),
+            f"{s.get('lat', float('nan')):.4f}",
+            f"{s.get('lon', float('nan')):.4f}",
+            str(s.get("scan_period", "?")),
+            str(r["batches"]),
+            str(r["scans"]),
+            str(r["plots"]),
+            str(r["clutter"]),
+        )
+    console.print(t)
+    console.print(
+        f"targets (truth): {info['targets']}   truth messages: {info['truth_messages']}   "
+        f"tracks: {info['tracks']} ({info['confirmed_tracks']} confirmed)"
+    )
+    tt = Table(title="topics")
+    tt.add_column("topic")
+    tt.add_column("messages", justify="right")
+    for topic, n in info["topics"].items():
+        tt.add_row(topic, str(n))
+    console.print(tt)
+    for name, md in info["metadata"].items():
+        console.print(f"metadata [bold]{name}[/]: " + ", ".join(f"{k}={v}" for k, v in md.items()))
+    if info["rejected"]:
+        console.print(f"[red]rejected messages[/]: {info['rejected']}")
+        for err in info["errors"][:5]:
+            console.print(f"  {err}")
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = build_config(InspectConfig, args)
+    try:
+        info = inspect_recording(cfg.file)
+    except FileNotFoundError as e:
+        print(f"skyfuse inspect: {e}", file=sys.stderr)
+        return 1
+    if cfg.json_out:
+        json.dump(info, sys.stdout, indent=2, default=str)
+        sys.stdout.write("\n")
+    else:
+        print_report(info, Console())
+    return 0

@@ -1,0 +1,174 @@
+"""``skyfuse tracks [--json] [--connect EP]``: follow the fused track feed.
+
+Without ``--json``: a live table (rich) of the confirmed tracks of the latest
+TrackBatch, with the last track events. With ``--json``: one JSON object per line,
+``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent.
+``--snapshot`` asks the fusion service's queryable for the current tracks once and
+prints them. Works from any host that can reach a Zenoh endpoint of the network
+(``--connect tcp/HOST:PORT``, peer or client mode)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+import time
+
+from pydantic import BaseModel, Field, ValidationError
+from skyfuse.schemas import TrackBatch, TrackEvent, TrackStatus, keys
+from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
+from skyfuse.services.runtime.transport import (
+    Inbox,
+    TransportError,
+    add_transport_arguments,
+    open_session,
+    query,
+)
+from skyfuse.services.runtime.transport import transport_config as _transport_config
+
+log = logging.getLogger("skyfuse.tracks")
+
+
+class TracksConfig(BaseModel):
+    json_lines: bool = Field(False, description="Print JSON lines instead of a live table")
+    fusion_id: str = Field("*", description="Fusion service id to follow (* = all)")
+    snapshot: bool = Field(False, description="Query the current tracks once, print, exit")
+    all_tracks: bool = Field(False, description="Show tentative tracks too")
+    count: int | None = Field(None, gt=0, description="Exit after this many track batches")
+    duration: float | None = Field(None, gt=0, description="Exit after this many seconds")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "tracks",
+        help="follow the fused track feed (live table or JSON lines)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_model_arguments(p, TracksConfig, skip=("json_lines",))
+    p.add_argument("--json", dest="json_lines", action="store_true", help="JSON lines output")
+    add_transport_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _row(t) -> list[str]:
+    return [
+        str(t.track_id),
+        t.status.value,
+        f"{t.lat:.5f}",
+        f"{t.lon:.5f}",
+        "-" if t.alt is None else f"{t.alt:.0f}",
+        f"{t.speed:.0f}",
+        f"{math.degrees(t.heading):.0f}",
+        f"{t.existence:.3f}",
+        str(t.updates),
+        ",".join(t.radars),
+    ]
+
+
+_COLUMNS = ["id", "status", "lat °", "lon °", "alt m", "speed m/s", "hdg °", "P(exist)", "upd"]
+
+
+def render_table(batch: TrackBatch | None, events: list[TrackEvent], all_tracks: bool):
+    from rich.console import Group
+    from rich.table import Table
+
+    table = Table(title="skyfuse tracks", expand=False)
+    for c in [*_COLUMNS, "radars"]:
+        table.add_column(c, justify="right" if c not in ("status", "radars") else "left")
+    if batch is not None:
+        for t in sorted(batch.tracks, key=lambda t: t.track_id):
+            if all_tracks or t.status == TrackStatus.CONFIRMED:
+                table.add_row(*_row(t))
+        table.caption = (
+            f"fusion {batch.fusion_id} cycle {batch.cycle}, source {batch.source_radar}, "
+            f"{sum(t.status == TrackStatus.CONFIRMED for t in batch.tracks)} confirmed / "
+            f"{len(batch.tracks)} tracks"
+        )
+    lines = [f"{e.kind.value:10s} track {e.track_id} {e.reason}" for e in events[-5:]]
+    return Group(table, *lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = build_config(TracksConfig, args)
+    tcfg = _transport_config(args)
+    stop = StopFlag().install()
+    fid = cfg.fusion_id if cfg.fusion_id == "*" else keys.check_id(cfg.fusion_id, "fusion id")
+    base = f"{keys.PREFIX}/fusion/{fid}"
+    try:
+        with open_session(tcfg) as session:
+            if cfg.snapshot:
+                return _snapshot(session, f"{base}/snapshot", cfg)
+            return _follow(session, base, cfg, stop)
+    except TransportError as e:
+        log.error("%s", e)
+        return EXIT_FAILED
+
+
+def _snapshot(session, key: str, cfg: TracksConfig) -> int:
+    replies = query(session, key, timeout=3.0)
+    if not replies:
+        log.error("no fusion service answered on %s", key)
+        return EXIT_FAILED
+    for k, payload in replies:
+        if cfg.json_lines:
+            sys.stdout.write(json.dumps({"topic": k, "message": json.loads(payload)}) + "\n")
+        else:
+            from rich.console import Console
+
+            Console().print(render_table(TrackBatch.from_json_bytes(payload), [], cfg.all_tracks))
+    return EXIT_OK
+
+
+def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
+    inbox = Inbox(capacity=10_000)
+    inbox.subscribe(session, f"{base}/tracks", "tracks")
+    inbox.subscribe(session, f"{base}/events", "events")
+    t0 = time.monotonic()
+    batches = 0
+    latest: TrackBatch | None = None
+    events: list[TrackEvent] = []
+    live = None
+    if not cfg.json_lines:
+        from rich.live import Live
+
+        live = Live(render_table(None, [], cfg.all_tracks), refresh_per_second=4, screen=False)
+        live.start()
+    try:
+        while not stop.is_set():
+            if cfg.duration is not None and time.monotonic() - t0 >= cfg.duration:
+                break
+            if cfg.count is not None and batches >= cfg.count:
+                break
+            item = inbox.get(timeout=0.1)
+            if item is None:
+                continue
+            if cfg.json_lines:
+                try:
+                    payload = json.loads(item.payload)
+                except ValueError:
+                    log.warning("undecodable payload on %s", item.key)
+                    continue
+                sys.stdout.write(json.dumps({"topic": item.key, "message": payload}) + "\n")
+                sys.stdout.flush()
+                batches += item.tag == "tracks"
+                continue
+            try:
+                if item.tag == "tracks":
+                    latest = TrackBatch.from_json_bytes(item.payload)
+                    batches += 1
+                else:
+                    events.append(TrackEvent.from_json_bytes(item.payload))
+                    del events[:-20]
+            except ValidationError as e:
+                log.warning("invalid message on %s: %s", item.key, e.errors()[0]["msg"])
+                continue
+            live.update(render_table(latest, events, cfg.all_tracks))
+    finally:
+        inbox.close()
+        if live is not None:
+            live.stop()
+    return EXIT_OK

@@ -1,0 +1,1 @@
+"""Offline evaluation: recordings against truth or Mode-S labels, Monte Carlo, the demo report."""

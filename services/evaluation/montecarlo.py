@@ -1,0 +1,452 @@
+"""Monte Carlo tracker evaluation on the planar thesis scenarios: worker processes, the
+resumable cache, ψ_init calibration, progress and the output files of ``skyfuse eval``.
+
+The computation is :mod:`fusion.evaluation`; this module schedules it:
+
+* **Parallel across variants.** False tracks are carried from run to run (spec 03 §2), so
+  the runs of one variant form a chain; different variants are independent. Each variant
+  advances in blocks of ``block`` runs; a finished block submits the next block of the
+  same variant, with the runner's pickled state (tracker + labeller). Every variant's
+  numbers depend only on the experiment and its ψ_init, never on the number of workers
+  or the block size (the run seeds and time offsets are functions of the run index).
+* **Resumable.** With a cache directory, each block's histories (``.npz``) and the state
+  after it (``.pkl``) are written under a directory named by the experiment's settings
+  (not its run count) and the variant's ψ_init; an interrupted or extended experiment
+  continues after the last complete block.
+* **Calibration** (``calibrate``): per variant, ψ_init is searched
+  (:func:`fusion.evaluation.calibrate_psi_init`) so that the first ``calibration_runs``
+  runs give the source's confirmed false tracks scaled to that many runs
+  (15 per 500 multi-target, 20 per 500 single-target, ± 10 %, at least ± 0.5), counting
+  the tracks that were false when they reached confirmation (see
+  :mod:`fusion.evaluation.summary`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pickle
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, Field
+from skyfuse.fusion.evaluation import (
+    Experiment,
+    RunBlock,
+    Variant,
+    VariantRunner,
+    calibrate_psi_init,
+    summarise,
+)
+from skyfuse.fusion.evaluation.experiment import SOURCE_RUNS
+from skyfuse.fusion.evaluation.summary import false_at_confirmation
+from skyfuse.fusion.metrics.retention import ROW_KEYS, retention_markdown
+
+Advance = Callable[[int], None]
+
+
+class TrackerEvalConfig(BaseModel):
+    """Options of ``skyfuse eval SCENARIO --trackers ...`` (thesis and lm-ipf scenarios)."""
+
+    scenario: str = Field(description="Planar scenario (thesis-*, lm-ipf-*)")
+    runs: int = Field(100, ge=1, le=100_000, description="Monte Carlo runs")
+    seed: int = Field(1, ge=0, description="Seed; run r uses seed·100003 + r")
+    workers: int = Field(1, ge=1, le=64, description="Worker processes")
+    out: Path | None = Field(None, description="Directory for tables, figures, JSON, cache")
+    trackers: list[str] = Field(["its", "lmits"], description="Trackers to compare")
+    depths: list[int] = Field([1, 3, 5, 7, 9], description="Singer memory depths N")
+    calibrate: bool = Field(
+        False, description="Search ψ_init per tracker and depth for the source's false tracks"
+    )
+    calibration_runs: int | None = Field(
+        None, ge=1, description="Runs per calibration evaluation (default: min(runs, 100))"
+    )
+    calibration_file: Path | None = Field(
+        None, description="JSON with calibrated ψ_init (default: OUT/calibration.json if any)"
+    )
+    block: int = Field(10, ge=1, description="Runs per cached block (resume granularity)")
+    cache: Path | None = Field(None, description="Cache directory for resuming (default OUT/cache)")
+    carry_false_tracks: bool = Field(
+        True, description="Carry false tracks into the next run (spec 03 §2); else delete all"
+    )
+    progress: bool | None = Field(None, description="Progress bar (default: on a terminal)")
+
+
+# --------------------------------------------------------------------------------------
+# tasks (top-level: they run in worker processes)
+# --------------------------------------------------------------------------------------
+def _block_task(exp_json: str, key: str, psi: float, start: int, stop: int, state: bytes | None):
+    exp = Experiment.model_validate_json(exp_json)
+    runner = pickle.loads(state) if state else VariantRunner(exp, Variant.from_key(key), psi)
+    block = runner.run_many(range(start, stop))
+    return key, start, stop, block.to_arrays(), pickle.dumps(runner)
+
+
+def false_track_count(exp: Experiment, variant: Variant, psi: float, runs: int) -> int:
+    """Tracks false at confirmation (``fusion.evaluation.summary.false_at_confirmation``)
+    in the first ``runs`` runs of ``variant`` with ψ_init = ``psi``."""
+    block = VariantRunner(exp, variant, psi).run_many(range(runs))
+    cf = false_at_confirmation(block.tracks, np.unique(block.truth.scan))
+    return int(cf[-1]) if len(cf) else 0
+
+
+def calibration_target(exp: Experiment, runs: int) -> tuple[float, float]:
+    """(target, tolerance) of confirmed false tracks for ``runs`` runs."""
+    target = exp.false_track_target * runs / SOURCE_RUNS
+    return target, max(0.1 * target, 0.5)
+
+
+def _calibrate_task(exp_json: str, key: str, runs: int, psi0: float):
+    exp = Experiment.model_validate_json(exp_json)
+    variant = Variant.from_key(key)
+    target, tol = calibration_target(exp, runs)
+    res = calibrate_psi_init(
+        lambda psi: false_track_count(exp, variant, psi, runs), target, tol, psi0=psi0
+    )
+    return key, res.as_dict()
+
+
+# --------------------------------------------------------------------------------------
+# scheduling
+# --------------------------------------------------------------------------------------
+def _map_tasks(fn, tasks: list[tuple], workers: int, done_cb) -> None:
+    """Run ``fn(*task)``: in this process (workers = 1) or in a pool; ``done_cb(result)``
+    may return new tasks (the next block of a chain)."""
+    queue = list(tasks)
+    if workers <= 1:
+        while queue:
+            queue.extend(done_cb(fn(*queue.pop(0))) or [])
+        return
+    with ProcessPoolExecutor(workers) as ex:
+        running: set[Future] = set()
+        while queue or running:
+            while queue and len(running) < workers:
+                running.add(ex.submit(fn, *queue.pop(0)))
+            finished, running = wait(running, return_when=FIRST_COMPLETED)
+            for f in finished:
+                queue.extend(done_cb(f.result()) or [])
+
+
+def experiment_key(exp: Experiment) -> str:
+    """Hash of everything that changes a run's numbers except the run count, the tracker
+    list and ψ_init (which names the variant directory)."""
+    d = exp.model_dump(mode="json", exclude={"runs", "trackers", "depths", "psi_init"})
+    d.pop("default_psi_init")
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def _variant_dir(cache: Path, exp: Experiment, v: Variant, psi: float) -> Path:
+    return cache / f"{exp.scenario}-{experiment_key(exp)}" / f"{v.tracker}-N{v.depth}-psi{psi:.6g}"
+
+
+def run_experiment(
+    exp: Experiment,
+    psi: dict[str, float],
+    workers: int = 1,
+    block: int = 10,
+    cache: Path | None = None,
+    advance: Advance | None = None,
+) -> dict[str, RunBlock]:
+    """All runs of every variant (ψ_init from ``psi`` by variant key) → RunBlock per key."""
+    advance = advance or (lambda n=1: None)
+    exp_json = exp.model_dump_json()
+    parts: dict[str, list[RunBlock]] = {v.key: [] for v in exp.variants()}
+    tasks = []
+    for v in exp.variants():
+        start, state = 0, None
+        if cache is not None:
+            vdir = _variant_dir(cache, exp, v, psi[v.key])
+            vdir.mkdir(parents=True, exist_ok=True)
+            while start < exp.runs:
+                stop = min(start + block, exp.runs)
+                f = vdir / f"runs-{start:06d}-{stop:06d}.npz"
+                s = vdir / f"state-{stop:06d}.pkl"
+                if not (f.exists() and s.exists()):
+                    break
+                with np.load(f) as a:
+                    parts[v.key].append(RunBlock.from_arrays(dict(a)))
+                state = s.read_bytes()
+                advance(stop - start)
+                start = stop
+        if start < exp.runs:
+            tasks.append((exp_json, v.key, psi[v.key], start, min(start + block, exp.runs), state))
+
+    def done(result):
+        key, start, stop, arrays, state = result
+        v = Variant.from_key(key)
+        parts[key].append(RunBlock.from_arrays(arrays))
+        if cache is not None:
+            vdir = _variant_dir(cache, exp, v, psi[key])
+            np.savez_compressed(vdir / f"runs-{start:06d}-{stop:06d}.npz", **arrays)
+            tmp = vdir / f"state-{stop:06d}.pkl.tmp"
+            tmp.write_bytes(state)
+            tmp.replace(vdir / f"state-{stop:06d}.pkl")
+        advance(stop - start)
+        if stop < exp.runs:
+            return [(exp_json, key, psi[key], stop, min(stop + block, exp.runs), state)]
+        return []
+
+    _map_tasks(_block_task, tasks, workers, done)
+    return {k: RunBlock.concat(sorted(p, key=lambda b: int(b.runs[0]))) for k, p in parts.items()}
+
+
+def calibrate(
+    exp: Experiment, runs: int, workers: int = 1, advance: Advance | None = None
+) -> dict[str, dict]:
+    """Calibrated ψ_init per variant key (``Calibration.as_dict`` entries)."""
+    advance = advance or (lambda n=1: None)
+    exp_json = exp.model_dump_json()
+    out: dict[str, dict] = {}
+    tasks = [(exp_json, v.key, runs, exp.psi_for(v)) for v in exp.variants()]
+
+    def done(result):
+        out[result[0]] = result[1]
+        advance(1)
+        return []
+
+    _map_tasks(_calibrate_task, tasks, workers, done)
+    return {v.key: out[v.key] for v in exp.variants()}
+
+
+# --------------------------------------------------------------------------------------
+# outputs
+# --------------------------------------------------------------------------------------
+def evaluate(
+    exp: Experiment,
+    *,
+    workers: int = 1,
+    block: int = 10,
+    cache: Path | None = None,
+    calibration: dict[str, dict] | None = None,
+    advance: Advance | None = None,
+) -> dict:
+    """Run the experiment and summarise: rows (retention keys + extras), curves per variant
+    key, the configuration of every variant and the calibration used."""
+    cal = calibration or {}
+    psi = {
+        v.key: float(cal[v.key]["psi_init"]) if v.key in cal else exp.psi_for(v)
+        for v in exp.variants()
+    }
+    t0 = time.perf_counter()
+    blocks = run_experiment(exp, psi, workers, block, cache, advance)
+    rows, curves, configs = [], {}, {}
+    for v in exp.variants():
+        s = summarise(blocks[v.key], exp, v, psi[v.key])
+        rows.append(s["row"])
+        curves[v.key] = s["curves"]
+        configs[v.key] = exp.tracker_config(v, psi[v.key]).model_dump(mode="json")
+    return {
+        "scenario": exp.scenario,
+        "rows": rows,
+        "row_keys": list(ROW_KEYS),
+        "curves": curves,
+        "experiment": exp.model_dump(mode="json"),
+        "tracker_configs": configs,
+        "calibration": cal,
+        "false_track_target_per_500_runs": exp.false_track_target,
+        "elapsed_s": round(time.perf_counter() - t0, 2),
+        "machine": {"cpus": os.cpu_count(), "workers": workers},
+    }
+
+
+def retention_table(summary: dict) -> str:
+    """Markdown retention table plus ψ_init, runs and confirmed false tracks."""
+    rows = summary["rows"]
+    table = retention_markdown(rows)
+    extra = ["| tracker | depth | ψ_init | runs | confirmed false (all) | false at confirmation | "
+             "per 500 runs | CPU ms/run | GOSPA (m) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    for r in rows:
+        extra.append(
+            f"| {r['tracker']} | {r['depth']} | {r['psi_init']:.4g} | {r['runs']} | "
+            f"{r['false_tracks']} | {r['false_at_confirmation']} | "
+            f"{r['false_at_confirmation_per_500_runs']:.1f} | "
+            f"{r['cpu_ms_per_run']:.0f} | {r['gospa_mean']:.1f} |"
+        )
+    return table + "\n" + "\n".join(extra) + "\n"
+
+
+def write_figures(summary: dict, out: Path, tag: str) -> list[Path]:
+    """CTT, cumulative confirmed false tracks, RMSE and GOSPA per scan (one PNG each)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    specs = [
+        ("ctt", "ctt_percent", "confirmed true tracks (% of targets)"),
+        ("false-tracks", "false_tracks_cumulative", "confirmed false tracks (cumulative)"),
+        (
+            "false-at-confirmation",
+            "false_at_confirmation_cumulative",
+            "tracks false at confirmation (cumulative)",
+        ),
+        ("rmse", "rmse_m", "RMSE of confirmed true tracks (m)"),
+        ("gospa", "gospa_m", f"GOSPA (c = {summary['experiment']['gospa_c']:g} m, p = 2) (m)"),
+    ]
+    paths = []
+    runs = summary["rows"][0]["runs"] if summary["rows"] else 0
+    for name, key, ylabel in specs:
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for i, (vk, c) in enumerate(summary["curves"].items()):
+            y = np.array([np.nan if v is None else v for v in c[key]], float)
+            style = "-" if vk.startswith("lm") else "--"
+            ax.plot(c["scans"], y, style, color=f"C{i % 10}", lw=1.5, label=vk.replace(":", " N="))
+        ax.set_xlabel("scan")
+        ax.set_ylabel(ylabel)
+        ax.set_title(f"{summary['scenario']}, {runs} runs")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, ncol=2)
+        fig.tight_layout()
+        p = out / f"{tag}-{name}.png"
+        fig.savefig(p, dpi=100)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+
+
+def load_calibration(path: Path, exp: Experiment) -> dict[str, dict]:
+    """Calibrated values of a calibration JSON matching the experiment's scenario."""
+    d = json.loads(Path(path).read_text())
+    if d.get("scenario") != exp.scenario:
+        raise ValueError(
+            f"calibration file {str(path)!r}: scenario {d.get('scenario')!r}, the experiment "
+            f"is {exp.scenario!r}"
+        )
+    return d.get("variants", {})
+
+
+def save_calibration(path: Path, exp: Experiment, runs: int, values: dict[str, dict]) -> None:
+    """Merge ``values`` into the calibration JSON at ``path``."""
+    old = {}
+    if path.exists():
+        try:
+            old = load_calibration(path, exp)
+        except (ValueError, json.JSONDecodeError):
+            old = {}
+    old.update(values)
+    doc = {
+        "scenario": exp.scenario,
+        "seed": exp.seed,
+        "calibration_runs": runs,
+        "target_per_500_runs": exp.false_track_target,
+        "experiment_key": experiment_key(exp),
+        "variants": old,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=1))
+
+
+# --------------------------------------------------------------------------------------
+# command
+# --------------------------------------------------------------------------------------
+def _tracker_settings(args) -> tuple[dict, float | None]:
+    """TrackerConfig fields given as flags (or in the --config [tracker] table), minus the
+    ones the experiment sets per variant; and ψ_init if given (the default ψ_init)."""
+    from skyfuse.fusion.tracker import TrackerConfig
+    from skyfuse.services.cli.config import load_toml
+
+    given: dict = {}
+    if getattr(args, "config", None) is not None:
+        given.update(load_toml(args.config, "tracker"))
+    given.update({k: v for k, v in vars(args).items() if k in TrackerConfig.model_fields})
+    psi = given.pop("psi_init", None)
+    for k in ("tracker", "depth"):
+        given.pop(k, None)
+    return given, psi
+
+
+def run_tracker_eval(args) -> int:
+    """``skyfuse eval SCENARIO --trackers ...`` (see :mod:`services.cmd_eval`)."""
+    from pydantic import ValidationError
+    from skyfuse.services.cli.config import ConfigError, build_config, format_validation_error
+    from skyfuse.services.cli.progress import progress_bar
+
+    cfg = build_config(TrackerEvalConfig, args)
+    settings, psi = _tracker_settings(args)
+    try:
+        exp = Experiment(
+            scenario=cfg.scenario,
+            trackers=cfg.trackers,
+            depths=cfg.depths,
+            runs=cfg.runs,
+            seed=cfg.seed,
+            tracker_settings=settings,
+            carry_false_tracks=cfg.carry_false_tracks,
+            **({"default_psi_init": psi} if psi is not None else {}),
+        )
+        for v in exp.variants():
+            exp.tracker_config(v)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(e)) from None
+    out = cfg.out
+    cache = cfg.cache or (out / "cache" if out is not None else None)
+    variants = exp.variants()
+    tag = exp.scenario
+    t0 = time.perf_counter()
+    print(
+        f"{exp.scenario}: {exp.runs} runs, seed {exp.seed}, variants "
+        f"{', '.join(v.key for v in variants)}, {cfg.workers} worker(s)",
+        flush=True,
+    )
+    cal_path = cfg.calibration_file or (out / "calibration.json" if out is not None else None)
+    calibration: dict[str, dict] = {}
+    t_cal = time.perf_counter()
+    if cfg.calibrate:
+        runs_c = cfg.calibration_runs or min(exp.runs, 100)
+        target, tol = calibration_target(exp, runs_c)
+        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
+        with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
+            calibration = calibrate(exp, runs_c, cfg.workers, advance)
+        for k, c in calibration.items():
+            note = "" if c["converged"] else ", NOT converged"
+            print(
+                f"  {k}: ψ_init = {c['psi_init']:.4g}, {c['false_tracks']:g} false tracks "
+                f"({len(c['evaluations'])} evaluations{note})"
+            )
+        if cal_path is not None:
+            save_calibration(cal_path, exp, runs_c, calibration)
+            print(f"wrote {cal_path}")
+    elif cal_path is not None and cal_path.exists():
+        try:
+            calibration = load_calibration(cal_path, exp)
+        except (ValueError, json.JSONDecodeError) as e:
+            raise ConfigError(f"calibration_file: {e}") from None
+        calibration = {v.key: calibration[v.key] for v in variants if v.key in calibration}
+        if calibration:
+            print(f"ψ_init from {cal_path}: " + ", ".join(
+                f"{k} {c['psi_init']:.4g}" for k, c in calibration.items()))  # fmt: skip
+    t_cal = time.perf_counter() - t_cal
+    total = exp.runs * len(variants)
+    with progress_bar(f"eval {tag}", total, enabled=cfg.progress) as advance:
+        summary = evaluate(
+            exp,
+            workers=cfg.workers,
+            block=cfg.block,
+            cache=cache,
+            calibration=calibration,
+            advance=advance,
+        )
+    elapsed = time.perf_counter() - t0
+    summary["elapsed_s"] = round(elapsed, 2)
+    summary["calibration_s"] = round(t_cal, 2)
+    summary["runs_s"] = round(elapsed - t_cal, 2)
+    table = retention_table(summary)
+    print(table)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{tag}-retention.md").write_text(table)
+        (out / f"{tag}.json").write_text(json.dumps(summary, indent=1))
+        for p in write_figures(summary, out, tag):
+            print(f"wrote {p}")
+    json_out = getattr(args, "json_out", None)
+    if json_out:
+        Path(json_out).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_out).write_text(json.dumps(summary, indent=1))
+        print(f"wrote {json_out}")
+    print(f"elapsed {elapsed:.1f} s")
+    return 0

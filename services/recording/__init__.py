@@ -1,0 +1,1 @@
+"""MCAP recordings: reading and writing, the recorder service."""

@@ -1,0 +1,320 @@
+"""The MCAP recorder: every skyfuse message received on Zenoh goes to an MCAP file, one
+channel per key with the payload model's JSON Schema (:class:`services.recording.RecordingWriter`),
+plus Foxglove ``foxglove.LocationFixes`` channels (protobuf, from foxglove-sdk) that the
+Foxglove Map panel shows: ``/foxglove/tracks`` (confirmed tracks), ``/foxglove/plots``,
+``/foxglove/truth`` and ``/foxglove/sites``.
+
+Durability: the writer's chunk in progress is closed and flushed every
+``flush_interval`` seconds, so a recorder killed with SIGKILL loses at most the
+messages of the last interval; the complete chunks stay readable
+(:func:`services.recording.iter_recording` recovers them). A cleanly stopped recorder
+finishes the file with its summary and indexes (passes ``pymcap-cli doctor``).
+
+Rotation: with ``rotate_mb`` / ``rotate_s`` the output is ``NAME-0000.mcap``,
+``NAME-0001.mcap`` …; each new file starts with the last known ``RadarSite`` of every
+radar so it can be replayed on its own.
+
+The recorder never crashes on bad input: a payload that does not validate against the
+model of its key, or a key outside the v1 key space, is counted by reason and skipped.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+from foxglove import messages as fg
+from pydantic import BaseModel, Field, ValidationError
+from skyfuse import schemas
+from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
+from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
+from skyfuse.services.runtime.transport import Received
+
+log = logging.getLogger(__name__)
+
+FOXGLOVE_TOPICS = {
+    "tracks": "/foxglove/tracks",
+    "plots": "/foxglove/plots",
+    "truth": "/foxglove/truth",
+    "sites": "/foxglove/sites",
+}
+_COLORS = {
+    "tracks": fg.Color(r=0.1, g=0.4, b=1.0, a=1.0),
+    "plots": fg.Color(r=1.0, g=0.6, b=0.0, a=0.6),
+    "truth": fg.Color(r=0.1, g=0.7, b=0.1, a=1.0),
+    "sites": fg.Color(r=0.9, g=0.0, b=0.0, a=1.0),
+}
+
+
+class RecorderConfig(BaseModel):
+    out: Path = Field(description="Output MCAP file (NAME-0000.mcap … when rotating)")
+    key_expr: str = Field(keys.ALL, description="Key expression to record")
+    rotate_mb: float | None = Field(None, gt=0, description="Start a new file after this many MB")
+    rotate_s: float | None = Field(None, gt=0, description="Start a new file after this many s")
+    flush_interval: float = Field(
+        1.0, gt=0, le=60, description="Close and flush the current chunk every this many s"
+    )
+    chunk_kb: int = Field(1024, ge=16, le=65536, description="MCAP chunk size, KiB")
+    foxglove: bool = Field(True, description="Also write Foxglove LocationFixes map channels")
+    name: str = Field("recorder", pattern=keys.ID_PATTERN, description="Service id")
+    duration: float | None = Field(None, gt=0, description="Stop after this many seconds")
+    status_interval: float = Field(2.0, gt=0, description="Status publication period, s")
+    queue: int = Field(
+        2000, ge=10, le=1_000_000, description="Messages received but not yet written, at most"
+    )
+    stats: Path | None = Field(None, description="Write a JSON summary here at exit")
+
+
+def _stamp(ns: int) -> fg.Timestamp:
+    return fg.Timestamp(sec=int(ns // 1_000_000_000), nsec=int(ns % 1_000_000_000))
+
+
+def plot_positions(
+    batch: PlotBatch | list[PlotBatch], site: RadarSite
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Approximate WGS-84 (lat°, lon°, h m) of the plots of one or more batches of a radar,
+    for display only.
+
+    Polar plots use ``pymap3d.aer2geodetic`` from the site; a 2-D radar's elevation is
+    taken as ``asin((altitude - site.alt) / range)`` (flat earth; 0 if unknown);
+    cartesian plots are ENU offsets at the site."""
+    batches = [batch] if isinstance(batch, PlotBatch) else list(batch)
+    planar = [b for b in batches if b.x is not None]
+    if planar:
+        e = np.concatenate([b.column("x") for b in planar])
+        n = np.concatenate([b.column("y") for b in planar])
+        lat, lon, h = pymap3d.enu2geodetic(e, n, np.zeros_like(e), site.lat, site.lon, site.alt)
+        return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
+    r = np.concatenate([b.column("range") for b in batches])
+    az = np.concatenate([b.column("azimuth") for b in batches])
+    el = np.concatenate([_elevation(b, site) for b in batches])
+    lat, lon, h = pymap3d.aer2geodetic(
+        np.degrees(az), np.degrees(el), r, site.lat, site.lon, site.alt, deg=True
+    )
+    return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h)
+
+
+def _elevation(batch: PlotBatch, site: RadarSite) -> np.ndarray:
+    r = batch.column("range")
+    if batch.elevation is not None:
+        return np.nan_to_num(batch.column("elevation"), nan=0.0)
+    if batch.altitude is not None and r.size:
+        alt = batch.column("altitude")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.clip((alt - site.alt) / np.maximum(r, 1.0), -1.0, 1.0)
+        return np.nan_to_num(np.arcsin(s), nan=0.0)
+    return np.zeros_like(r)
+
+
+def location_fixes(
+    time_ns: int, frame: str, lat, lon, alt, color: fg.Color, heading=None
+) -> fg.LocationFixes:
+    ts = _stamp(time_ns)
+    fixes = []
+    for i in range(len(lat)):
+        kw = {}
+        if heading is not None:
+            kw["heading"] = float(heading[i])
+        a = float(alt[i]) if alt is not None and math.isfinite(alt[i]) else 0.0
+        fixes.append(
+            fg.LocationFix(
+                timestamp=ts,
+                frame_id=frame,
+                latitude=float(lat[i]),
+                longitude=float(lon[i]),
+                altitude=a,
+                color=color,
+                **kw,
+            )
+        )
+    return fg.LocationFixes(fixes=fixes)
+
+
+class Recorder:
+    """Writes received samples to MCAP; the Zenoh side lives in ``cmd_record``."""
+
+    def __init__(self, cfg: RecorderConfig, metadata: dict[str, str] | None = None) -> None:
+        self.cfg = cfg
+        self.metadata = dict(metadata or {})
+        self.files: list[Path] = []
+        self.counts: Counter[str] = Counter()
+        self.rejected: Counter[str] = Counter()
+        self.messages = 0
+        self.bytes = 0
+        self.sites: dict[str, tuple[RadarSite, bytes]] = {}
+        self._scan_plots: dict[str, list[PlotBatch]] = {}
+        self._writer: RecordingWriter | None = None
+        self._opened_at = 0.0
+        self._last_flush = time.monotonic()
+        self._fg_schemas = {name: fg.LocationFixes.get_schema() for name in FOXGLOVE_TOPICS}
+        self._open()
+
+    # --- files ---------------------------------------------------------------------
+    def _path(self, index: int) -> Path:
+        out = self.cfg.out
+        if self.cfg.rotate_mb is None and self.cfg.rotate_s is None:
+            return out
+        return out.with_name(f"{out.stem}-{index:04d}{out.suffix or '.mcap'}")
+
+    def _open(self) -> None:
+        path = self._path(len(self.files))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {**self.metadata, "file_index": str(len(self.files))}
+        self._writer = RecordingWriter(path, metadata=meta, chunk_size=self.cfg.chunk_kb * 1024)
+        self.files.append(path)
+        self._opened_at = time.monotonic()
+        log.info("recording to %s", path)
+        now = time.time_ns()
+        for site, payload in self.sites.values():
+            self._write(keys.radar_site(site.radar_id), payload, now, now, RadarSite)
+            self._foxglove_site(site, now)
+
+    def _maybe_rotate(self) -> None:
+        w = self._writer
+        too_big = self.cfg.rotate_mb is not None and w.bytes >= self.cfg.rotate_mb * 1e6
+        too_old = (
+            self.cfg.rotate_s is not None
+            and time.monotonic() - self._opened_at >= self.cfg.rotate_s
+        )
+        if too_big or too_old:
+            w.close()
+            self._open()
+
+    def maybe_flush(self, now: float | None = None) -> None:
+        now = time.monotonic() if now is None else now
+        if now - self._last_flush >= self.cfg.flush_interval:
+            self._writer.flush()
+            self._last_flush = now
+            self._maybe_rotate()
+
+    def close(self) -> list[Path]:
+        if self._writer is not None:
+            for radar_id in list(self._scan_plots):
+                try:
+                    self._flush_plots(radar_id, time.time_ns())
+                except Exception as e:  # display channel only
+                    log.warning("foxglove plots of %s not written: %s", radar_id, e)
+            self._writer.add_metadata(
+                "skyfuse.recorder",
+                {"messages": self.messages, **{f"count:{k}": v for k, v in self.counts.items()}},
+            )
+            self._writer.close()
+            self._writer = None
+        return self.files
+
+    # --- messages ------------------------------------------------------------------
+    def _write(self, topic: str, payload: bytes, log_time: int, pub_time: int, model) -> None:
+        cid = self._writer.channel_for(
+            topic, schema_name=SCHEMA_PREFIX + model.__name__, schema_data=json_schema_bytes(model)
+        )
+        self._writer.write_raw(cid, payload, log_time, publish_time=pub_time)
+        self.messages += 1
+        self.bytes += len(payload)
+        self.counts[topic] += 1
+
+    def _write_fg(self, name: str, msg: fg.LocationFixes, log_time: int) -> None:
+        schema = self._fg_schemas[name]
+        cid = self._writer.channel_for(
+            FOXGLOVE_TOPICS[name],
+            schema_name=schema.name,
+            schema_data=schema.data,
+            schema_encoding=schema.encoding,
+            message_encoding="protobuf",
+        )
+        self._writer.write_raw(cid, msg.encode(), log_time)
+
+    def _foxglove_site(self, site: RadarSite, log_time: int) -> None:
+        if self.cfg.foxglove:
+            fixes = location_fixes(
+                log_time, site.radar_id, [site.lat], [site.lon], [site.alt], _COLORS["sites"]
+            )
+            self._write_fg("sites", fixes, log_time)
+
+    def handle(self, item: Received) -> bool:
+        """Validate and write one sample; ``False`` (and a counted reason) if rejected."""
+        try:
+            kind = keys.parse(item.key).kind
+            model = schemas.MODELS[kind]
+        except (ValueError, KeyError):
+            self.rejected["key outside the skyfuse/@v1 key space"] += 1
+            return False
+        try:
+            msg = model.from_json_bytes(item.payload)
+        except ValidationError as e:
+            self.rejected[f"invalid {model.__name__}"] += 1
+            if self.rejected[f"invalid {model.__name__}"] <= 5:
+                err = e.errors()[0]
+                loc = ".".join(str(p) for p in err["loc"]) or "(payload)"
+                log.warning("rejected %s on %s: %s: %s", model.__name__, item.key, loc, err["msg"])
+            return False
+        pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
+        self._write(item.key, item.payload, item.recv_ns, pub_time, model)
+        if self.cfg.foxglove:
+            try:
+                self._foxglove(msg, item.recv_ns)
+            except Exception as e:  # a display channel must never stop the recording
+                self.rejected["foxglove conversion failed"] += 1
+                if self.rejected["foxglove conversion failed"] <= 3:
+                    log.exception("foxglove conversion of %s failed: %s", item.key, e)
+        elif isinstance(msg, RadarSite):
+            self.sites[msg.radar_id] = (msg, item.payload)
+        self.maybe_flush()
+        return True
+
+    def _flush_plots(self, radar_id: str, log_time: int) -> None:
+        batches = self._scan_plots.pop(radar_id, [])
+        entry = self.sites.get(radar_id)
+        if not batches or entry is None:
+            return
+        site = entry[0]
+        if (site.kind == RadarKind.CARTESIAN) != (batches[0].x is not None):
+            self.rejected["plots do not match their site's kind"] += 1
+            return
+        lat, lon, h = plot_positions(batches, site)
+        fixes = location_fixes(batches[-1].time_end, radar_id, lat, lon, h, _COLORS["plots"])
+        self._write_fg("plots", fixes, log_time)
+
+    def _foxglove(self, msg, log_time: int) -> None:
+        if isinstance(msg, RadarSite):
+            self.sites[msg.radar_id] = (msg, msg.to_json_bytes())
+            self._foxglove_site(msg, log_time)
+        elif isinstance(msg, PlotBatch):
+            # one LocationFixes per radar revolution (a map shows scans, and it is 16x
+            # cheaper than one per sector)
+            pending = self._scan_plots.get(msg.radar_id)
+            if pending and pending[0].scan != msg.scan:
+                self._flush_plots(msg.radar_id, log_time)
+            if len(msg.time):
+                self._scan_plots.setdefault(msg.radar_id, []).append(msg)
+        elif isinstance(msg, TrackBatch):
+            conf = [t for t in msg.tracks if t.status == TrackStatus.CONFIRMED]
+            fixes = location_fixes(
+                msg.time,
+                msg.fusion_id,
+                [t.lat for t in conf],
+                [t.lon for t in conf],
+                [t.alt if t.alt is not None else 0.0 for t in conf],
+                _COLORS["tracks"],
+                heading=[t.heading for t in conf],
+            )
+            self._write_fg("tracks", fixes, log_time)
+        elif isinstance(msg, Truth):
+            self._write_fg(
+                "truth",
+                location_fixes(msg.time, "truth", msg.lat, msg.lon, msg.alt, _COLORS["truth"]),
+                log_time,
+            )
+
+    def summary(self) -> dict:
+        return {
+            "files": [str(p) for p in self.files],
+            "messages": self.messages,
+            "bytes": self.bytes,
+            "by_topic": dict(sorted(self.counts.items())),
+            "rejected": dict(self.rejected),
+        }

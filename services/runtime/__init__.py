@@ -1,0 +1,1 @@
+"""Process runtime shared by every service: Zenoh transport and lifecycle (signals, deadlines)."""

@@ -1,0 +1,351 @@
+"""Zenoh transport for the skyfuse services: configuration, sessions, publishers,
+subscribers feeding one bounded FIFO inbox, liveliness and snapshot queries.
+
+Rules this module enforces (stack-notes, Zenoh section):
+
+* **Multicast scouting is off** unless asked for: a session only talks to the endpoints
+  it is given (``--listen`` / ``--connect``), so tests and demos never send traffic off
+  the machine.
+* **Publishers use** ``CongestionControl.BLOCK``: the default DROP silently loses
+  messages at saturation; plots, tracks and everything recorded must not be lost.
+* **Sessions are always closed** (:func:`open_session` is a context manager): a process
+  whose session still has a callback subscriber declared hangs at exit.
+* Subscriber callbacks run on Zenoh's threads and only append ``(key, payload, time)``
+  to a bounded FIFO (:class:`Inbox`); the service's main thread drains it with a timeout,
+  so it can notice a stop request at any moment. A full inbox blocks the Zenoh thread,
+  which with BLOCK publishers propagates back-pressure to the senders instead of losing
+  samples.
+
+Modes: ``peer`` (default; peers gossip, so a star of ``--connect`` to one listener is a
+full mesh), ``client`` (connects to a router such as ``zenohd``; use with ``--connect``)
+and ``router`` (a skyfuse process acting as the router).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import queue
+import re
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import zenoh
+from pydantic import BaseModel, Field, field_validator
+from skyfuse.services.cli.config import ConfigError
+
+log = logging.getLogger(__name__)
+
+ENDPOINT_RE = re.compile(
+    r"^(tcp|udp|tls|quic|ws|unixsock-stream)/(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.\-]+):(\d{1,5})"
+    r"(#.*)?$"
+)
+ENV_PREFIX = "SKYFUSE_"
+"""Environment variables ``SKYFUSE_MODE``, ``SKYFUSE_CONNECT``, ``SKYFUSE_LISTEN`` … set the
+transport fields (comma-separated lists), below the command line in precedence."""
+
+
+def check_endpoint(value: str) -> str:
+    """Validate a Zenoh locator ``proto/host:port`` (e.g. ``tcp/127.0.0.1:7447``)."""
+    m = ENDPOINT_RE.match(value)
+    if not m:
+        raise ValueError(
+            f"endpoint {value!r} is not valid: use PROTO/HOST:PORT, e.g. tcp/127.0.0.1:7447"
+        )
+    port = int(m.group(3))
+    if not 0 <= port <= 65535:
+        raise ValueError(f"endpoint {value!r}: port {port} is outside 0..65535")
+    return value
+
+
+def endpoint_port(value: str) -> int:
+    """The port number of an endpoint string."""
+    return int(ENDPOINT_RE.match(check_endpoint(value)).group(3))
+
+
+class TransportConfig(BaseModel):
+    """How a service joins the Zenoh network."""
+
+    mode: Literal["peer", "client", "router"] = Field(
+        "peer", description="Zenoh mode: peer, client (needs --connect to a router) or router"
+    )
+    listen: list[str] = Field(
+        default_factory=list, description="Endpoints to listen on, e.g. tcp/127.0.0.1:7447"
+    )
+    connect: list[str] = Field(
+        default_factory=list, description="Endpoints to connect to, e.g. tcp/127.0.0.1:7447"
+    )
+    multicast: bool = Field(
+        False, description="Enable multicast scouting (off: only the explicit endpoints)"
+    )
+    zenoh_config: Path | None = Field(
+        None, description="A Zenoh JSON5 config file applied before the flags"
+    )
+
+    @field_validator("listen", "connect")
+    @classmethod
+    def _endpoints(cls, v: list[str]) -> list[str]:
+        return [check_endpoint(e) for e in v]
+
+
+TRANSPORT_FIELDS = tuple(TransportConfig.model_fields)
+
+
+def zenoh_config(cfg: TransportConfig) -> zenoh.Config:
+    """Build the ``zenoh.Config`` of ``cfg``: mode, endpoints, scouting."""
+    if cfg.zenoh_config is not None:
+        try:
+            conf = zenoh.Config.from_file(str(cfg.zenoh_config))
+        except Exception as e:  # zenoh raises its own error type for parse failures
+            raise ConfigError(f"zenoh_config {str(cfg.zenoh_config)!r}: {e}") from None
+    else:
+        conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(cfg.mode))
+    conf.insert_json5("scouting/multicast/enabled", "true" if cfg.multicast else "false")
+    if cfg.listen:
+        conf.insert_json5("listen/endpoints", json.dumps(cfg.listen))
+    if cfg.connect:
+        conf.insert_json5("connect/endpoints", json.dumps(cfg.connect))
+    if cfg.mode == "client" and not cfg.connect and not cfg.multicast:
+        raise ConfigError(
+            "mode client needs --connect (the router's endpoint) when multicast scouting is off"
+        )
+    return conf
+
+
+@contextlib.contextmanager
+def open_session(cfg: TransportConfig) -> Iterator[zenoh.Session]:
+    """Open a Zenoh session for ``cfg`` and always close it on exit.
+
+    Raises :class:`TransportError` if Zenoh refuses (e.g. the listen port is taken)."""
+    conf = zenoh_config(cfg)
+    try:
+        session = zenoh.open(conf)
+    except zenoh.ZError as e:
+        raise TransportError(
+            f"cannot open a Zenoh session (mode {cfg.mode}, listen {cfg.listen}, "
+            f"connect {cfg.connect}): {e}"
+        ) from None
+    log.debug("zenoh session %s open (mode %s)", session.info.zid(), cfg.mode)
+    try:
+        yield session
+    finally:
+        try:
+            session.close()
+        except Exception as e:  # closing must never mask the real exit path
+            log.warning("error while closing the zenoh session: %s", e)
+
+
+class TransportError(RuntimeError):
+    """The Zenoh session could not be opened or used."""
+
+
+def declare_publisher(session: zenoh.Session, key: str, *, express: bool = False):
+    """A publisher on ``key`` with ``CongestionControl.BLOCK`` (no silent loss)."""
+    return session.declare_publisher(
+        key, congestion_control=zenoh.CongestionControl.BLOCK, express=express
+    )
+
+
+_STAMP = struct.Struct("<q")
+
+
+def wall_stamp(ns: int | None = None) -> bytes:
+    """An attachment carrying a wall-clock time in ns (default: now).
+
+    Sensors stamp each PlotBatch with the wall-clock instant its sector sweep ended, so
+    the fusion service can measure plot-to-track latency even when the plot times are
+    simulated (fixed epoch, accelerated) rather than wall-clock times."""
+    return _STAMP.pack(time.time_ns() if ns is None else int(ns))
+
+
+def read_wall_stamp(data: bytes) -> int | None:
+    """The time carried by :func:`wall_stamp`, or ``None`` for another attachment."""
+    if len(data) != _STAMP.size:
+        return None
+    return _STAMP.unpack(data)[0]
+
+
+@dataclass(slots=True)
+class Received:
+    """One received sample: what ``tag`` the subscription was given, the concrete key,
+    the payload bytes, whether it is a PUT (liveliness: token appeared) or DELETE, the
+    wall-clock receive time in ns and the sender's wall-clock stamp from the attachment
+    (see :func:`wall_stamp`), if any."""
+
+    tag: str
+    key: str
+    payload: bytes
+    put: bool
+    recv_ns: int
+    sent_ns: int | None = None
+
+
+class Inbox:
+    """A bounded FIFO shared by several subscriptions; drained by one thread.
+
+    ``capacity`` bounds memory; when full, Zenoh's delivery thread waits (back-pressure),
+    except after :meth:`close`, when new samples are discarded so shutdown never blocks."""
+
+    def __init__(self, capacity: int = 100_000) -> None:
+        self._q: queue.Queue[Received] = queue.Queue(maxsize=capacity)
+        self._closed = threading.Event()
+        self._handles: list = []
+        self.discarded = 0
+        """Samples that arrived after :meth:`close` and were dropped."""
+
+    def _push(self, tag: str) -> Callable[[zenoh.Sample], None]:
+        def callback(sample: zenoh.Sample) -> None:
+            att = sample.attachment
+            item = Received(
+                tag,
+                str(sample.key_expr),
+                sample.payload.to_bytes(),
+                sample.kind == zenoh.SampleKind.PUT,
+                time.time_ns(),
+                read_wall_stamp(att.to_bytes()) if att is not None else None,
+            )
+            while not self._closed.is_set():
+                try:
+                    self._q.put(item, timeout=0.1)
+                    return
+                except queue.Full:
+                    continue
+            self.discarded += 1
+
+        return callback
+
+    def subscribe(
+        self, session: zenoh.Session, key_expr: str, tag: str = "", *, remote_only: bool = False
+    ) -> None:
+        """Subscribe to ``key_expr``; samples arrive tagged ``tag`` (default: the key).
+
+        ``remote_only`` ignores this session's own publications: a service that publishes
+        on keys it also subscribes to must use it, or a blocking ``put`` from the thread
+        that drains a full inbox would wait for itself."""
+        origin = zenoh.Locality.REMOTE if remote_only else None
+        self._handles.append(
+            session.declare_subscriber(key_expr, self._push(tag or key_expr), allowed_origin=origin)
+        )
+
+    def subscribe_liveliness(
+        self, session: zenoh.Session, key_expr: str, tag: str = "alive", history: bool = True
+    ) -> None:
+        """Follow liveliness tokens under ``key_expr``: PUT when one appears (and, with
+        ``history``, for those already alive), DELETE when it goes away."""
+        self._handles.append(
+            session.liveliness().declare_subscriber(key_expr, self._push(tag), history=history)
+        )
+
+    def get(self, timeout: float | None = 0.1) -> Received | None:
+        """The next sample, or ``None`` after ``timeout`` seconds."""
+        try:
+            return self._q.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+    def drain(self, limit: int = 10_000) -> list[Received]:
+        """Everything queued now (up to ``limit``), without waiting."""
+        out = []
+        while len(out) < limit:
+            try:
+                out.append(self._q.get_nowait())
+            except queue.Empty:
+                break
+        return out
+
+    def qsize(self) -> int:
+        return self._q.qsize()
+
+    def close(self) -> None:
+        """Undeclare the subscriptions and stop accepting samples."""
+        self._closed.set()
+        for h in self._handles:
+            with contextlib.suppress(Exception):
+                h.undeclare()
+        self._handles.clear()
+
+
+def declare_liveliness(session: zenoh.Session, key: str):
+    """Declare a liveliness token (undeclared when the session closes or the process dies)."""
+    return session.liveliness().declare_token(key)
+
+
+def alive_tokens(session: zenoh.Session, key_expr: str, timeout: float = 1.0) -> list[str]:
+    """The keys of the liveliness tokens currently alive under ``key_expr``."""
+    out = []
+    for reply in session.liveliness().get(key_expr, timeout=timeout):
+        if reply.ok is not None:
+            out.append(str(reply.ok.key_expr))
+    return sorted(set(out))
+
+
+def query(session: zenoh.Session, key_expr: str, timeout: float = 2.0) -> list[tuple[str, bytes]]:
+    """``get`` on a queryable: ``(key, payload)`` of every OK reply."""
+    out = []
+    for reply in session.get(key_expr, timeout=timeout):
+        if reply.ok is not None:
+            out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
+    return out
+
+
+def service_alive_key(name: str) -> str:
+    """Liveliness token of a running service: ``skyfuse/@v1/service/{name}/alive``."""
+    from skyfuse.schemas import keys
+
+    return keys.service_alive(name)
+
+
+def wait_for_tokens(
+    session: zenoh.Session,
+    key_exprs: list[str],
+    timeout: float,
+    stop: threading.Event | None = None,
+) -> list[str]:
+    """Wait until a liveliness token is alive under every key expression; return the ones
+    still missing after ``timeout`` seconds (empty list: all present)."""
+    deadline = time.monotonic() + timeout
+    missing = list(key_exprs)
+    while missing:
+        missing = [k for k in missing if not alive_tokens(session, k, timeout=0.5)]
+        if not missing or time.monotonic() >= deadline or (stop is not None and stop.is_set()):
+            break
+        time.sleep(0.05)
+    return missing
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that is free on ``host`` right now (for tests and the demo)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def loopback_endpoint(port: int | None = None) -> str:
+    """``tcp/127.0.0.1:PORT`` (a free port if none is given)."""
+    return f"tcp/127.0.0.1:{port if port is not None else free_port()}"
+
+
+def add_transport_arguments(parser) -> None:
+    """Add ``--mode --listen --connect --multicast --zenoh-config`` to an argparse parser."""
+    from skyfuse.services.cli.config import add_model_arguments
+
+    group = parser.add_argument_group("zenoh transport")
+    add_model_arguments(group, TransportConfig)
+
+
+def transport_config(args=None, *, toml_path=None, section: str | None = "transport"):
+    """The :class:`TransportConfig` from defaults < TOML ``[transport]`` < ``SKYFUSE_*``
+    environment < flags."""
+    from skyfuse.services.cli.config import build_config
+
+    return build_config(
+        TransportConfig, args, toml_path=toml_path, section=section, env_prefix=ENV_PREFIX
+    )

@@ -1,0 +1,1 @@
+"""Sensor processes: simulated radars, ASTERIX file and UDP readers, replay of recordings."""
