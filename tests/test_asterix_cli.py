@@ -4,8 +4,8 @@
   --sites``: the same plots (to ASTERIX resolution) and the same confirmed tracks as
   ``skyfuse track FILE.mcap`` (a 2-D radar: CAT048 carries no elevation);
 * ``skyfuse track`` on the public 7-radar sample runs and reports;
-* :func:`services.eval_asterix.evaluate_asterix` on straight flights with known Mode-S
-  addresses (metrics known in closed form), and the per-plot rows against a brute force;
+* :func:`skyfuse.services.evaluation.recording.evaluate_recording` of ASTERIX on straight
+  flights with known Mode-S addresses (metrics known in closed form), and the per-plot rows against a brute force;
 * the CAT062 bridge's sender: TSE after a ``terminated`` event that overtook its batches.
 """
 
@@ -175,7 +175,7 @@ def test_round_trip_simulator_asterix_gives_same_plots_and_tracks(tmp_path, caps
     rc_m, sm = _run(["track", str(mcap), "--out", str(tm)], capsys)
     rc_a, sa = _run(["track", str(pcap), "--sites", str(sites_toml), "--out", str(ta)], capsys)
     assert rc_m == rc_a == 0
-    assert sm["tracks_confirmed"] == sa["tracks_confirmed"] >= 2
+    assert sm["confirmed_tracks"] == sa["confirmed_tracks"] >= 2
     bm, ba = _track_batches(tm), _track_batches(ta)
     assert len(bm) == len(ba) == len(direct)
     worst = 0.0
@@ -205,7 +205,7 @@ def test_track_public_sample_runs_and_reports(tmp_path, capsys):
     assert s["asterix"]["counts"]["duplicate_records"] == 81
     assert s["counts"]["batches without a site"] == 12
     assert s["plots_processed"] == 19
-    assert s["mode_s"]["plots"] == 19 and s["mode_s"]["aircraft"] >= 1
+    assert s["labels"]["plots"] == 19 and s["labels"]["aircraft"] >= 1
     assert short["plots_processed"] == 19 and "completeness" in short
     assert len(_track_batches(out)) == 5
 
@@ -223,14 +223,15 @@ def test_track_asterix_errors_are_clear(tmp_path, capsys):
 
 
 def test_evaluate_asterix_straight_flights(tmp_path, capsys):
-    from skyfuse.services.evaluation.asterix import evaluate_asterix
+    from skyfuse.services.evaluation.recording import RecordingEvalOptions, evaluate_recording
 
     site, batches = straight_flights(120.0, AIRCRAFT)
     ast, sites = write_ast(tmp_path, site, batches)
-    res = evaluate_asterix(ast, sites=sites, date="2026-01-01", warmup_s=0.0)
-    m = res["metrics"]
-    assert res["radars"] == {"7-1": 3 * 30} and res["plots_processed"] == 90
-    assert m["plots_with_mode_s"] == 60 and m["aircraft"] == 2
+    opts = RecordingEvalOptions(warmup_s=0.0)
+    res = evaluate_recording(ast, None, opts, sites=sites, date="2026-01-01")
+    m = res["labels"]
+    assert res["asterix"]["radars"] == {"7-1": 3 * 30} and res["plots_processed"] == 90
+    assert m["plots_labelled"] == 60 and m["aircraft"] == 2
     assert m["completeness"] == 1.0
     assert m["track_id_changes_per_aircraft"] == 0.0
     # three tracks; the one on the aircraft without Mode-S counts as false (label caveat)
@@ -245,13 +246,13 @@ def test_evaluate_asterix_straight_flights(tmp_path, capsys):
     argv = ["track", str(ast), "--sites", str(sites), "--date", "2026-01-01"]
     rc, _ = _run([*argv, "--out", str(tmp_path / "t.mcap"), "--json", str(js)], capsys)
     assert rc == 0
-    cli = json.loads(js.read_text())["mode_s"]
+    cli = json.loads(js.read_text())["labels"]
     for k in ("completeness", "confirmed_tracks", "confirmed_false_tracks", "aircraft"):
         assert cli[k] == m[k]
 
 
 def test_plot_track_rows_against_brute_force():
-    from skyfuse.services.evaluation.asterix import PlotTrackRows
+    from skyfuse.services.evaluation.observers import PlotTrackRows
 
     rng = np.random.default_rng(3)
     rows = PlotTrackRows()

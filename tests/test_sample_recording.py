@@ -52,7 +52,7 @@ def test_offline_tracking_of_the_sample(tmp_path, tracker):
     assert res.returncode == 0, res.stderr[-2000:]
     summary = json.loads(js.read_text())
     assert summary["plots_processed"] > 3000
-    assert summary["targets_with_confirmed_track"] >= 10
-    assert summary["false_tracks"] <= 2
+    assert summary["labels"]["aircraft_with_confirmed_track"] >= 10
+    assert summary["labels"]["confirmed_false_tracks"] <= 2
     tracked = inspect_recording(out)
     assert tracked["confirmed_tracks"] >= 8

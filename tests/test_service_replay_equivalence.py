@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
+from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
 from skyfuse.services.runtime.transport import (
@@ -36,15 +37,13 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path):
         "simulate", "--scenario", "regional", "--seed", "3", "--duration", "20",
         "--targets", "5", "--param", "radars=3", "--out", str(rec), "--no-progress",
     ]) == 0  # fmt: skip
-    # the live fusion uses the frame `skyfuse track` chooses: stereographic at the sites' mean
+    # no frame is configured: live and offline place it by the one rule (frame_for_sites)
     sites = [r.message for r in iter_recording(rec) if isinstance(r.message, RadarSite)]
-    lat0 = float(np.mean([s.lat for s in sites]))
-    lon0 = float(np.mean([s.lon for s in sites]))
+    expected = frame_for_sites(sites)
     ep = loopback_endpoint(free_port())
     # (the fusion process starts up while the offline tracker runs)
     proc = skyfuse(
-        "fusion", "--listen", ep, "--frame-kind", "stereographic", "--frame-lat0", repr(lat0),
-        "--frame-lon0", repr(lon0), "--reorder-wait", "0.3", log_path=tmp_path / "fusion.log",
+        "fusion", "--listen", ep, "--reorder-wait", "0.3", log_path=tmp_path / "fusion.log",
     )  # fmt: skip
     offline = tmp_path / "offline.mcap"
     assert skyfuse_main(["track", str(rec), "--out", str(offline), "--no-progress"]) == 0
@@ -68,6 +67,7 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path):
         rc, took = stop(proc)
     assert rc == 0 and took < 5.0, (tmp_path / "fusion.log").read_text()[-3000:]
     assert len(live) == len(off) == n_batches
+    assert live[0].frame == off[0].frame == expected
     assert [(b.source_radar, b.source_seq) for b in live] == [
         (b.source_radar, b.source_seq) for b in off
     ]

@@ -101,9 +101,11 @@ def test_track_command_writes_tracks_events_and_summary(tmp_path, capsys):
     assert code == 0
     s = json.loads(js.read_text())
     assert s["batches"] == 25 and s["plots_processed"] > 40
-    assert s["targets_with_plots"] == 2 and s["targets_with_confirmed_track"] == 2
-    assert s["false_tracks"] == 0
-    assert s["truth_coverage"] > 0.7 and s["position_rmse_m"] < 15
+    lab, truth = s["labels"], s["truth"]
+    assert lab["kind"] == "target_id"
+    assert lab["aircraft"] == 2 and lab["aircraft_with_confirmed_track"] == 2
+    assert lab["confirmed_false_tracks"] == 0
+    assert truth["coverage"] > 0.7 and truth["position_rmse_m"] < 15
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["batches"] == 25
     batches = [r.message for r in iter_recording(out) if isinstance(r.message, TrackBatch)]
     events = [r.message for r in iter_recording(out) if isinstance(r.message, TrackEvent)]

@@ -26,8 +26,8 @@ from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_
 from skyfuse.services.evaluation.demo import (
     Child,
     DemoConfig,
-    evaluate_recording,
     plot_tracks_vs_truth,
+    report_recording,
 )
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if not out.is_file():
         log.error("no recording was written (%s)", out)
         return EXIT_FAILED
-    ev = evaluate_recording(out, sc.frame, cfg.gospa_c)
+    ev = report_recording(out, cfg.gospa_c)
     ev.summary.update(
         {
             "scenario": cfg.scenario,

@@ -24,12 +24,14 @@ Every filter sees the same simulated plots in a run (seed + run index).
     skyfuse eval thesis-mtt-5 --trackers its,lmits --depths 1,7 --runs 50 --seed 1 \
         [--calibrate] [--workers 2] --out DIR [--json FILE] [--q 0.75 ...]
 
-* ``FILE.mcap`` — a recording (simulated: Truth messages and plot ``target_id``; real:
-  Mode-S addresses on plots) through one tracker (:mod:`skyfuse.services.evaluation.recording`):
+* ``FILE.mcap`` / ``FILE.pcap`` / ``FILE.ast`` — a recording (simulated: Truth messages
+  and plot ``target_id``; real: Mode-S addresses on plots; ASTERIX with ``--sites``)
+  through one tracker by the offline runner (:mod:`skyfuse.services.evaluation.recording`):
   completeness, track-id changes, confirmed false tracks per hour, time to confirm, and
-  with truth OSPA/GOSPA over time.
+  with truth GOSPA over time, truth coverage and position RMSE.
 
     skyfuse eval r.mcap --tracker lmits --depth 3 [--config fusion.toml] --json FILE
+    skyfuse eval rec.pcap --sites sites.toml --date 2024-05-17 --tracker lmits
 """
 
 from __future__ import annotations
@@ -41,7 +43,12 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
+from skyfuse.services.cli.config import (
+    ConfigError,
+    add_json_argument,
+    add_model_arguments,
+    build_config,
+)
 from skyfuse.services.evaluation.crossing import (
     CrossingEvalConfig,
     evaluate_crossing,
@@ -80,12 +87,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="UTC date of the first record, YYYY-MM-DD (default: pcap capture time, else today)",
     )
     p.add_argument("--config", type=Path, default=None, help="TOML file with a [tracker] table")
-    p.add_argument(
-        "--json",
-        dest="json_out",
-        default=None,
-        metavar="FILE",
-        help="Write the summary (tables, curves, configuration) as JSON",
+    add_json_argument(
+        p, "Write the summary (tables, curves, configuration) as JSON to FILE", default=None
     )
     p.set_defaults(func=run)
 

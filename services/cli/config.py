@@ -164,3 +164,21 @@ def format_validation_error(e: ValidationError) -> str:
         else:
             lines.append(f"{loc}: {msg} (got {shown})")
     return "; ".join(lines)
+
+
+def add_json_argument(
+    parser: argparse.ArgumentParser,
+    help_text: str = "Write the JSON summary to FILE; --json alone (or FILE -) prints it to stdout",
+    default=argparse.SUPPRESS,
+) -> None:
+    """``--json [FILE]``: the one spelling of "JSON output" across the commands (``dest``
+    ``json_out``; ``-`` when given without a file: standard output)."""
+    parser.add_argument(
+        "--json",
+        dest="json_out",
+        nargs="?",
+        const="-",
+        default=default,
+        metavar="FILE",
+        help=help_text,
+    )

@@ -9,8 +9,8 @@ gossip, so plots go from the sensors straight to the fusion service and the reco
 Sequence: start recorder and fusion → wait for their liveliness tokens → start the
 sensors with a common ``--start-at`` (so all radars run in step) → live view from the
 Status messages → when the sensors have finished, let the fusion service drain its
-reorder buffer, then SIGTERM fusion and recorder → evaluate the recording
-(:func:`evaluate_recording`): plots, confirmed tracks, GOSPA against the recorded truth,
+reorder buffer, then SIGTERM fusion and recorder → report on the recording
+(:func:`report_recording`): plots, confirmed tracks, GOSPA against the recorded truth,
 latency, messages recorded; write the JSON summary and a PNG of tracks against truth.
 """
 
@@ -22,13 +22,15 @@ import signal
 import subprocess
 import sys
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, Field
-from skyfuse.schemas import FrameSpec, PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
+from skyfuse.schemas import PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
+from skyfuse.services.evaluation.observers import Coverage, TruthObserver
+from skyfuse.services.evaluation.offline import Observer, OfflineConfig, run_offline
 from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
 
 log = logging.getLogger(__name__)
@@ -117,179 +119,153 @@ class Child:
 
 
 def python_env() -> dict[str, str]:
-    """The environment for the children: this interpreter's import path."""
+    """The environment for the children: this interpreter's import path for ``skyfuse``
+    (the folders its namespace package comes from, first on ``PYTHONPATH``)."""
+    import skyfuse
+
     env = dict(os.environ)
-    root = str(Path(__file__).resolve().parents[1])
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    roots = [str(Path(p).resolve().parent) for p in skyfuse.__path__]
+    old = [env["PYTHONPATH"]] if env.get("PYTHONPATH") else []
+    env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys([*roots, *old]))
     return env
 
 
-# --- evaluation of a recording ------------------------------------------------------------
+# --- the report of a demo recording ---------------------------------------------------
 @dataclass
-class Evaluation:
+class DemoReport:
+    """The demo's report: the summary dict and what the PNG draws (lon, lat degrees)."""
+
     summary: dict
     truth_tracks: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     track_points: list[tuple[float, float]] = field(default_factory=list)
     sites: list[RadarSite] = field(default_factory=list)
 
 
-def _track_xy(batch: TrackBatch, t: int, proj) -> np.ndarray:
-    """Confirmed tracks of ``batch`` moved to time ``t`` (constant velocity), in the
-    projection plane (x east, y north, m)."""
-    conf = [tr for tr in batch.tracks if tr.status == TrackStatus.CONFIRMED]
-    if not conf:
-        return np.zeros((0, 2))
-    lat = np.array([tr.lat for tr in conf])
-    lon = np.array([tr.lon for tr in conf])
-    x, y = proj.forward(lat, lon)
-    dt = (t - np.array([tr.time for tr in conf])) / 1e9
-    x = x + dt * np.array([tr.vel_east for tr in conf])
-    y = y + dt * np.array([tr.vel_north for tr in conf])
-    return np.column_stack([x, y])
+class _DemoObserver(Observer):
+    """What the demo reports beyond the truth scores: plots recorded, the recorded
+    tracks (counts, points for the PNG), the truth trajectories and the last Status of
+    each service."""
+
+    def __init__(self) -> None:
+        self.plot_batches = self.plots = 0
+        self.batches: list[TrackBatch] = []
+        self.truth_tracks: dict[int, list[tuple[float, float]]] = defaultdict(list)
+        self.status: dict[tuple[str, str], Status] = {}
+
+    def on_plots(self, batch: PlotBatch) -> None:
+        self.plot_batches += 1
+        self.plots += len(batch.time)
+
+    def on_tracks(self, tracks: TrackBatch) -> None:
+        self.batches.append(tracks)
+
+    def on_truth(self, truth: Truth) -> None:
+        for tid, la, lo in zip(truth.target_id, truth.lat, truth.lon):
+            self.truth_tracks[tid].append((lo, la))
+
+    def on_message(self, msg) -> None:
+        if isinstance(msg, Status):
+            self.status[(msg.service, msg.service_id)] = msg  # the last one of each service
+
+    def summary(self) -> dict:
+        conf = TrackStatus.CONFIRMED
+        final = self.batches[-1] if self.batches else None
+        fusion = next((s for (svc, _), s in self.status.items() if svc == "fusion"), None)
+        fc = fusion.counters if fusion else {}
+        return {
+            "plot_batches_recorded": self.plot_batches,
+            "plot_batches_published": sum(
+                s.counters.get("batches", 0) for (svc, _), s in self.status.items()
+                if svc == "sensor"
+            ),
+            "plots_recorded": self.plots,
+            "fusion_plots_in": fc.get("plots_in") if fusion else None,
+            "fusion_batches_in": fc.get("batches_in") if fusion else None,
+            "fusion_cycles": fc.get("cycles") if fusion else None,
+            "fusion_rejected": dict(fusion.rejected) if fusion else None,
+            "track_batches": len(self.batches),
+            "confirmed_tracks_final": (
+                sum(t.status == conf for t in final.tracks) if final else 0
+            ),
+            "confirmed_track_ids": len(
+                {t.track_id for b in self.batches for t in b.tracks if t.status == conf}
+            ),
+            "latency_ms": (
+                fusion.latency_ms.model_dump(exclude_none=True)
+                if fusion and fusion.latency_ms
+                else None
+            ),
+        }  # fmt: skip
+
+    def track_points(self, n: int = 400) -> list[tuple[float, float]]:
+        """Confirmed track positions of about ``n`` TrackBatches (lon, lat)."""
+        pts = []
+        for b in self.batches[:: max(1, len(self.batches) // n)]:
+            pts += [(t.lon, t.lat) for t in b.tracks if t.status == TrackStatus.CONFIRMED]
+        return pts
 
 
-def evaluate_recording(
-    path: Path,
-    frame: FrameSpec | None = None,
-    gospa_c: float = 2000.0,
-    min_detections: int = 3,
-    window_s: float = 15.0,
-) -> Evaluation:
-    """Evaluate a demo recording: counts, tracks and GOSPA (horizontal, c = ``gospa_c`` m,
-    p = 2, α = 2) between the recorded truth and the latest confirmed tracks at each truth
-    time, moved to that time with their velocity.
+_ORDER = {RadarSite: 0, PlotBatch: 1, TrackBatch: 2, Truth: 3}
 
-    At truth time t, a target is *in coverage* if the recorded plots carry at least
-    ``min_detections`` detections of it up to t (``PlotBatch.target_id``, simulation
-    only), the last one within ``window_s`` s; GOSPA is over the targets in coverage. A
-    target is *detectable* if it has ``min_detections`` detections in the whole run, and
-    *confirmed* if a confirmed track was assigned to it (distance < c) at some truth time."""
-    from skyfuse.fusion.frames import Stereographic
-    from skyfuse.fusion.metrics.gospa import gospa
 
-    stats = ReadStats()
-    truths: list[Truth] = []
-    batches: list[TrackBatch] = []
-    sites: dict[str, RadarSite] = {}
-    plot_batches = plots = 0
-    det_ids: list[np.ndarray] = []
-    det_times: list[np.ndarray] = []
-    status_last: dict[str, Status] = {}
-    topics: dict[str, int] = defaultdict(int)
-    for rec in iter_recording(path, stats=stats):
+def _scenario_order(path: Path, stats: ReadStats, topics: Counter) -> list:
+    """The recording's messages in scenario time: the recorder stamps them with their
+    arrival (wall clock), the scores compare the tracks of time t with the truth of t.
+    Sites first; at equal times plots, then tracks, then truth."""
+    keyed = []
+    for i, rec in enumerate(iter_recording(path, stats=stats)):
         topics[rec.topic] += 1
         m = rec.message
-        if isinstance(m, PlotBatch):
-            plot_batches += 1
-            plots += len(m.time)
-            if m.target_id is not None and len(m.time):
-                tid = m.column("target_id")
-                det_ids.append(tid[tid >= 0])
-                det_times.append(m.column("time")[tid >= 0])
-        elif isinstance(m, TrackBatch):
-            batches.append(m)
-        elif isinstance(m, Truth):
-            truths.append(m)
-        elif isinstance(m, RadarSite):
-            sites[m.radar_id] = m
-        elif isinstance(m, Status):
-            status_last[rec.topic] = m
-    if frame is None:
-        frame = batches[0].frame if batches else None
-    lat0 = frame.lat0 if frame else (truths[0].lat[0] if truths and truths[0].lat else 0.0)
-    lon0 = frame.lon0 if frame else (truths[0].lon[0] if truths and truths[0].lon else 0.0)
-    proj = Stereographic(lat0, lon0)
-    batches.sort(key=lambda b: b.time)
-    bt = np.array([b.time for b in batches], dtype=np.int64)
-    d_ids = np.concatenate(det_ids) if det_ids else np.zeros(0, np.int64)
-    d_t = np.concatenate(det_times) if det_times else np.zeros(0, np.int64)
-    order = np.argsort(d_t, kind="stable")
-    d_ids, d_t = d_ids[order], d_t[order]
-    window_ns = int(window_s * 1e9)
+        rank = _ORDER.get(type(m), 4)
+        t = {1: "time_end", 2: "time", 3: "time"}.get(rank)
+        keyed.append(((getattr(m, t) if t else -1, rank, i), m))
+    keyed.sort(key=lambda k: k[0])
+    return [m for _, m in keyed]
 
-    def in_coverage(t: int, ids: list[int]) -> np.ndarray:
-        """Targets detected >= min_detections times up to t, the last within window_s."""
-        k = int(np.searchsorted(d_t, t, side="right"))
-        upto_ids, upto_t = d_ids[:k], d_t[:k]
-        out = np.zeros(len(ids), dtype=bool)
-        for j, tid in enumerate(ids):
-            mask = upto_ids == tid
-            n = int(mask.sum())
-            out[j] = n >= min_detections and upto_t[mask][-1] > t - window_ns
-        return out
 
-    detectable = {int(t) for t in np.unique(d_ids) if (d_ids == t).sum() >= min_detections}
-    confirmed_targets: set[int] = set()
-    per_time = []
-    truth_tracks: dict[int, list[tuple[float, float]]] = defaultdict(list)
-    for tr in truths:
-        for tid, la, lo in zip(tr.target_id, tr.lat, tr.lon):
-            truth_tracks[tid].append((lo, la))
-        ids = np.array(tr.target_id, dtype=np.int64)
-        keep = in_coverage(tr.time, tr.target_id)
-        if not keep.any() or len(bt) == 0:
-            continue
-        k = int(np.searchsorted(bt, tr.time, side="right")) - 1
-        if k < 0:
-            continue
-        x, y = proj.forward(np.asarray(tr.lat)[keep], np.asarray(tr.lon)[keep])
-        est = _track_xy(batches[k], tr.time, proj)
-        res = gospa(np.column_stack([x, y]), est, c=gospa_c, p=2.0, alpha=2.0)
-        assigned = ids[keep][res.assignment >= 0]
-        confirmed_targets.update(int(a) for a in assigned)
-        per_time.append((tr.time, res.distance, res.n_missed, res.n_false, len(est)))
-    track_points = []
-    for b in batches[:: max(1, len(batches) // 400)]:
-        track_points += [(t.lon, t.lat) for t in b.tracks if t.status == TrackStatus.CONFIRMED]
-    final = batches[-1] if batches else None
-    fusion_status = next(
-        (s for k, s in status_last.items() if "/fusion/" in k), None
-    )  # the last one published (after the final flush)
-    sensor_batches = sum(
-        s.counters.get("batches", 0) for s in status_last.values() if s.service == "sensor"
-    )
-    g = np.array([p[1] for p in per_time]) if per_time else np.zeros(0)
-    half = g[len(g) // 2 :]
+def report_recording(
+    path: Path, gospa_c: float = 2000.0, min_detections: int = 3, window_s: float = 15.0
+) -> DemoReport:
+    """The report of a demo recording: the recorded tracks of the live fusion service
+    scored against the recorded truth by the offline runner without a tracker
+    (:func:`~skyfuse.services.evaluation.offline.run_offline` with ``tracker=None``):
+    GOSPA (horizontal, c = ``gospa_c`` m, p = 2, α = 2) between the truth targets in
+    coverage (:class:`~skyfuse.services.evaluation.observers.Coverage`: at least
+    ``min_detections`` detections, the last within ``window_s`` s) and the latest
+    confirmed tracks moved to the truth time with their velocity; plus counts, latency
+    and the services' last Status."""
+    stats, topics = ReadStats(), Counter()
+    messages = _scenario_order(path, stats, topics)
+    truth = TruthObserver(Coverage(window_s, min_detections), c=gospa_c)
+    demo = _DemoObserver()
+    result = run_offline(messages, None, OfflineConfig(tracker=None), [truth, demo])
+    scores = truth.summary().get("truth", {})
+    gospa = scores.get("gospa", {})
     summary = {
         "recording": str(path),
         "recording_truncated": stats.truncated,
         "recording_rejected": dict(stats.rejected),
         "messages_recorded": int(sum(topics.values())),
         "messages_by_topic": dict(sorted(topics.items())),
-        "radars": sorted(sites),
-        "plot_batches_recorded": plot_batches,
-        "plot_batches_published": sensor_batches,
-        "plots_recorded": plots,
-        "fusion_plots_in": fusion_status.counters.get("plots_in") if fusion_status else None,
-        "fusion_batches_in": fusion_status.counters.get("batches_in") if fusion_status else None,
-        "fusion_cycles": fusion_status.counters.get("cycles") if fusion_status else None,
-        "fusion_rejected": dict(fusion_status.rejected) if fusion_status else None,
-        "track_batches": len(batches),
-        "confirmed_tracks_final": (
-            sum(t.status == TrackStatus.CONFIRMED for t in final.tracks) if final else 0
-        ),
-        "confirmed_track_ids": len(
-            {t.track_id for b in batches for t in b.tracks if t.status == TrackStatus.CONFIRMED}
-        ),
-        "targets_truth": len({t for tr in truths for t in tr.target_id}),
-        "targets_detectable": len(detectable),
-        "targets_confirmed": len(confirmed_targets & detectable),
+        "radars": sorted(result.sites),
+        **demo.summary(),
+        "targets_truth": scores.get("targets_truth", 0),
+        "targets_detectable": scores.get("targets_detectable", 0),
+        "targets_confirmed": scores.get("targets_confirmed", 0),
         "gospa_c_m": gospa_c,
-        "gospa_mean_m": float(g.mean()) if g.size else None,
-        "gospa_mean_second_half_m": float(half.mean()) if half.size else None,
-        "gospa_final_m": float(g[-1]) if g.size else None,
-        "gospa_final_missed": per_time[-1][2] if per_time else None,
-        "gospa_final_false": per_time[-1][3] if per_time else None,
-        "latency_ms": (
-            fusion_status.latency_ms.model_dump(exclude_none=True)
-            if fusion_status and fusion_status.latency_ms
-            else None
-        ),
+        "gospa_mean_m": gospa.get("mean_m"),
+        "gospa_mean_second_half_m": gospa.get("mean_second_half_m"),
+        "gospa_final_m": gospa.get("final_m"),
+        "gospa_final_missed": gospa.get("final_missed"),
+        "gospa_final_false": gospa.get("final_false"),
+        "truth": scores,
     }
-    return Evaluation(summary, dict(truth_tracks), track_points, list(sites.values()))
+    return DemoReport(
+        summary, dict(demo.truth_tracks), demo.track_points(), list(result.sites.values())
+    )
 
 
-def plot_tracks_vs_truth(ev: Evaluation, path: Path, title: str = "skyfuse demo") -> None:
+def plot_tracks_vs_truth(ev: DemoReport, path: Path, title: str = "skyfuse demo") -> None:
     """PNG: truth trajectories (lines), confirmed track positions (dots), radar sites."""
     import matplotlib
 

@@ -51,6 +51,7 @@ from skyfuse.schemas import (
     TrackStatus,
     keys,
 )
+from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.runtime.lifecycle import RateWindow
 
 log = logging.getLogger(__name__)
@@ -68,10 +69,13 @@ class FusionConfig(BaseModel):
         None, description="System frame: stereographic, ned or planar (default: stereographic)"
     )
     frame_lat0: float | None = Field(
-        None, ge=-90, le=90, description="Frame origin latitude, deg (default: first site)"
+        None, ge=-90, le=90, description="Frame origin latitude, deg (default: mean of the sites)"
     )
     frame_lon0: float | None = Field(
-        None, ge=-180, le=180, description="Frame origin longitude, deg (default: first site)"
+        None,
+        ge=-180,
+        le=180,
+        description="Frame origin longitude, deg (default: mean of the sites)",
     )
     frame_alt0: float = Field(0.0, description="Frame origin height, m")
     sites: list[RadarSite] = Field(
@@ -98,16 +102,13 @@ class FusionConfig(BaseModel):
         "queue), at most; beyond it the publishers are slowed down",
     )
 
-    def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
-        """The configured frame, or a stereographic frame at ``first_site``."""
-        kind = self.frame_kind or FrameKind.STEREOGRAPHIC
-        if self.frame_lat0 is not None and self.frame_lon0 is not None:
-            return FrameSpec(
-                kind=kind, lat0=self.frame_lat0, lon0=self.frame_lon0, alt0=self.frame_alt0
-            )
-        if first_site is None:
-            return None
-        return FrameSpec(kind=kind, lat0=first_site.lat, lon0=first_site.lon, alt0=0.0)
+    def frame_spec(self, sites: list[RadarSite]) -> FrameSpec | None:
+        """The configured frame, or one centred on ``sites``
+        (:func:`~skyfuse.services.fusion.system_frame.frame_for_sites`, the rule shared
+        with the offline runner)."""
+        return frame_for_sites(
+            sites, self.frame_kind, self.frame_lat0, self.frame_lon0, self.frame_alt0
+        )
 
 
 class TrackPipeline(Protocol):
@@ -258,11 +259,14 @@ class FusionCore:
                 site.kind.value,
                 " from configuration" if configured else "",
             )
-        if self.pipeline is None:
-            self._start_pipeline(site)
+        if self.pipeline is None and self.cfg.frame_lat0 is not None:
+            self._start_pipeline()  # a configured origin: no need to wait for the plots
 
-    def _start_pipeline(self, first_site: RadarSite | None) -> None:
-        frame = self.cfg.frame_spec(first_site)
+    def _start_pipeline(self) -> None:
+        """Fix the system frame from the sites known now (at the first plot batch of a
+        radar with a site, see :mod:`~skyfuse.services.fusion.system_frame`)."""
+        known = [r.site for r in self.radars.values() if r.site is not None]
+        frame = self.cfg.frame_spec(known)
         if frame is None:
             return
         self.frame = frame
@@ -299,6 +303,8 @@ class FusionCore:
 
     def on_plots(self, batch: PlotBatch, arrival: float, sent_ns: int | None = None) -> bool:
         r = self._radar(batch.radar_id)
+        if self.pipeline is None and r.site is not None:
+            self._start_pipeline()
         reason = self.buffer.push(batch, arrival, sent_ns)
         if reason is not None:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")
@@ -355,7 +361,7 @@ class FusionCore:
             self.reject("no site for radar", batch.radar_id)
             return None
         if self.pipeline is None:
-            self._start_pipeline(r.site)
+            self._start_pipeline()
         try:
             tracks, events = self.pipeline.process(r.site, batch)
         except ValidationError as e:  # the pipeline built an invalid output message
