@@ -5,7 +5,8 @@
   ``skyfuse track FILE.mcap`` (a 2-D radar: CAT048 carries no elevation);
 * ``skyfuse track`` on the public 7-radar sample runs and reports;
 * :func:`skyfuse.services.evaluation.recording.evaluate_recording` of ASTERIX on straight
-  flights with known Mode-S addresses (metrics known in closed form), and the per-plot rows against a brute force;
+  flights with known Mode-S addresses (metrics known in closed form), and the per-plot rows
+  against a brute force;
 * the CAT062 bridge's sender: TSE after a ``terminated`` event that overtook its batches.
 """
 
