@@ -374,9 +374,9 @@ def test_sensor_asterix_configuration_errors(tmp_path, capsys):
 
 
 def test_date_option_parses(tmp_path):
-    from skyfuse.services.sensors.sensor import SensorConfig
+    from skyfuse.services.sensors.config import SensorServiceConfig
 
-    cfg = SensorConfig(asterix=tmp_path / "a.ast", date="2024-05-17")
+    cfg = SensorServiceConfig(asterix=tmp_path / "a.ast", date="2024-05-17")
     assert cfg.date == dt.date(2024, 5, 17) and cfg.mode == "asterix"
 
 

@@ -227,7 +227,8 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
     from skyfuse.services.cli.cmd_cat062 import Cat062Config, Cat062UdpSender, bridge
     from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
     from skyfuse.services.fusion.service import FusionConfig, FusionCore
-    from skyfuse.services.sensors.sensor import AsterixRecordingSensor, SensorConfig
+    from skyfuse.services.sensors.asterix_file import AsterixRecordingSensor
+    from skyfuse.services.sensors.config import SensorServiceConfig
 
     pcap = simulated_pcap(tmp_path, "crossing-4g", 80.0)
     sites_path = Path(str(pcap) + ".sites.toml")
@@ -263,7 +264,7 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
                 )
                 == []
             )
-            cfg = SensorConfig(asterix=pcap, sites=sites_path, speed=40.0)
+            cfg = SensorServiceConfig(asterix=pcap, sites=sites_path, speed=40.0)
             sensor = AsterixRecordingSensor(s_sensor, cfg)
             try:
                 sensor.run(threading.Event())

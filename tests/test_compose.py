@@ -73,9 +73,10 @@ def test_every_command_is_a_valid_skyfuse_invocation(compose, monkeypatch):
                 data_volumes = [v.split(":")[1] for v in svc.get("volumes", [])]
                 assert any(str(rc.out).startswith(d) for d in data_volumes), rc.out
             elif module.endswith("cmd_sensor"):
-                from skyfuse.services.sensors.sensor import SensorConfig, load_scenario
+                from skyfuse.services.sensors.config import SensorServiceConfig
+                from skyfuse.services.sensors.simulated import load_scenario
 
-                sc_cfg = build_config(SensorConfig, args)
+                sc_cfg = build_config(SensorServiceConfig, args)
                 # the radar exists in the scenario (a short one: the ids do not depend on it)
                 _, site = load_scenario(sc_cfg.model_copy(update={"duration": 30.0}))
                 assert name == f"sensor-{site.radar_id.lower()}"

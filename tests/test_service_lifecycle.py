@@ -12,7 +12,7 @@ import textwrap
 import time
 from pathlib import Path
 
-from skyfuse.services.sensors.sensor import SensorConfig, start_time_ns
+from skyfuse.services.sensors.config import SensorServiceConfig, start_time_ns
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -82,10 +82,10 @@ def test_single_command_entry_point_usage_errors():
 
 
 def test_sensor_start_alignment():
-    cfg = SensorConfig(radar="R1", align=10.0)
+    cfg = SensorServiceConfig(radar="R1", align=10.0)
     now = 1_767_225_603_500_000_000  # xx:xx:03.5
     assert start_time_ns(cfg, now) == 1_767_225_610_000_000_000
     now = 1_767_225_609_200_000_000  # less than 1 s before the boundary: the next one
     assert start_time_ns(cfg, now) == 1_767_225_620_000_000_000
-    assert start_time_ns(SensorConfig(radar="R1", start_at=12.5), now) == 12_500_000_000
-    assert start_time_ns(SensorConfig(radar="R1"), now) == now
+    assert start_time_ns(SensorServiceConfig(radar="R1", start_at=12.5), now) == 12_500_000_000
+    assert start_time_ns(SensorServiceConfig(radar="R1"), now) == now

@@ -56,7 +56,7 @@ class Cat062Config(BaseModel):
     @field_validator("udp")
     @classmethod
     def _udp(cls, v: str) -> str:
-        from skyfuse.services.sensors.sensor import parse_host_port
+        from skyfuse.services.sensors.config import parse_host_port
 
         parse_host_port(v, "udp")
         return v
@@ -79,7 +79,7 @@ class Cat062UdpSender:
         self, address: str, *, sac: int, sic: int, service_id: int = 1, simulated: bool = False
     ) -> None:
         from skyfuse.services.asterix import Cat062Writer
-        from skyfuse.services.sensors.sensor import parse_host_port
+        from skyfuse.services.sensors.config import parse_host_port
 
         host, port = parse_host_port(address, "cat062 udp")
         try:

@@ -31,7 +31,8 @@ from skyfuse.services.runtime.transport import (
     transport_config,
     wait_for_tokens,
 )
-from skyfuse.services.sensors.sensor import SensorConfig, SimulatedRadar
+from skyfuse.services.sensors.config import SensorServiceConfig
+from skyfuse.services.sensors.simulated import SimulatedRadar
 
 log = logging.getLogger("skyfuse.sensor")
 
@@ -44,14 +45,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--config", default=None, help="TOML file ([sensor] and [transport] tables)")
-    add_model_arguments(p, SensorConfig)
+    add_model_arguments(p, SensorServiceConfig)
     add_transport_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = build_config(
-        SensorConfig, args, toml_path=args.config, section="sensor", env_prefix="SKYFUSE_SENSOR_"
+        SensorServiceConfig,
+        args,
+        toml_path=args.config,
+        section="sensor",
+        env_prefix="SKYFUSE_SENSOR_",
     )
     tcfg = transport_config(args, toml_path=args.config)
     modes = [m for m in ("replay", "asterix", "asterix_udp") if getattr(cfg, m) is not None]
@@ -124,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_asterix(cfg, tcfg) -> int:
     """``--asterix FILE`` or ``--asterix-udp HOST:PORT``: every radar of the input."""
-    from skyfuse.services.sensors.sensor import AsterixRecordingSensor, AsterixUdpSensor
+    from skyfuse.services.sensors.asterix_file import AsterixRecordingSensor
+    from skyfuse.services.sensors.asterix_udp import AsterixUdpSensor
 
     if cfg.asterix is not None and not cfg.asterix.is_file():
         raise ConfigError(f"asterix {str(cfg.asterix)!r} does not exist")

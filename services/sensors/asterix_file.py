@@ -1,0 +1,96 @@
+"""A sensor process publishing every radar of an ASTERIX CAT048/CAT034 recording (pcap of
+UDP or raw ``.ast``), paced by the plot times (``skyfuse sensor --asterix FILE``)."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
+from skyfuse.services.sensors.fleet import RadarFleet, asterix_sites, stats_text
+
+log = logging.getLogger(__name__)
+
+
+class AsterixRecordingSensor:
+    """Publishes every radar of an ASTERIX recording (``cfg.asterix``) on Zenoh.
+
+    The file is decoded with :func:`services.asterix.read_asterix` (sites from
+    ``cfg.sites``, else CAT034 I120); then the sites are published (message, queryable,
+    liveliness token per radar) and the sector batches of all radars in ``time_end``
+    order, paced as ``wall(t) = wall0 + (t − t0) / speed`` with ``t0`` the first batch's
+    end. Each batch's attachment is ``wall(time_end)``. ``cfg.radar`` restricts the
+    publication to one radar. Radars without a known position still publish batches and
+    liveliness (the fusion service counts them as "no site for radar") and are named in
+    the log, with the sites-file entry they need."""
+
+    def __init__(self, session, cfg: SensorServiceConfig) -> None:
+        from skyfuse.services.asterix import read_asterix
+
+        if not cfg.asterix.is_file():
+            raise ConfigError(f"asterix {str(cfg.asterix)!r} does not exist")
+        self.cfg = cfg
+        delay = 30.0 if cfg.max_plot_delay is None else cfg.max_plot_delay
+        self.result = read_asterix(
+            cfg.asterix,
+            date=cfg.date,
+            sites=asterix_sites(cfg),
+            sector_count=cfg.sector_count,
+            max_plot_delay=delay,
+        )
+        radars = set(self.result.radars)
+        if cfg.radar is not None:
+            if cfg.radar not in radars:
+                raise ConfigError(
+                    f"radar {cfg.radar!r} is not in {str(cfg.asterix)!r}: its radars are "
+                    + (", ".join(sorted(radars)) or "none")
+                )
+            radars = {cfg.radar}
+        self.radars = sorted(radars)
+        self.batches = [b for b in self.result.batches if b.radar_id in radars]
+        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}")
+
+    def run(self, stop) -> SensorStats:
+        cfg, res, fleet = self.cfg, self.result, self.fleet
+        for rid in self.radars:
+            site = res.sites.get(rid)
+            if site is not None:
+                fleet.site(site)
+            else:
+                log.warning("radar %s has no site: its batches cannot be tracked", rid)
+            fleet.alive(rid)
+        for text in res.messages[:10]:
+            log.info("asterix: %s", text)
+        log.info(
+            "%s: %d radars (%s), %d batches; %s",
+            cfg.asterix,
+            len(self.radars),
+            ", ".join(self.radars),
+            len(self.batches),
+            stats_text(res.stats),
+        )
+        start_ns = start_time_ns(cfg)
+        wall0 = time.monotonic()
+        next_status = wall0
+        t0 = self.batches[0].time_end if self.batches else 0
+        for batch in self.batches:
+            due_ns = start_ns + int((batch.time_end - t0) / cfg.speed)
+            delay = (due_ns - time.time_ns()) / 1e9
+            if delay > 0 and stop.wait(delay):
+                fleet.stats.interrupted = True
+                break
+            if stop.is_set():
+                fleet.stats.interrupted = True
+                break
+            fleet.stats.late_s = max(fleet.stats.late_s, -delay)
+            fleet.plots(batch, due_ns)
+            now = time.monotonic()
+            if now >= next_status:
+                next_status = now + cfg.status_interval
+                fleet.status(wall0, {}, f"late by up to {fleet.stats.late_s:.3f} s")
+        fleet.status(wall0, {}, f"late by up to {fleet.stats.late_s:.3f} s")
+        return fleet.stats
+
+    def close(self) -> None:
+        self.fleet.close()

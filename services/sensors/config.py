@@ -1,0 +1,135 @@
+"""Configuration of a sensor process (``skyfuse sensor``) and what all its sources share:
+the start instant (``--start-at``/``--align``), ``HOST:PORT`` parsing and the counters.
+
+Sources, one module each: :mod:`.simulated` (a scenario's radar), :mod:`.asterix_file`
+(an ASTERIX recording), :mod:`.asterix_udp` (a live ASTERIX UDP feed), :mod:`.replay`
+(an MCAP recording); :mod:`.fleet` publishes the radars of an ASTERIX input.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydantic import Field, field_validator
+from skyfuse.schemas import keys
+from skyfuse.services.cli.scenario_config import ScenarioSelection
+
+
+class SensorServiceConfig(ScenarioSelection):
+    """Options of ``skyfuse sensor`` (TOML table ``[sensor]``): the input (a scenario's
+    simulated radar, ``--replay`` MCAP, ``--asterix`` file or ``--asterix-udp`` feed), its
+    pacing and start, and the Status period."""
+
+    radar: str | None = Field(
+        None,
+        description="Radar id in the scenario (e.g. R1); with --asterix/--asterix-udp: only "
+        "this radar (SAC-SIC, e.g. 25-201)",
+    )
+    speed: float = Field(1.0, gt=0, le=1000, description="Time scale: 10 = ten times faster")
+    replay: Path | None = Field(None, description="Publish this radar's batches from an MCAP")
+    asterix: Path | None = Field(
+        None,
+        description="Publish every radar of this ASTERIX CAT048/CAT034 recording (.pcap or raw "
+        ".ast), paced by the plot times",
+    )
+    asterix_udp: str | None = Field(
+        None,
+        description="Receive a live ASTERIX CAT048/CAT034 UDP stream on HOST:PORT (e.g. "
+        "127.0.0.1:30048) and publish each sector as it completes",
+    )
+    sites: Path | None = Field(
+        None, description="ASTERIX sites TOML ([[radar]] sac, sic, lat, lon, alt, ...)"
+    )
+    date: dt.date | None = Field(
+        None,
+        description="ASTERIX: UTC date of the first record, YYYY-MM-DD (default: --asterix: the "
+        "pcap capture time, else today; --asterix-udp: the receive clock, each record on the "
+        "day nearest its arrival — give --date for an old capture)",
+    )
+    sector_count: int = Field(
+        16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
+    )
+    max_plot_delay: float | None = Field(
+        None,
+        ge=0,
+        le=60,
+        description="ASTERIX: s a closed sector waits for late plots (default: 30 for a file, "
+        "0 for --asterix-udp)",
+    )
+    truth: bool = Field(False, description="Also publish the simulation truth")
+    wait_for: list[str] = Field(
+        default_factory=list,
+        description="Service names (e.g. fusion,recorder) to wait for before starting",
+    )
+    wait_timeout: float = Field(15.0, gt=0, description="How long to wait for them, s")
+    start_at: float | None = Field(
+        None,
+        gt=0,
+        description="Unix time (s) the scenario start maps to; sensors given the same value "
+        "run in step (default: now)",
+    )
+    align: float | None = Field(
+        None,
+        gt=0,
+        le=3600,
+        description="Start at the next wall-clock multiple of this many s (>= 1 s ahead), "
+        "after --wait-for: sensors started apart then run in step",
+    )
+    status_interval: float = Field(2.0, gt=0, description="Status publication period, s")
+    linger: float = Field(
+        0.5, ge=0, le=30, description="Seconds to stay connected after the last batch"
+    )
+
+    @field_validator("radar")
+    @classmethod
+    def _id(cls, v: str | None) -> str | None:
+        return None if v is None else keys.check_id(v, "radar id")
+
+    @field_validator("asterix_udp")
+    @classmethod
+    def _udp(cls, v: str | None) -> str | None:
+        if v is not None:
+            parse_host_port(v, "asterix_udp")
+        return v
+
+    @property
+    def mode(self) -> str:
+        """``simulate``, ``replay``, ``asterix`` or ``asterix-udp``."""
+        if self.asterix is not None:
+            return "asterix"
+        if self.asterix_udp is not None:
+            return "asterix-udp"
+        return "replay" if self.replay is not None else "simulate"
+
+
+def parse_host_port(text: str, what: str = "address") -> tuple[str, int]:
+    """``HOST:PORT`` → (host, port); ``ValueError`` naming ``what`` if malformed."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
+        raise ValueError(f"{what} {text!r} is not HOST:PORT with a port in 1..65535")
+    return host.strip("[]"), int(port)
+
+
+def start_time_ns(cfg: SensorServiceConfig, now_ns: int | None = None) -> int:
+    """The wall-clock instant (ns) the scenario start maps to: ``start_at``, else the next
+    multiple of ``align`` seconds at least 1 s ahead, else now."""
+    now_ns = time.time_ns() if now_ns is None else now_ns
+    if cfg.start_at is not None:
+        return round(cfg.start_at * 1e9)
+    if cfg.align is not None:
+        step = round(cfg.align * 1e9)
+        return -(-(now_ns + 1_000_000_000) // step) * step
+    return now_ns
+
+
+@dataclass
+class SensorStats:
+    published: Counter = field(default_factory=Counter)
+    plots: int = 0
+    late_s: float = 0.0
+    """Worst lateness of a publication behind its due wall-clock time, s."""
+    interrupted: bool = False
