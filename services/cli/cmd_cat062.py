@@ -24,16 +24,15 @@ from collections import Counter
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 from skyfuse.schemas import TrackBatch, TrackEvent, TrackEventKind, TrackStatus, keys
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
+from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.cli.service_command import add_service_parser, service_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportError,
-    add_transport_arguments,
     declare_liveliness,
     open_session,
     service_alive_key,
-    transport_config,
 )
 
 log = logging.getLogger("skyfuse.cat062")
@@ -162,23 +161,15 @@ class Cat062UdpSender:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "cat062",
-        help="bridge the fused track feed to ASTERIX CAT062 over UDP",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("--config", default=None, help="TOML file ([cat062] and [transport] tables)")
-    add_model_arguments(p, Cat062Config)
-    add_transport_arguments(p)
+    p = add_service_parser(
+        sub, "cat062", "bridge the fused track feed to ASTERIX CAT062 over UDP", __doc__,
+        Cat062Config, tables="[cat062] and [transport]",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = build_config(
-        Cat062Config, args, toml_path=args.config, section="cat062", env_prefix="SKYFUSE_CAT062_"
-    )
-    tcfg = transport_config(args, toml_path=args.config)
+    cfg, tcfg = service_config(Cat062Config, args, "cat062")
     sender = Cat062UdpSender(
         cfg.udp, sac=cfg.sac, sic=cfg.sic, service_id=cfg.service_id, simulated=cfg.simulated
     )

@@ -22,7 +22,8 @@ from pathlib import Path
 
 from pydantic import ValidationError
 from skyfuse.schemas import Status, TrackBatch, TrackStatus, keys
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
+from skyfuse.services.cli.config import ConfigError, add_json_argument, build_config
+from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
     Child,
     DemoConfig,
@@ -46,14 +47,11 @@ log = logging.getLogger("skyfuse.demo")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "demo",
-        help="run sensors, fusion and recorder as processes over Zenoh on loopback",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    add_model_arguments(p, DemoConfig, skip=("json_out",))
-    p.add_argument("--json", dest="json_out", default=argparse.SUPPRESS, help="JSON summary file")
+    p = add_service_parser(
+        sub, "demo", "run sensors, fusion and recorder as processes over Zenoh on loopback",
+        __doc__, DemoConfig, tables=None, transport=False, skip=("json_out",),
+    )  # fmt: skip
+    add_json_argument(p)
     p.set_defaults(func=run)
 
 
@@ -112,10 +110,13 @@ def run(args: argparse.Namespace) -> int:
         plot_tracks_vs_truth(ev, png, f"skyfuse demo ({cfg.radars} radars)")
     except Exception as e:  # the plot is a bonus; the summary must still be written
         log.warning("could not write the PNG: %s", e)
-    if cfg.json_out is not None:
-        cfg.json_out.parent.mkdir(parents=True, exist_ok=True)
-        cfg.json_out.write_text(json.dumps(ev.summary, indent=2) + "\n")
-    print_summary(ev.summary)
+    if cfg.json_out is not None and str(cfg.json_out) == "-":
+        print(json.dumps(ev.summary, indent=2))
+    else:
+        if cfg.json_out is not None:
+            cfg.json_out.parent.mkdir(parents=True, exist_ok=True)
+            cfg.json_out.write_text(json.dumps(ev.summary, indent=2) + "\n")
+        print_summary(ev.summary)
     if failed:
         return EXIT_FAILED
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
@@ -129,132 +130,155 @@ def scenario_radars(cfg: DemoConfig) -> int:
 def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     """Start, watch and stop the services; return (interrupted, failed service names,
     the children)."""
-    radars = [s.radar_id for s in sc.sites][: cfg.radars]
-    common = ["--connect", listen, "--no-multicast"]
-    scen = [
-        "--scenario", cfg.scenario, "--seed", str(cfg.seed), "--duration", str(cfg.duration),
-        "--targets", str(cfg.targets), "--param", f"radars={scenario_radars(cfg)}",
-    ]  # fmt: skip
-    f = sc.frame
-    recorder = Child(
-        "recorder",
-        ["record", "--out", str(out), "--stats", str(workdir / "recorder.json"), *common],
-        workdir / "recorder.log",
-    )
-    fusion = Child(
-        "fusion",
-        [
-            "fusion", "--fusion-id", "demo", "--reorder-wait", str(cfg.reorder_wait),
-            "--frame-kind", f.kind.value, "--frame-lat0", repr(f.lat0), "--frame-lon0",
-            repr(f.lon0), "--tracker", cfg.tracker, *common,
-        ],
-        workdir / "fusion.log",
-    )  # fmt: skip
-    env_cwd = None  # children inherit the working directory
-    inbox = Inbox(capacity=10_000)
-    inbox.subscribe(session, f"{keys.PREFIX}/fusion/*/status", "status")
-    inbox.subscribe(session, f"{keys.PREFIX}/service/*/status", "status")
-    inbox.subscribe(session, f"{keys.PREFIX}/fusion/*/tracks", "tracks")
-    fox = _foxglove(cfg) if cfg.foxglove else None
-    if fox is not None:
-        inbox.subscribe(session, keys.SIM_TRUTH, "truth")
-    children = [recorder, fusion]
-    sensors: list[Child] = []
-    failed: list[str] = []
-    interrupted = False
-    view = _View(cfg, radars, live)
-    go = None
+    run = _DemoRun(session, cfg, sc, listen, out, workdir, stop, live)
     try:
-        for c in children:
-            c.start(env_cwd)
-        log.info("demo network on %s; logs in %s", listen, workdir)
-        missing = wait_for_tokens(
-            session,
-            [service_alive_key("recorder"), service_alive_key("fusion")],
-            cfg.start_timeout,
-            stop,
+        if run.start_services() and run.start_sensors():
+            run.watch()
+            run.drain()
+    finally:
+        run.shutdown()
+    return run.interrupted, run.failed, run.children
+
+
+class _DemoRun:
+    """The phases of :func:`orchestrate`: recorder and fusion up → sensors up → watch
+    until the sensors end → let the fusion catch up → stop everything."""
+
+    def __init__(self, session, cfg: DemoConfig, sc, listen, out, workdir, stop, live) -> None:
+        self.session, self.cfg, self.stop, self.workdir = session, cfg, stop, workdir
+        self.radars = [s.radar_id for s in sc.sites][: cfg.radars]
+        self.common = ["--connect", listen, "--no-multicast"]
+        f = sc.frame
+        self.recorder = Child(
+            "recorder",
+            ["record", "--out", str(out), "--stats", str(workdir / "recorder.json"), *self.common],
+            workdir / "recorder.log",
         )
-        if missing and not stop.is_set():
-            failed += [c.name for c in children if c.poll() is not None] or ["startup"]
-            log.error("services did not come up: %s", missing)
-            return False, failed, children
-        # sensors load the scenario, declare their ready tokens and wait for the demo's
-        # "go" token; then they all start within a poll interval (~0.1 s) of each other
-        for i, r in enumerate(radars):
+        self.fusion = Child(
+            "fusion",
+            [
+                "fusion", "--fusion-id", "demo", "--reorder-wait", str(cfg.reorder_wait),
+                "--frame-kind", f.kind.value, "--frame-lat0", repr(f.lat0), "--frame-lon0",
+                repr(f.lon0), "--tracker", cfg.tracker, *self.common,
+            ],
+            workdir / "fusion.log",
+        )  # fmt: skip
+        self.inbox = Inbox(capacity=10_000)
+        for key, tag in (
+            (f"{keys.PREFIX}/fusion/*/status", "status"),
+            (f"{keys.PREFIX}/service/*/status", "status"),
+            (f"{keys.PREFIX}/fusion/*/tracks", "tracks"),
+        ):
+            self.inbox.subscribe(session, key, tag)
+        self.fox = _foxglove(cfg) if cfg.foxglove else None
+        if self.fox is not None:
+            self.inbox.subscribe(session, keys.SIM_TRUTH, "truth")
+        self.children = [self.recorder, self.fusion]
+        self.sensors: list[Child] = []
+        self.failed: list[str] = []
+        self.interrupted = False
+        self.view = _View(cfg, self.radars, live)
+        self.go = None
+        self.listen = listen
+
+    def _came_up(self, names: list[str], children: list[Child], what: str) -> bool:
+        keys_ = [service_alive_key(n) for n in names]
+        missing = wait_for_tokens(self.session, keys_, self.cfg.start_timeout, self.stop)
+        if missing and not self.stop.is_set():
+            self.failed += [c.name for c in children if c.poll() is not None] or ["startup"]
+            log.error("%s did not come up: %s", what, missing)
+            return False
+        return True
+
+    def start_services(self) -> bool:
+        for c in self.children:
+            c.start(None)  # children inherit the working directory
+        log.info("demo network on %s; logs in %s", self.listen, self.workdir)
+        return self._came_up(["recorder", "fusion"], self.children, "services")
+
+    def start_sensors(self) -> bool:
+        """Sensors load the scenario, declare their ready tokens and wait for the demo's
+        "go" token; then they all start within a poll interval (~0.1 s) of each other."""
+        cfg = self.cfg
+        scen = [
+            "--scenario", cfg.scenario, "--seed", str(cfg.seed), "--duration", str(cfg.duration),
+            "--targets", str(cfg.targets), "--param", f"radars={scenario_radars(cfg)}",
+        ]  # fmt: skip
+        for i, r in enumerate(self.radars):
             extra = ["--truth"] if i == 0 else []
             s = Child(
                 f"sensor-{r}",
                 [
                     "sensor", "--radar", r, *scen, "--speed", str(cfg.speed),
                     "--wait-for", "demo", "--wait-timeout", str(cfg.start_timeout), *extra,
-                    *common,
+                    *self.common,
                 ],
-                workdir / f"sensor-{r}.log",
+                self.workdir / f"sensor-{r}.log",
             )  # fmt: skip
-            s.start(env_cwd)
-            sensors.append(s)
-        children += sensors
-        missing = wait_for_tokens(
-            session, [service_alive_key(f"sensor-{r}") for r in radars], cfg.start_timeout, stop
-        )
-        if missing and not stop.is_set():
-            failed += [c.name for c in sensors if c.poll() is not None] or ["startup"]
-            log.error("sensors did not come up: %s", missing)
-            return False, failed, children
-        go = declare_liveliness(session, service_alive_key("demo"))
-        start_at = time.time()
-        view.start(start_at)
-        while not stop.is_set():
-            for item in inbox.drain(2000):
-                view.feed(item, fox)
-            view.refresh()
-            dead = [c for c in (recorder, fusion) if c.poll() is not None]
+            s.start(None)
+            self.sensors.append(s)
+        self.children += self.sensors
+        names = [f"sensor-{r}" for r in self.radars]
+        if not self._came_up(names, self.sensors, "sensors"):
+            return False
+        self.go = declare_liveliness(self.session, service_alive_key("demo"))
+        self.view.start(time.time())
+        return True
+
+    def _feed(self) -> None:
+        for item in self.inbox.drain(2000):
+            self.view.feed(item, self.fox)
+        self.view.refresh()
+
+    def watch(self) -> None:
+        """Until the sensors have finished (or a service died, or a stop)."""
+        while not self.stop.is_set():
+            self._feed()
+            dead = [c for c in (self.recorder, self.fusion) if c.poll() is not None]
             if dead:
-                failed += [c.name for c in dead]
+                self.failed += [c.name for c in dead]
                 log.error("%s exited early:\n%s", dead[0].name, dead[0].tail())
                 break
-            if all(s.poll() is not None for s in sensors):
-                failed += [s.name for s in sensors if s.rc != 0]
+            if all(s.poll() is not None for s in self.sensors):
+                self.failed += [s.name for s in self.sensors if s.rc != 0]
                 break
-            stop.wait(0.2)
-        interrupted = stop.is_set()
-        # let the fusion service catch up: wait until it has taken in every batch the
-        # sensors published (their final Status says how many) and emptied its buffer
-        end = time.monotonic() + (cfg.drain_timeout if not interrupted else 1.0)
-        while time.monotonic() < end and not (interrupted and stop.wait(0)):
-            for item in inbox.drain(2000):
-                view.feed(item, fox)
-            view.refresh()
-            if view.fusion_caught_up(radars):
-                break
-            if fusion.poll() is not None:
-                break
+            self.stop.wait(0.2)
+        self.interrupted = self.stop.is_set()
+
+    def drain(self) -> None:
+        """Let the fusion service catch up: wait until it has taken in every batch the
+        sensors published (their final Status says how many) and emptied its buffer."""
+        timeout = self.cfg.drain_timeout if not self.interrupted else 1.0
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not (self.interrupted and self.stop.wait(0)):
+            self._feed()
+            if self.view.fusion_caught_up(self.radars) or self.fusion.poll() is not None:
+                return
             time.sleep(0.1)
-        else:
-            if not interrupted:
-                log.warning("the fusion service did not catch up within %.0f s", cfg.drain_timeout)
-    finally:
-        if go is not None:
-            go.undeclare()
-        for c in sensors:
+        if not self.interrupted:
+            log.warning("the fusion service did not catch up within %.0f s", timeout)
+
+    def shutdown(self) -> None:
+        if self.go is not None:
+            self.go.undeclare()
+        for c in self.sensors:
             c.terminate()
-        fusion.terminate()
+        self.fusion.terminate()
         time.sleep(0.3)
-        for item in inbox.drain(10_000):
-            view.feed(item, fox)
-        recorder.terminate()
-        inbox.close()
-        view.stop()
-        if fox is not None:
-            fox["server"].stop()
-        for c in children:
+        for item in self.inbox.drain(10_000):
+            self.view.feed(item, self.fox)
+        self.recorder.terminate()
+        self.inbox.close()
+        self.view.stop()
+        if self.fox is not None:
+            self.fox["server"].stop()
+        for c in self.children:
             if c.rc not in (0, None):
-                if c.name not in failed:
-                    failed.append(c.name)
+                if c.name not in self.failed:
+                    self.failed.append(c.name)
                 log.error("%s exited with %s:\n%s", c.name, c.rc, c.tail())
             if c.stop_s is not None:
                 log.info("%s stopped in %.2f s (exit %s)", c.name, c.stop_s, c.rc)
-    return interrupted, failed, children
 
 
 def _foxglove(cfg: DemoConfig):

@@ -20,23 +20,18 @@ import time
 from skyfuse.schemas import keys
 from skyfuse.services.cli.config import (
     ConfigError,
-    _split_list,
     add_model_arguments,
     build_config,
-    parse_key_values,
 )
+from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
-from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
     Inbox,
-    TransportError,
     add_transport_arguments,
     declare_liveliness,
     declare_publisher,
-    open_session,
     query,
     service_alive_key,
-    transport_config,
 )
 
 log = logging.getLogger("skyfuse.fusion")
@@ -49,31 +44,17 @@ def _tracker_config_model():
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "fusion",
-        help="run the fusion service (plots in, fused tracks out)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("--config", default=None, help="TOML file: [fusion], [tracker], [transport]")
-    add_model_arguments(p, FusionConfig, skip=("sites",))
+    p = add_service_parser(
+        sub, "fusion", "run the fusion service (plots in, fused tracks out)", __doc__,
+        FusionConfig, tables="[fusion], [tracker] and [transport]", transport=False,
+        skip=("sites",),
+    )  # fmt: skip
     group = p.add_argument_group(
         "tracker",
-        "Every field of fusion.tracker.TrackerConfig can be set in the [tracker] "
-        "TOML table, as SKYFUSE_TRACKER_<FIELD>, or with --tracker-set FIELD=VALUE,...",
+        "The tracker (the same flags as skyfuse track and eval); also the [tracker] TOML "
+        "table and SKYFUSE_TRACKER_<FIELD>",
     )
-    group.add_argument(
-        "--tracker",
-        default=argparse.SUPPRESS,
-        help="Tracker: gnn, ipda, its, lmipda, lmits, jipda or jits (default: lmits)",
-    )
-    group.add_argument(
-        "--tracker-set",
-        type=_split_list,
-        default=argparse.SUPPRESS,
-        metavar="FIELD=VALUE,...",
-        help="Tracker settings, e.g. depth=2,p_gate=0.995",
-    )
+    add_model_arguments(group, _tracker_config_model())
     cat = p.add_argument_group("ASTERIX CAT062 output (see skyfuse cat062)")
     cat.add_argument(
         "--cat062-udp",
@@ -83,27 +64,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     cat.add_argument("--cat062-sac", type=int, default=0, help="I062/010 SAC (default: 0)")
     cat.add_argument("--cat062-sic", type=int, default=1, help="I062/010 SIC (default: 1)")
-    add_transport_arguments(p)
+    add_transport_arguments(p)  # last: after the CAT062 group, as in the other commands
     p.set_defaults(func=run)
 
 
 def tracker_config(args: argparse.Namespace):
     """The TrackerConfig: defaults < TOML [tracker] < SKYFUSE_TRACKER_* < flags."""
-
-    overrides = {}
-    for item in getattr(args, "tracker_set", []):
-        if "=" not in item:
-            raise ConfigError(f"tracker-set {item!r} is not FIELD=VALUE")
-    overrides.update(parse_key_values(getattr(args, "tracker_set", [])))
-    if hasattr(args, "tracker"):
-        overrides["tracker"] = args.tracker
     return build_config(
         _tracker_config_model(),
-        None,
+        args,
         toml_path=getattr(args, "config", None),
         section="tracker",
         env_prefix="SKYFUSE_TRACKER_",
-        overrides=overrides,
     )
 
 
@@ -121,11 +93,8 @@ def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: floa
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = build_config(
-        FusionConfig, args, toml_path=args.config, section="fusion", env_prefix="SKYFUSE_FUSION_"
-    )
+    cfg, tcfg = service_config(FusionConfig, args, "fusion")
     tracker_cfg = tracker_config(args)
-    tcfg = transport_config(args, toml_path=args.config)
     core = FusionCore(
         cfg,
         make_pipeline_factory(tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude),
@@ -138,18 +107,12 @@ def run(args: argparse.Namespace) -> int:
             cat062 = Cat062UdpSender(args.cat062_udp, sac=args.cat062_sac, sic=args.cat062_sic)
         except ValueError as e:
             raise ConfigError(str(e)) from None
-    stop = StopFlag().install()
     try:
-        with open_session(tcfg) as session:
-            serve(session, core, stop, cat062=cat062)
-    except TransportError as e:
-        log.error("%s", e)
-        return EXIT_FAILED
+        return run_service(tcfg, lambda session, stop: serve(session, core, stop, cat062=cat062))
     finally:
         if cat062 is not None:
             log.info("cat062 output: %s", dict(cat062.stats))
             cat062.close()
-    return EXIT_OK
 
 
 def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat062=None) -> None:
@@ -170,13 +133,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
             q.reply_err(b"no tracks yet")
 
     queryable = session.declare_queryable(snapshot_key, answer_snapshot)
-    inbox = Inbox(capacity=core.cfg.queue)
-    inbox.subscribe(session, keys.ALL_SITES, "site")
-    inbox.subscribe(session, keys.ALL_PLOTS, "plots")
-    inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
-    # sites published before we joined: ask the sensors' queryables
-    for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
-        core.on_site_payload(key, payload)
+    inbox = _open_inputs(session, core)
     token = declare_liveliness(session, service_alive_key("fusion"))
     log.info("fusion %s running (reorder wait %.2f s)", fid, core.cfg.reorder_wait)
     t0 = time.monotonic()
@@ -233,43 +190,63 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
     finally:
         token.undeclare()
         inbox.close()
-        # apply what was already received, but never past the shutdown deadline
-        grace = getattr(stop, "grace", 4.5)
-        deadline = time.monotonic() + max(0.5, grace - 1.5)
-        left = inbox.drain(1_000_000)
-        for i, item in enumerate(left):
-            if time.monotonic() > deadline:
-                core.rejected["not processed: shutdown deadline"] += len(left) - i
-                break
-            handle(item)
-        for p in core.buffer.flush():
-            if time.monotonic() > deadline:
-                core.rejected["not processed: shutdown deadline"] += 1
-                continue
-            publish([o for o in [core.cycle(p)] if o is not None])
-        if inbox.discarded:
-            core.rejected["not processed: arrived after the stop"] += inbox.discarded
-        if core.rejected.get("not processed: shutdown deadline"):
-            log.error(
-                "shutdown deadline: %d batches not processed",
-                core.rejected["not processed: shutdown deadline"],
-            )
+        _drain_on_stop(core, inbox, handle, publish, stop)
         st = core.status()
         pub_status.put(st.to_json_bytes())
         queryable.undeclare()
-        lat = st.latency_ms
-        log.info(
-            "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
-            "p50 %s ms p99 %s ms; rejected %s",
-            fid,
-            core.counters["batches_in"],
-            core.counters["plots_in"],
-            core.counters["cycles"],
-            st.tracks_confirmed,
-            _fmt(lat.p50),
-            _fmt(lat.p99),
-            dict(core.rejected) or "none",
+        _log_totals(core, st)
+
+
+def _open_inputs(session, core: FusionCore) -> Inbox:
+    """Subscribe to the sites, plots and radar liveliness; take the sites published
+    before we joined from the sensors' queryables."""
+    inbox = Inbox(capacity=core.cfg.queue)
+    inbox.subscribe(session, keys.ALL_SITES, "site")
+    inbox.subscribe(session, keys.ALL_PLOTS, "plots")
+    inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
+    for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
+        core.on_site_payload(key, payload)
+    return inbox
+
+
+def _drain_on_stop(core: FusionCore, inbox, handle, publish, stop) -> None:
+    """Apply what was already received, but never past the shutdown deadline."""
+    grace = getattr(stop, "grace", 4.5)
+    deadline = time.monotonic() + max(0.5, grace - 1.5)
+    left = inbox.drain(1_000_000)
+    for i, item in enumerate(left):
+        if time.monotonic() > deadline:
+            core.rejected["not processed: shutdown deadline"] += len(left) - i
+            break
+        handle(item)
+    for p in core.buffer.flush():
+        if time.monotonic() > deadline:
+            core.rejected["not processed: shutdown deadline"] += 1
+            continue
+        publish([o for o in [core.cycle(p)] if o is not None])
+    if inbox.discarded:
+        core.rejected["not processed: arrived after the stop"] += inbox.discarded
+    if core.rejected.get("not processed: shutdown deadline"):
+        log.error(
+            "shutdown deadline: %d batches not processed",
+            core.rejected["not processed: shutdown deadline"],
         )
+
+
+def _log_totals(core: FusionCore, st) -> None:
+    lat = st.latency_ms
+    log.info(
+        "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
+        "p50 %s ms p99 %s ms; rejected %s",
+        core.cfg.fusion_id,
+        core.counters["batches_in"],
+        core.counters["plots_in"],
+        core.counters["cycles"],
+        st.tracks_confirmed,
+        _fmt(lat.p50),
+        _fmt(lat.p99),
+        dict(core.rejected) or "none",
+    )
 
 
 def _next_wait(core: FusionCore, now: float) -> float:

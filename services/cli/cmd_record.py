@@ -11,19 +11,15 @@ import logging
 import time
 
 from skyfuse.schemas import Status, keys
-from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
 from skyfuse.services.recording.recorder import Recorder, RecorderConfig
-from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
+from skyfuse.services.runtime.lifecycle import EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
     Inbox,
     Received,
-    TransportError,
-    add_transport_arguments,
     declare_liveliness,
     declare_publisher,
-    open_session,
     service_alive_key,
-    transport_config,
 )
 
 log = logging.getLogger("skyfuse.record")
@@ -37,30 +33,16 @@ def keys_match(key_expr: str, key: str) -> bool:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "record",
-        help="record every skyfuse message on Zenoh to MCAP",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    add_model_arguments(p, RecorderConfig)
-    p.add_argument("--config", default=None, help="TOML file ([record] and [transport] tables)")
-    add_transport_arguments(p)
+    p = add_service_parser(
+        sub, "record", "record every skyfuse message on Zenoh to MCAP", __doc__,
+        RecorderConfig, tables="[record] and [transport]",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = build_config(
-        RecorderConfig, args, toml_path=args.config, section="record", env_prefix="SKYFUSE_RECORD_"
-    )
-    tcfg = transport_config(args, toml_path=args.config)
-    stop = StopFlag().install()
-    try:
-        with open_session(tcfg) as session:
-            return record(session, cfg, stop)
-    except TransportError as e:
-        log.error("%s", e)
-        return EXIT_FAILED
+    cfg, tcfg = service_config(RecorderConfig, args, "record")
+    return run_service(tcfg, lambda session, stop: record(session, cfg, stop))
 
 
 def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:

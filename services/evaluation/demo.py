@@ -47,7 +47,9 @@ class DemoConfig(BaseModel):
         None, description="Endpoint the demo listens on (default tcp/127.0.0.1:<free port>)"
     )
     out: Path | None = Field(None, description="MCAP recording (default: in --workdir)")
-    json_out: Path | None = Field(None, description="Write the JSON summary here")
+    json_out: Path | None = Field(
+        None, description="Write the JSON summary to FILE (--json alone or -: to stdout)"
+    )
     png: Path | None = Field(None, description="PNG of tracks vs truth (default: OUT.png)")
     workdir: Path | None = Field(None, description="Directory for logs (default: a temp dir)")
     foxglove: bool = Field(False, description="Serve a Foxglove WebSocket on 127.0.0.1")

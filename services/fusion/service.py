@@ -111,7 +111,7 @@ class FusionConfig(BaseModel):
         )
 
 
-class TrackPipeline(Protocol):
+class CyclePipeline(Protocol):
     """One fusion cycle: a batch in, the resulting TrackBatch and TrackEvents out (the
     code path shared with the offline ``skyfuse track``)."""
 
@@ -207,7 +207,7 @@ class FusionCore:
     def __init__(self, cfg: FusionConfig, pipeline_factory) -> None:
         self.cfg = cfg
         self._factory = pipeline_factory
-        self.pipeline: TrackPipeline | None = None
+        self.pipeline: CyclePipeline | None = None
         self.frame: FrameSpec | None = None
         self.buffer = ReorderBuffer(cfg.reorder_wait)
         self.radars: dict[str, _Radar] = {}
