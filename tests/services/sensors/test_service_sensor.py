@@ -8,6 +8,7 @@ import signal
 import time
 
 import pytest
+from service_support import peer, skyfuse, stop
 from skyfuse.fusion.sim import Simulator, build_scenario
 from skyfuse.schemas import PlotBatch, RadarSite, keys
 from skyfuse.services.runtime.transport import (
@@ -20,7 +21,6 @@ from skyfuse.services.runtime.transport import (
     service_alive_key,
     wait_for_tokens,
 )
-from test_service_support import peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 

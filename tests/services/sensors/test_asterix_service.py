@@ -20,6 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from service_support import SHARED_DATA, peer, skyfuse, stop, wait_for
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
 from skyfuse.services.asterix import AsterixStreamDecoder, decode_cat062, load_sites, read_asterix
 from skyfuse.services.asterix.pcap import iter_file_datagrams
@@ -32,12 +33,10 @@ from skyfuse.services.runtime.transport import (
     service_alive_key,
     wait_for_tokens,
 )
-from test_service_support import peer, skyfuse, stop, wait_for
 
 pytestmark = pytest.mark.service
 
-ROOT = Path(__file__).resolve().parents[1]
-SAMPLE = ROOT.parent / "shared" / "data" / "cat_034_048.pcap"
+SAMPLE = SHARED_DATA / "cat_034_048.pcap"
 
 # Positions invented for the tests (the sample gives only 25-12's, in CAT034 I120).
 SAMPLE_SITES = """

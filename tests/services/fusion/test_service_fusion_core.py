@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from service_support import make_batch, make_site
 from skyfuse.schemas import FrameKind, FrameSpec, TrackBatch, keys
 from skyfuse.services.fusion.service import FusionConfig, FusionCore, ReorderBuffer
-from test_service_support import make_batch, make_site
 
 
 class RecordingPipeline:

@@ -1,6 +1,10 @@
-"""Helpers for the service tests (real processes and Zenoh sessions on loopback).
+"""Helpers shared by the tests (real processes and Zenoh sessions on loopback, synthetic
+sites and batches) and the paths they read. Not a test module: tests import it by name
+(``pythonpath = ["tests"]`` in pyproject.toml; pytest runs with ``--import-mode=importlib``).
 
-Not a test module by itself; the ``test_service*`` / ``test_transport*`` modules import it."""
+``SHARED_DATA``: the public data of the project's data README (the 7-radar ASTERIX
+snippet, the CAT062 sample, the Barcelona traffic), ``../shared/data`` next to the
+repository or ``$SKYFUSE_SHARED_DATA``; tests that need it skip when it is absent."""
 
 from __future__ import annotations
 
@@ -17,6 +21,9 @@ from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, keys
 from skyfuse.services.recording.mcap_io import RecordingWriter
 from skyfuse.services.runtime.transport import TransportConfig
 
+ROOT = Path(__file__).resolve().parents[1]
+"""The repository root."""
+SHARED_DATA = Path(os.environ.get("SKYFUSE_SHARED_DATA", ROOT.parent / "shared" / "data"))
 EPOCH = 1_700_000_000_000_000_000
 
 
@@ -97,7 +104,7 @@ def skyfuse(
         stdout=subprocess.PIPE,
         stderr=err,
         env={**os.environ, **(env or {})},
-        cwd=Path(__file__).resolve().parents[1],
+        cwd=ROOT,
     )
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from service_support import peer, skyfuse, stop
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, keys
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.recording.mcap_io import iter_recording
@@ -22,7 +23,6 @@ from skyfuse.services.runtime.transport import (
     wait_for_tokens,
 )
 from skyfuse.services.sensors.replay import replay
-from test_service_support import peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 
@@ -31,12 +31,11 @@ def confirmed_ids(b: TrackBatch) -> list[int]:
     return sorted(t.track_id for t in b.tracks if t.status == "confirmed")
 
 
-def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path):
-    rec = tmp_path / "sim.mcap"
-    assert skyfuse_main([
-        "simulate", "--scenario", "regional", "--seed", "3", "--duration", "20",
-        "--targets", "5", "--param", "radars=3", "--out", str(rec), "--no-progress",
-    ]) == 0  # fmt: skip
+def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulated_recording):
+    rec = simulated_recording(
+        "--scenario", "regional", "--seed", "3", "--duration", "20", "--targets", "5",
+        "--param", "radars=3",
+    )  # fmt: skip
     # no frame is configured: live and offline place it by the one rule (frame_for_sites)
     sites = [r.message for r in iter_recording(rec) if isinstance(r.message, RadarSite)]
     expected = frame_for_sites(sites)

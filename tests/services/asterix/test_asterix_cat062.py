@@ -5,18 +5,18 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from pathlib import Path
 
 import numpy as np
 import pymap3d
 import pytest
+from service_support import SHARED_DATA
 from skyfuse.schemas import FrameSpec, Track, TrackBatch
 from skyfuse.services.asterix.cat062 import decode_cat062, read_cat062
 from skyfuse.services.asterix.cat062_writer import Cat062Writer, build_record, pack_record
 from skyfuse.services.asterix.pcap import build_pcap
 
 T0 = int(dt.datetime(2026, 3, 1, 12, 0, tzinfo=dt.UTC).timestamp()) * 10**9
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "cat062_sample.pcap"
+SAMPLE = SHARED_DATA / "cat062_sample.pcap"
 LSB_DEG = 180 / 2**25
 
 

@@ -6,15 +6,14 @@ from __future__ import annotations
 import importlib.util
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import pymap3d
 import pytest
+from service_support import ROOT
 from skyfuse.fusion.frames import SystemFrame
 from skyfuse.fusion.frames.geodesy import enu_to_geodetic
 
-ROOT = Path(__file__).resolve().parents[1]
 SITE = (45.3, 19.9, 150.0)
 
 

@@ -10,11 +10,9 @@ import subprocess
 import sys
 import textwrap
 import time
-from pathlib import Path
 
+from service_support import ROOT
 from skyfuse.services.sensors.config import SensorServiceConfig, start_time_ns
-
-ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = textwrap.dedent(
     """

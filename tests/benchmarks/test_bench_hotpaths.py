@@ -6,16 +6,14 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+from service_support import ROOT
 from skyfuse.fusion.tracker import components as comp
 from skyfuse.fusion.tracker.jits import clusters
 from skyfuse.fusion.tracker.measurements import _positive_definite
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _same_partition(a: np.ndarray, b: np.ndarray) -> bool:

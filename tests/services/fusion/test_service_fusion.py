@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from service_support import make_batch, make_site, peer, skyfuse, stop
 from skyfuse.schemas import Status, TrackBatch, keys
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -22,7 +23,6 @@ from skyfuse.services.runtime.transport import (
     wait_for_tokens,
     wall_stamp,
 )
-from test_service_support import make_batch, make_site, peer, skyfuse, stop
 
 pytestmark = pytest.mark.service
 

@@ -4,16 +4,16 @@ decodes (the independent reference), on real records and on random bytes."""
 from __future__ import annotations
 
 from collections import Counter
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from service_support import SHARED_DATA
 from skyfuse.services.asterix import cat034, cat048
 from skyfuse.services.asterix.pcap import iter_file_datagrams, split_datablocks
 from skyfuse.services.asterix.records import RecordError, iter_records
 
-PCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "cat_034_048.pcap"
+PCAP = SHARED_DATA / "cat_034_048.pcap"
 
 
 def lib_first(module, data: bytes):

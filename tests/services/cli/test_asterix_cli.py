@@ -23,13 +23,13 @@ from types import SimpleNamespace
 import numpy as np
 import pymap3d
 import pytest
+from service_support import SHARED_DATA
 from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent
 from skyfuse.services.asterix import AsterixPlotWriter, decode_cat062, load_sites, read_asterix
 from skyfuse.services.cli.main import main
 from skyfuse.services.recording.mcap_io import iter_recording
 
-ROOT = Path(__file__).resolve().parents[1]
-SAMPLE = ROOT.parent / "shared" / "data" / "cat_034_048.pcap"
+SAMPLE = SHARED_DATA / "cat_034_048.pcap"
 NM = 1852.0
 
 # --------------------------------------------------------------------------- helpers

@@ -10,11 +10,8 @@ from skyfuse.services.cli.main import main
 
 
 @pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    path = tmp_path_factory.mktemp("rec") / "m5.mcap"
-    assert main(["simulate", "--scenario", "thesis-mtt-5", "--seed", "2", "--out", str(path),
-                 "--no-progress"]) == 0  # fmt: skip
-    return path
+def recording(simulated_recording):
+    return simulated_recording("--scenario", "thesis-mtt-5", "--seed", "2")
 
 
 def test_eval_recording_scores_labels_and_truth(recording, tmp_path, capsys):

@@ -12,6 +12,7 @@ import time
 from collections import Counter
 
 import pytest
+from service_support import make_batch, make_site, peer, skyfuse, stop, synthetic_recording
 from skyfuse.schemas import keys
 from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
 from skyfuse.services.runtime.transport import (
@@ -23,7 +24,6 @@ from skyfuse.services.runtime.transport import (
     wait_for_tokens,
 )
 from skyfuse.services.sensors.replay import replay
-from test_service_support import make_batch, make_site, peer, skyfuse, stop, synthetic_recording
 
 pytestmark = pytest.mark.service
 

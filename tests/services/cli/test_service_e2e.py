@@ -10,10 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from service_support import ROOT
 
 pytestmark = pytest.mark.service
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_demo_three_radars_end_to_end(tmp_path):

@@ -7,6 +7,7 @@ import json
 import time
 
 import pytest
+from service_support import peer, wait_for
 from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -24,7 +25,6 @@ from skyfuse.services.runtime.transport import (
     wall_stamp,
     zenoh_config,
 )
-from test_service_support import peer, wait_for
 
 pytestmark = pytest.mark.service
 

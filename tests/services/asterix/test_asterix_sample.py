@@ -15,9 +15,10 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from service_support import SHARED_DATA
 from skyfuse.services.asterix import read_asterix
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = SHARED_DATA
 PCAP = DATA / "cat_034_048.pcap"
 DECODED = DATA / "cat_034_048.decoded.txt"
 

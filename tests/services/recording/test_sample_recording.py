@@ -6,12 +6,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from service_support import ROOT
 from skyfuse.services.cli.cmd_inspect import inspect_recording
 
-SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "regional-demo.mcap"
+SAMPLE = ROOT / "recordings" / "regional-demo.mcap"
 
 
 def test_sample_is_small_complete_and_valid():

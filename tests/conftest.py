@@ -1,0 +1,37 @@
+"""Fixtures shared by the whole test tree (helpers and paths: ``service_support.py``).
+
+* ``simulated_recording(*args)`` — an MCAP recording made by ``skyfuse simulate *args``
+  once per test session (cached by its arguments), for tests that only read it.
+* ``shared_data`` — the public data directory (``service_support.SHARED_DATA``); the test
+  is skipped when it is absent.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from service_support import SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def simulated_recording(tmp_path_factory):
+    made: dict[tuple[str, ...], Path] = {}
+
+    def make(*args: str) -> Path:
+        if args not in made:
+            from skyfuse.services.cli.main import main
+
+            path = tmp_path_factory.mktemp("sim") / "recording.mcap"
+            assert main(["simulate", *args, "--out", str(path), "--no-progress"]) == 0
+            made[args] = path
+        return made[args]
+
+    return make
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"{SHARED_DATA} is absent")
+    return SHARED_DATA
