@@ -10,6 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TOP = ("fusion", "schemas", "services")
+DATA = ("recordings",)  # package data: the sample recording
 
 
 def test_every_package_folder_is_installed_under_skyfuse():
@@ -17,12 +18,14 @@ def test_every_package_folder_is_installed_under_skyfuse():
     listed = set(cfg["packages"])
     on_disk = {
         "skyfuse." + ".".join(p.parent.relative_to(ROOT).parts)
-        for top in TOP
+        for top in (*TOP, *DATA)
         for p in (ROOT / top).rglob("__init__.py")
     }
     assert on_disk - listed == set(), "add these to [tool.setuptools] packages"
     assert listed - on_disk == set(), "these are listed but have no __init__.py"
-    assert cfg["package-dir"] == {f"skyfuse.{t}": t for t in TOP}
+    assert cfg["package-dir"] == {f"skyfuse.{t}": t for t in (*TOP, *DATA)}
+    assert cfg["package-data"] == {"skyfuse.recordings": ["*.mcap"]}
+    assert list((ROOT / "recordings").glob("*.mcap")), "the sample recording is missing"
 
 
 def test_no_bare_top_level_imports():

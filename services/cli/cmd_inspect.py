@@ -1,5 +1,6 @@
-"""``skyfuse inspect FILE.mcap [--json]``: what a recording holds — radars and their
-sites, plots per radar, scans, duration, targets, tracks, topics and metadata."""
+"""``skyfuse inspect FILE.mcap [--json [FILE]]``: what a recording holds — radars and their
+sites, plots per radar, scans, duration, targets, tracks, topics and metadata. A file that
+is not MCAP is an error (exit 1) that says so."""
 
 from __future__ import annotations
 
@@ -13,26 +14,33 @@ from pydantic import BaseModel, Field
 from rich.console import Console
 from rich.table import Table
 from skyfuse import schemas
-from skyfuse.services.cli.config import add_model_arguments, build_config
-from skyfuse.services.recording.mcap_io import ReadStats, iter_recording, read_metadata
+from skyfuse.services.cli.config import add_json_argument, add_model_arguments, build_config
+from skyfuse.services.recording.mcap_io import (
+    NotMcapError,
+    ReadStats,
+    check_mcap,
+    iter_recording,
+    read_metadata,
+)
 
 
 class InspectConfig(BaseModel):
     file: Path = Field(description="MCAP recording to inspect")
-    json_out: bool = Field(False, description="Print JSON instead of tables")
+    json_out: str | None = Field(
+        None, description="Write JSON to FILE instead of tables (--json alone or -: to stdout)"
+    )
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("inspect", help="summarise an MCAP recording", description=__doc__)
     add_model_arguments(p, InspectConfig, positional=("file",), skip=("json_out",))
-    p.add_argument("--json", dest="json_out", action="store_true", help="print JSON")
+    add_json_argument(p, "Print JSON instead of tables; --json FILE writes it to FILE")
     p.set_defaults(func=run)
 
 
 def inspect_recording(path: Path) -> dict:
     """Scan a recording once and summarise it (pure data, used by tests and the CLI)."""
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
+    check_mcap(path)
     stats = ReadStats()
     topics: dict[str, int] = defaultdict(int)
     radars: dict[str, dict] = {}
@@ -165,12 +173,14 @@ def run(args: argparse.Namespace) -> int:
     cfg = build_config(InspectConfig, args)
     try:
         info = inspect_recording(cfg.file)
-    except FileNotFoundError as e:
+    except (FileNotFoundError, NotMcapError) as e:
         print(f"skyfuse inspect: {e}", file=sys.stderr)
         return 1
-    if cfg.json_out:
+    if cfg.json_out == "-":
         json.dump(info, sys.stdout, indent=2, default=str)
         sys.stdout.write("\n")
+    elif cfg.json_out is not None:
+        Path(cfg.json_out).write_text(json.dumps(info, indent=2, default=str) + "\n")
     else:
         print_report(info, Console())
     return 0

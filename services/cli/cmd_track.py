@@ -1,26 +1,30 @@
-"""``skyfuse track FILE.mcap|FILE.pcap|FILE.ast``: run the tracker offline over a recording.
+"""``skyfuse track FILE.mcap|FILE.pcap|FILE.ast|--sample``: run the tracker offline over a
+recording.
 
-Reads the radar sites (``skyfuse/@v1/radar/*/site``) and plot batches
-(``…/plots``) of a recording (simulated or real), applies the batches in time order
-through the same pipeline as the live fusion service (convert to the system frame →
-tracker → TrackBatch/TrackEvent), and writes the tracks and events to an MCAP file on
-``skyfuse/@v1/fusion/{id}/tracks`` and ``…/events``. With ``--json`` it writes a summary:
-plots and batches processed, confirmed and false tracks, and — when the recording holds
-simulation truth (``skyfuse/@v1/sim/truth``; plots carry ``target_id``) — the truth
-coverage and position error, plus timing.
+The recording goes through the offline runner
+(:func:`skyfuse.services.evaluation.offline.run_offline`): its radar sites
+(``skyfuse/@v1/radar/*/site``) and plot batches (``…/plots``), in time order, through the
+same pipeline as the live fusion service (convert to the system frame → tracker →
+TrackBatch/TrackEvent), with the frame placed by the live service's rule (the sites'
+mean at the first plot batch). Tracks and events go to an MCAP file on
+``skyfuse/@v1/fusion/{id}/tracks`` and ``…/events``. The summary (one line on stdout;
+the whole of it with ``--json FILE``, or on stdout with ``--json`` alone) holds the
+plots and batches processed, the label scores of the tracks (``labels``: the plots'
+simulation ``target_id`` or, in real data, Mode-S addresses: completeness, track-id
+changes, confirmed false tracks per hour, time to confirm), the truth scores when the
+recording holds simulation truth (``truth``: GOSPA, coverage, position RMSE) and timing.
 
 An ASTERIX recording (CAT048 plots with CAT034 service messages; pcap of UDP or a raw
 ``.ast`` file, told apart from MCAP by its first bytes) is decoded with
-:func:`services.asterix.read_asterix` (``--sites`` TOML, ``--date`` of the first record)
-and its sector batches go through the same pipeline; its summary adds the reader's
-counts and the Mode-S label metrics (completeness, track-id changes, confirmed false
-tracks per hour, time to confirm: :mod:`services.eval_asterix`). Plots without a flight
-level (primary-only) get ``--assumed-altitude`` (default 3000 m for ASTERIX, ± 3000 m).
+:func:`skyfuse.services.asterix.read_asterix` (``--sites`` TOML, ``--date`` of the first
+record). Plots without a flight level (primary-only) get ``--assumed-altitude`` (default
+3000 m for ASTERIX, ± 3000 m). A file that is neither is an error that says so (exit 1).
 
 Examples::
 
+    skyfuse track --sample --out t.mcap
     skyfuse track r.mcap --tracker lmits --depth 3 --out t.mcap --json t.json
-    skyfuse track r.mcap --config fusion.toml --frame ned        # [tracker] table
+    skyfuse track r.mcap --config fusion.toml --frame-kind ned        # [tracker] table
     skyfuse track rec.pcap --sites sites.toml --date 2024-05-17 --tracker lmits --depth 3 \
         --out t.mcap --json t.json
 """
@@ -49,10 +53,12 @@ log = logging.getLogger(__name__)
 class TrackCommandConfig(BaseModel):
     """Options of ``skyfuse track`` (the tracker itself is ``[tracker]`` / TrackerConfig)."""
 
-    file: Path = Field(
+    file: Path | None = Field(
+        None,
         description="Input recording: MCAP with sites and plot batches, or ASTERIX CAT048/CAT034 "
-        "(.pcap of UDP, raw .ast)"
+        "(.pcap of UDP, raw .ast); or --sample",
     )
+    sample: bool = Field(False, description="Track the sample recording installed with skyfuse")
     out: Path = Field(Path("tracks.mcap"), description="Output MCAP with tracks and events")
     json_out: str | None = Field(
         None, description="Write the JSON summary to FILE (--json alone or -: to stdout)"
@@ -163,6 +169,12 @@ def run(args: argparse.Namespace) -> int:
         env_prefix="SKYFUSE_TRACKER_",
     )
     keys.check_id(cfg.fusion_id, "fusion id")
+    from skyfuse.services.recording.sample import chosen_recording
+
+    try:
+        cfg.file = chosen_recording(cfg.file, cfg.sample)
+    except (ValueError, FileNotFoundError) as e:
+        raise ConfigError(f"file: {e}") from None
     try:
         src = open_input(
             cfg.file, sites_file=cfg.sites, date=cfg.date, sector_count=cfg.sector_count

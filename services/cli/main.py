@@ -1,6 +1,6 @@
 """The ``skyfuse`` command line.
 
-Each sub-command lives in its own module ``services/cmd_<name>.py`` exposing
+Each sub-command lives in its own module ``services/cli/cmd_<name>.py`` exposing
 ``register(subparsers)``; the module adds its parser with ``set_defaults(func=run)``
 where ``run(args) -> int`` is the exit code. Exit codes: 0 success, 1 the job failed,
 2 bad usage or configuration, 130 interrupted.
@@ -18,7 +18,7 @@ from skyfuse.services.cli.config import ConfigError
 
 
 def command_modules() -> list[str]:
-    """Every ``services/cmd_*.py`` module, sorted: each registers one sub-command."""
+    """Every ``services/cli/cmd_*.py`` module, sorted: each registers one sub-command."""
     here = Path(__file__).parent
     return sorted(f"skyfuse.services.cli.{p.stem}" for p in here.glob("cmd_*.py"))
 
@@ -42,6 +42,24 @@ def _requested_command(argv: list[str]) -> str | None:
     return None
 
 
+def version() -> str:
+    """The installed distribution's version (``pyproject.toml`` ``[project] version``); for
+    a source tree used without installing, the version in its pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+
+    try:
+        return dist_version("skyfuse")
+    except PackageNotFoundError:
+        import tomllib
+
+        pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+        try:
+            return tomllib.loads(pyproject.read_text())["project"]["version"]
+        except (OSError, KeyError, tomllib.TOMLDecodeError):
+            return "unknown"
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The ``skyfuse`` parser with every sub-command, or only ``only`` (importing a
     command's module costs up to seconds: some import the tracker and SciPy)."""
@@ -49,6 +67,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         prog="skyfuse",
         description="Distributed multi-radar fusion: simulate, track, record and replay.",
     )
+    parser.add_argument("--version", action="version", version=f"skyfuse {version()}")
     parser.add_argument(
         "--log-level",
         default="INFO",

@@ -22,11 +22,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from skyfuse.schemas import RadarSite, keys
-from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
+from skyfuse.services.recording.mcap_io import MCAP_MAGIC, ReadStats, iter_recording
 
 log = logging.getLogger(__name__)
-
-MCAP_MAGIC = b"\x89MCAP"
 
 
 class InputError(ValueError):
@@ -42,7 +40,7 @@ class InputError(ValueError):
 def is_mcap(path: Path) -> bool:
     """True when the file starts with the MCAP magic (else: ASTERIX pcap or raw)."""
     with open(path, "rb") as f:
-        return f.read(5) == MCAP_MAGIC
+        return f.read(5) == MCAP_MAGIC[:5]
 
 
 @dataclass

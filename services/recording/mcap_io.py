@@ -29,6 +29,26 @@ from skyfuse.schemas.base import WireModel
 log = logging.getLogger(__name__)
 
 SCHEMA_PREFIX = "skyfuse."
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+"""The first 8 bytes of every MCAP file (MCAP specification, "Magic")."""
+
+
+class NotMcapError(ValueError):
+    """The file is not an MCAP recording; the message names the file and its first bytes."""
+
+
+def check_mcap(path: str | Path) -> Path:
+    """``path`` if it is a readable file starting with the MCAP magic, else raise
+    ``FileNotFoundError`` (missing) or :class:`NotMcapError` (another kind of file)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        head = f.read(len(MCAP_MAGIC))
+    if head[:5] != MCAP_MAGIC[:5]:
+        kind = "an empty file" if not head else f"a file starting with {head!r}"
+        raise NotMcapError(f"{path}: not an MCAP recording ({kind}; MCAP starts {MCAP_MAGIC!r})")
+    return path
 
 
 @functools.cache

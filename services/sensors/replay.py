@@ -37,6 +37,8 @@ class ReplayResult:
     read: ReadStats = field(default_factory=ReadStats)
     interrupted: bool = False
     wall_s: float = 0.0
+    subscribed: bool = False
+    """Some subscriber matched a plots publisher during the replay (Zenoh matching status)."""
 
     @property
     def plot_batches(self) -> int:
@@ -126,6 +128,8 @@ def replay(
             if info.kind == "site" and liveliness and info.owner not in tokens:
                 tokens[info.owner] = declare_liveliness(session, keys.radar_alive(info.owner))
             if info.kind == "plots":
+                if not result.subscribed and pub.matching_status.matching:
+                    result.subscribed = True
                 pub.put(rec.data, attachment=wall_stamp())
             else:
                 pub.put(rec.data)
