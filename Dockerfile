@@ -11,6 +11,7 @@ COPY pyproject.toml README.md ./
 COPY schemas ./schemas
 COPY fusion ./fusion
 COPY services ./services
+COPY recordings ./recordings
 RUN pip install . \
     && useradd --system --create-home --uid 10001 skyfuse \
     && mkdir -p /data /etc/skyfuse \

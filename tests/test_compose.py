@@ -131,3 +131,10 @@ def test_dockerfile_copies_what_exists_and_runs_skyfuse():
             assert list(ROOT.glob(part)), f"Dockerfile copies {part} which does not exist"
     assert 'ENTRYPOINT ["skyfuse"]' in text
     assert os.path.isfile(ROOT / "pyproject.toml")
+    # `pip install .` in the image needs every folder the package is built from
+    import tomllib
+
+    dirs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    before_install = text[: text.index("RUN pip install .")]
+    for folder in dirs.values():
+        assert re.search(rf"^COPY {folder} ", before_install, re.M), f"Dockerfile misses {folder}/"
