@@ -435,7 +435,11 @@ class FusionCore:
             latency_ms=self.latency_stats(),
             tracks_confirmed=confirmed,
             tracks_total=total,
-            message="" if self.pipeline is not None else "waiting for a radar site",
+            message=""
+            if self.pipeline is not None
+            else "waiting for plots"
+            if any(r.site is not None for r in self.radars.values())
+            else "waiting for a radar site",
         )
 
 

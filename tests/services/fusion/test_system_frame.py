@@ -38,3 +38,24 @@ def test_configured_origin_wins_and_no_site_gives_none():
     assert frame_for_sites([]) is None
     one = frame_for_sites([site("a", 44.0, 21.0)])
     assert (one.kind, one.lat0, one.lon0, one.alt0) == (FrameKind.STEREOGRAPHIC, 44.0, 21.0, 0.0)
+
+
+def test_live_service_fixes_the_frame_at_the_first_plot_from_all_sites_known():
+    """Live: sites heard before the first plot batch all count (not only the first one);
+    a site heard later does not move the frame."""
+    import numpy as np
+    from service_support import make_batch, make_site
+    from skyfuse.services.fusion.service import FusionConfig, FusionCore
+
+    frames = []
+    core = FusionCore(FusionConfig(reorder_wait=0.0), lambda f: frames.append(f) or f)
+    a, b = make_site("A", 44.0, 20.0), make_site("B", 46.0, 22.0)
+    core.on_site(a)
+    core.on_site(b)
+    assert frames == [] and core.status().message == "waiting for plots"
+    core.on_plots(make_batch("A", 0, 0, 4, 3, np.random.default_rng(1)), arrival=0.0)
+    core.on_site(make_site("C", 50.0, 30.0))
+    assert frames == [frame_for_sites([a, b])]
+    lat, lon = sites_centre([a, b])
+    assert (frames[0].lat0, frames[0].lon0) == (lat, lon)
+    assert 44.9 < lat < 45.1 and 20.9 < lon < 21.1  # near the midpoint, not at site A
