@@ -86,7 +86,12 @@ def radar_scan(
     quantised to ``altitude_quantum``. Clutter: Poisson with ``site.clutter_density`` per
     m² per scan over the annulus [min_range, max_range] plus ``cfg.regions``, uniform in
     area; its time is when the beam passes its azimuth. Random draws per scan are in a
-    fixed order, so a seeded generator reproduces the scan exactly."""
+    fixed order, so a seeded generator reproduces the scan exactly.
+
+    Systematic errors ``cfg.bias`` (:class:`fusion.frames.sensor_bias.SensorBias`, eq. 1)
+    act on the target plots' true range and azimuth before the noise; the time offset
+    shifts every reported time of the radar (plots, sector bounds), so the plot of a
+    target seen at true time t carries the time t + b_t."""
     site = cfg.site
     period = site.scan_period
     t0 = cfg.scan_time(k)
@@ -115,8 +120,10 @@ def radar_scan(
     tt = t[ok]
     tid = targets.target_id[cand[ok]]
     n_ok = noise[ok]
-    rr = np.maximum(r[ok] + site.sigma_range * n_ok[:, 0], 0.0)
-    aa = wrap_azimuth(az[ok] + site.sigma_azimuth * n_ok[:, 1])
+    # systematic errors (fusion.frames.sensor_bias eq. 1), then the random noise
+    r_b, az_b, _ = cfg.bias.distort(r[ok], az[ok], np.zeros(0, np.int64))
+    rr = np.maximum(r_b + site.sigma_range * n_ok[:, 0], 0.0)
+    aa = wrap_azimuth(az_b + site.sigma_azimuth * n_ok[:, 1])
     if three_d:
         third = np.clip(el[ok] + site.sigma_elevation * n_ok[:, 2], -math.pi / 2, math.pi / 2)
     else:
@@ -140,6 +147,8 @@ def radar_scan(
             cthird = np.round(cthird / cfg.altitude_quantum) * cfg.altitude_quantum
 
     time_s = np.concatenate([tt, ct])
+    # the radar's clock runs cfg.bias.time ahead: every time it reports is shifted
+    start_time_ns = start_time_ns + cfg.bias.time_ns
     time_ns = start_time_ns + np.rint(time_s * 1e9).astype(np.int64)
     order = np.argsort(time_ns, kind="stable")
     bounds = start_time_ns + np.rint(
