@@ -9,6 +9,12 @@ covariance in the system frame, R = J_f J R_s Jᵀ J_fᵀ with the analytic pola
 
 Output coordinates follow the tracker convention of :mod:`fusion.frames.system_frame`:
 x east, y north (, z up), metres.
+
+Registration (issue 17): a radar's estimated systematic errors
+(:class:`fusion.frames.sensor_bias.SensorBias`) are removed from the reported range,
+azimuth and time before step (1) (sensor_bias eq. 2), and the sensitivity of every
+converted position to range and azimuth, ∂z/∂(D, ψ) = J_f J[:, :2], is returned for the
+registration estimator (:mod:`fusion.registration`).
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from .polar import (
     spherical_to_enu,
     vertical_moments_3d,
 )
+from .sensor_bias import SensorBias
 from .system_frame import SystemFrame
 
 _ELEVATION_NEWTON_STEPS = 3
@@ -40,7 +47,11 @@ class ConvertedPlots:
     time: (m,) int64 plot times, ns UTC.
     valid: (m,) bool; ``reasons[i]`` says why plot i is invalid ('' when valid).
     site_position: (ndim,) the radar's position in the frame.
-    notes: per-plot remarks on valid plots (e.g. an assumed altitude was used)."""
+    notes: per-plot remarks on valid plots (e.g. an assumed altitude was used).
+    polar_jacobian: (m, ndim, 2) ∂z/∂(D, ψ) in m/m and m/rad (polar radars; NaN where
+      not valid), the sensitivity of a position to range and azimuth errors.
+    slant_range: (m,) bias-corrected slant range D, m (polar radars).
+    bias: the correction that was applied (None: none)."""
 
     z: np.ndarray
     R: np.ndarray
@@ -51,6 +62,9 @@ class ConvertedPlots:
     radar_id: str
     ndim: int
     notes: list[str] = field(default_factory=list)
+    polar_jacobian: np.ndarray | None = None
+    slant_range: np.ndarray | None = None
+    bias: SensorBias | None = None
 
     def __len__(self) -> int:
         return self.z.shape[0]
@@ -72,6 +86,9 @@ class ConvertedPlots:
             self.radar_id,
             self.ndim,
             [self.notes[i] for i in idx] if self.notes else [],
+            None if self.polar_jacobian is None else self.polar_jacobian[idx],
+            None if self.slant_range is None else self.slant_range[idx],
+            self.bias,
         )
 
 
@@ -85,6 +102,7 @@ def convert_plots(
     assumed_altitude: float | None = None,
     sigma_assumed_altitude: float | None = None,
     k_earth: float = 1.0,
+    bias: SensorBias | None = None,
 ) -> ConvertedPlots:
     """Convert ``batch`` (plots of radar ``site``) into ``frame``.
 
@@ -96,6 +114,8 @@ def convert_plots(
       the elevation solve into the horizontal covariance (issue 7).
     k_earth: effective-Earth factor for the 2-D elevation solve (1 = geometric WGS-84,
       solved exactly on the ellipsoid; 4/3 = standard refraction, sphere of k·R_α).
+    bias: the radar's estimated systematic errors, removed from range, azimuth and the
+      plot times first (sensor_bias eq. 2; polar radars only, None = no correction).
 
     Raises ValueError for a batch/site mismatch (wrong radar id, polar plots from a
     cartesian site or the reverse); bad individual plots are marked invalid with a reason.
@@ -116,6 +136,10 @@ def convert_plots(
 
     m = len(batch)
     time = batch.column("time") if m else np.zeros(0, np.int64)
+    if bias is not None and site.kind is RadarKind.CARTESIAN and not bias.is_zero:
+        raise ValueError(f"radar {site.radar_id!r} is a cartesian sensor: no bias correction")
+    if bias is not None:
+        time = time - bias.time_ns
     site_pos = frame.site_position(site.lat, site.lon, site.alt)
     if site.kind is RadarKind.CARTESIAN:
         if m and not batch.is_cartesian:
@@ -127,18 +151,20 @@ def convert_plots(
             site, batch, ndim, assumed_altitude, sig_assumed
         )
         height = np.full(m, np.nan)
+        Jp = D = None
     else:
         if m and batch.is_cartesian:
             raise ValueError(
                 f"radar {site.radar_id!r} is a {site.kind.value} radar but its batch carries "
                 "x/y plots"
             )
-        enu, C, valid, reasons, notes, height = _polar_enu(
-            frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth
+        enu, C, valid, reasons, notes, height, Jp, D = _polar_enu(
+            frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth, bias
         )
 
     z = np.full((m, ndim), np.nan)
     R = np.full((m, ndim, ndim), np.nan)
+    dz_dpolar = None if Jp is None else np.full((m, ndim, 2), np.nan)
     idx = np.flatnonzero(valid)
     if idx.size and site.kind is RadarKind.CARTESIAN and frame.kind is FrameKind.PLANAR:
         # the plane is the frame: offsets from the site's plane position, R unchanged
@@ -153,9 +179,12 @@ def convert_plots(
             pos[known, 2] = height[idx][known]
         z[idx] = pos[:, :ndim]
         R[idx] = 0.5 * (Rf + np.swapaxes(Rf, -1, -2))[:, :ndim, :ndim]
+        if dz_dpolar is not None:
+            dz_dpolar[idx] = (Jf @ Jp[idx][:, :, :2])[:, :ndim]
     return ConvertedPlots(
-        z, R, time, valid, reasons, site_pos[:ndim].copy(), site.radar_id, ndim, notes
-    )
+        z, R, time, valid, reasons, site_pos[:ndim].copy(), site.radar_id, ndim, notes,
+        dz_dpolar, D, bias,
+    )  # fmt: skip
 
 
 def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
@@ -176,10 +205,12 @@ def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
     return enu, C, valid, [""] * m, [""] * m
 
 
-def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth):
+def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth, bias):
     m = len(batch)
     D = batch.column("range") if m else np.zeros(0)
     psi = batch.column("azimuth") if m else np.zeros(0)
+    if bias is not None and m:
+        D, psi, _ = bias.correct(D, psi, np.zeros(0, np.int64))
     elev = batch.column("elevation")
     alt = batch.column("altitude")
     elev = np.full(m, np.nan) if elev is None else elev
@@ -212,10 +243,12 @@ def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_eart
 
     enu = np.zeros((m, 3))
     C = np.zeros((m, 3, 3))
+    Jp = np.full((m, 3, 3), np.nan)  # ∂(e, n, u)/∂(D, ψ, θ or h)
     # --- 3-D radar plots with a measured elevation ------------------------------------
     i3 = np.flatnonzero(use_elev & valid)
     if i3.size:
         th = elev[i3]
+        Jp[i3] = spherical_jacobian(D[i3], psi[i3], th)
         if debias:
             mom = vertical_moments_3d(D[i3], sD, th, site.sigma_elevation)
             rho_m, u_m = D[i3] * np.cos(th), D[i3] * np.sin(th)
@@ -253,6 +286,7 @@ def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_eart
         T[:, 2, 0] = dth_dD
         T[:, 2, 2] = dth_dh
         J = Js @ T
+        Jp[i2] = J
         Rs = np.zeros((i2.size, 3, 3))
         Rs[:, 0, 0], Rs[:, 1, 1], Rs[:, 2, 2] = sD**2, sPsi**2, sig_h[i2] ** 2
         if debias:
@@ -274,7 +308,7 @@ def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_eart
     height = np.full(m, np.nan)
     height[i2] = h[i2]
     enu[~valid] = np.nan
-    return enu, C, valid, reasons, notes, height
+    return enu, C, valid, reasons, notes, height, Jp, D
 
 
 def _refine_elevation_on_ellipsoid(site, D, psi, h, theta0):
