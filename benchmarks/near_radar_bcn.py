@@ -28,8 +28,9 @@ RECORDING = DATA / "bcn_20230502_0800_0815_cat048.ast"
 BCN_SITE = {"sac": 20, "sic": 129, "lat": 41.300702, "lon": 2.102058, "alt": 27.26}
 
 
-def collect(path: Path, rows_out: Path) -> dict:
-    """Track the recording; save per-plot rows; return counts."""
+def collect(path: Path, rows_out: Path, assumed: float = 3000.0, sigma: float = 3000.0) -> dict:
+    """Track the recording (plots without a flight level at ``assumed`` ± ``sigma`` m, the
+    evaluation's default 3000 ± 3000 m); save per-plot rows; return counts."""
     import tempfile
 
     from skyfuse.fusion.frames import SystemFrame, convert_plots
@@ -44,7 +45,12 @@ def collect(path: Path, rows_out: Path) -> dict:
     res = read_asterix(path, sites=sites, sector_count=16)
     site = next(iter(res.sites.values()))
     frame = SystemFrame("stereographic", site.lat, site.lon, 0.0)
-    pipe = TrackPipeline(frame, assumed_altitude=3000.0)
+    pipe = TrackPipeline(frame, assumed_altitude=assumed)
+    if sigma != 3000.0:  # the pipeline has no σ argument: wrap its conversion
+        import skyfuse.services.fusion.pipeline as pl
+
+        base = pl.convert_plots
+        pl.convert_plots = lambda *a, **k: base(*a, **k, sigma_assumed_altitude=sigma)
     rows = PlotTrackRows()
     alt, rng, valid, near = [], [], [], 0
     for batch in res.batches:
@@ -57,7 +63,8 @@ def collect(path: Path, rows_out: Path) -> dict:
             v = np.zeros(len(batch), bool)
             v[np.asarray(out.batch.plot_ids)] = True
             valid.append(v)
-            conv = convert_plots(frame, site, batch, assumed_altitude=3000.0)
+            conv = convert_plots(frame, site, batch, assumed_altitude=assumed,
+                                 sigma_assumed_altitude=sigma)  # fmt: skip
             near += int(getattr(conv, "n_near_radar", 0))
     t, label, track, conf = rows.arrays()
     np.savez(rows_out, time=t, label=label, track=track, confirmed=conf,
@@ -67,6 +74,7 @@ def collect(path: Path, rows_out: Path) -> dict:
         "plots": len(t),
         "rejected": rejection_reasons(pipe.rejected),
         "near_radar_plots": near,
+        "assumed_altitude": [assumed, sigma],
         "wall_s": round(time.perf_counter() - t0, 1),
     }
 
@@ -89,11 +97,15 @@ def main(argv=None) -> None:
     ap.add_argument("--recording", type=Path, default=RECORDING)
     ap.add_argument("--rows", type=Path, help="track the recording, write rows here")
     ap.add_argument("--analyse", type=Path, nargs="+", help="rows files to score")
+    ap.add_argument("--assumed-altitude", type=float, default=3000.0)
+    ap.add_argument("--sigma-assumed-altitude", type=float, default=3000.0)
     ap.add_argument("--json", type=Path)
     a = ap.parse_args(argv)
     result = {}
     if a.rows:
-        result["collect"] = collect(a.recording, a.rows)
+        result["collect"] = collect(
+            a.recording, a.rows, a.assumed_altitude, a.sigma_assumed_altitude
+        )
         print(json.dumps(result["collect"], indent=1))
     if a.analyse:
         result["analysis"] = analyse(a.analyse)
