@@ -24,6 +24,9 @@ from .bias_filter import BiasFilter
 from .common_target import PairBuffer, PlotColumns
 from .config import RegistrationConfig, RegistrationMode
 
+MAX_RADARS = 63
+"""Bound on the radars of one estimator (the tracker's radar mask has 63 bits)."""
+
 
 @dataclass(frozen=True)
 class BiasEstimate:
@@ -59,6 +62,7 @@ class RegistrationEstimator:
         self.pairs = PairBuffer(cfg.max_pair_dt, cfg.q, cfg.capacity)
         self.radar_ids: list[str] = []
         self._t_last: int | None = None
+        self.skipped = 0
 
     @property
     def mode(self) -> RegistrationMode:
@@ -72,6 +76,8 @@ class RegistrationEstimator:
         """The radar's index, registering it on first sight (reference when it is in
         ``config.reference``, or when that list is empty and it is the first radar)."""
         if radar_id not in self.radar_ids:
+            if len(self.radar_ids) >= MAX_RADARS:
+                raise ValueError(f"radar {radar_id!r}: at most {MAX_RADARS} radars")
             ref = self.cfg.reference
             is_ref = radar_id in ref if ref else not self.radar_ids
             self.radar_ids.append(radar_id)
@@ -101,7 +107,8 @@ class RegistrationEstimator:
         corrected times ns, horizontal positions z (k, 2) m and covariances R (k, 2, 2),
         ∂z/∂(D, ψ) (k, 2, 2), corrected slant ranges (k,) m, track velocities (k, 2) m/s
         and their covariances (k, 2, 2); ``applied`` the correction used in their
-        conversion. Returns the number of pairs that updated the estimate."""
+        conversion. Rows with a non-finite value are skipped and counted. Returns the
+        number of pairs that updated the estimate."""
         if self.mode is not RegistrationMode.ON:
             return 0
         k = len(track_ids)
@@ -112,12 +119,18 @@ class RegistrationEstimator:
         H[:, :, 2] = dz_dpolar[:, :2, 0] * np.asarray(slant_range)[:, None]  # D ∂z/∂D
         H[:, :, 3] = -velocity[:, :2]  # a clock offset: p(t − b_t) ≈ p(t) − v b_t
         beta = np.zeros(4) if applied is None else applied.vector()
+        finite = (
+            np.isfinite(z[:, :2]).all(1) & np.isfinite(R[:, :2, :2]).all((1, 2))
+            & np.isfinite(H).all((1, 2)) & np.isfinite(velocity[:, :2]).all(1)
+            & np.isfinite(Pvv[:, :2, :2]).all((1, 2)) & np.isfinite(np.asarray(time_ns, float))
+        )  # fmt: skip
+        self.skipped += int(k - finite.sum())
         cols = PlotColumns(
             np.asarray(track_ids, np.int64), np.full(k, r, np.int64),
             np.asarray(time_ns, np.int64), z[:, :2], R[:, :2, :2], H,
             np.broadcast_to(beta, (k, 4)).copy(), velocity[:, :2], Pvv[:, :2, :2],
-        )  # fmt: skip
-        self._drift(int(np.max(time_ns)) if k else None)
+        ).take(np.flatnonzero(finite))  # fmt: skip
+        self._drift(int(np.max(cols.time)) if len(cols) else None)
         return self.filter.update(self.pairs.add(cols))
 
     def _drift(self, t_ns: int | None) -> None:
@@ -145,4 +158,5 @@ class RegistrationEstimator:
             "radars": [e.as_dict() for e in self.estimates()],
             "plots_waiting": len(self.pairs.store),
             "plots_dropped": self.pairs.dropped,
+            "plots_not_finite": self.skipped,
         }

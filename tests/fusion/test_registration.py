@@ -79,3 +79,19 @@ def test_frozen_and_off_modes():
     assert reg.correction("LYVR").is_zero
     reg.set_mode("off")
     assert reg.correction("LYVR") is None
+
+
+def test_non_finite_rows_are_counted_not_used():
+    reg = RegistrationEstimator(RegistrationConfig(reference=["a"]))
+    k = 3
+    z = np.array([[1e4, 2e4], [np.nan, 0.0], [3e4, 1e4]])
+    R = np.broadcast_to(100.0 * np.eye(2), (k, 2, 2)).copy()
+    J = np.broadcast_to(np.array([[0.5, 1e4], [0.8, -2e4]]), (k, 2, 2)).copy()
+    v = np.array([[100.0, 0.0], [0.0, 100.0], [np.inf, 0.0]])
+    P = np.broadcast_to(np.eye(2), (k, 2, 2)).copy()
+    reg.observe_plots("a", np.arange(k), np.arange(k) * 10**9, z, R, J, np.full(k, 3e4), v,
+                      P, None)  # fmt: skip
+    n = reg.observe_plots("b", np.arange(k), np.arange(k) * 10**9 + 10**8, z, R, J,
+                          np.full(k, 3e4), v, P, None)  # fmt: skip
+    assert reg.skipped == 4 and n == 1  # only track 0 forms a pair
+    assert reg.status()["plots_not_finite"] == 4
