@@ -47,6 +47,7 @@ def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_
         axis=(1, 2)
     )
     rows, plot = rows[ok], plot[ok]
+    z = z[ok]
     vi = np.asarray(velocity_index)[:2]
     return (
         est.observe_plots(
