@@ -59,3 +59,28 @@ def test_tracker_driven_estimate_recovers_azimuth_and_range_bias():
     for rid in ("LRTR", "NOVISAD"):
         x = e[rid]
         assert np.all(np.abs(x.bias.vector()[:2]) < 4 * x.sigma[:2]), x.as_dict()
+
+
+def test_observe_tracker_output_selects_rows_consistently():
+    """Plots of unconfirmed, single-radar or shared tracks and plots within
+    min_ground_range of the radar are left out; the others reach the pair buffer with
+    their own position, time and track velocity."""
+    from types import SimpleNamespace as NS
+
+    est = RegistrationEstimator(RegistrationConfig(reference=["a"], min_ground_range=10e3))
+    k = 5
+    z = np.array([[5e3, 0.0], [2e4, 0.0], [3e4, 1e3], [4e4, 0.0], [5e4, 0.0]])
+    conv = NS(z=z, R=np.broadcast_to(np.eye(2), (k, 2, 2)), time=np.arange(k) * 10,
+              polar_jacobian=np.ones((k, 2, 2)), slant_range=np.full(k, 1e4),
+              site_position=np.zeros(2), radar_id="b", bias=None)  # fmt: skip
+    # tracks: 0 near the radar, 1 fine, 2 tentative, 3 one radar only, 4 fine (plot 4)
+    out = NS(ids=np.array([10, 11, 12, 13, 14]), assigned_plot=np.array([0, 1, 2, 3, 4]),
+             confirmed=np.array([1, 1, 0, 1, 1], bool), radar_mask=np.array([3, 3, 3, 1, 3]),
+             batch=NS(plot_ids=np.arange(k)),
+             states=np.arange(20.0).reshape(5, 4), covariances=np.zeros((5, 4, 4)))  # fmt: skip
+    observe_tracker_output(est, out, conv, np.array([1, 3]))
+    store = est.pairs.store
+    assert store.track.tolist() == [11, 14]
+    np.testing.assert_array_equal(store.z, z[[1, 4]])
+    assert store.time.tolist() == [10, 40]
+    np.testing.assert_array_equal(store.v, out.states[[1, 4]][:, [1, 3]])
