@@ -10,6 +10,12 @@ covariance in the system frame, R = J_f J R_s Jᵀ J_fᵀ with the analytic pola
 Output coordinates follow the tracker convention of :mod:`fusion.frames.system_frame`:
 x east, y north (, z up), metres.
 
+Plots near the radar (issue 17 §3): a 2-D plot whose height and slant range disagree
+(|sin e| ≥ 1) or whose elevation is ill-conditioned is kept, converted to the moments
+of its position on the slant-range sphere (:func:`fusion.frames.polar.near_radar_moments`)
+with a covariance covering the disagreement, and flagged in ``near_radar``; only
+physically impossible values (range not > 0, no height and none assumed) are rejected.
+
 Registration (issue 17): a radar's estimated systematic errors
 (:class:`fusion.frames.sensor_bias.SensorBias`) are removed from the reported range,
 azimuth and time before step (1) (sensor_bias eq. 2), and the sensitivity of every
