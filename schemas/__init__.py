@@ -21,7 +21,7 @@ from .tracks import (
     TrackEventKind,
     TrackStatus,
 )
-from .truth import Truth
+from .truth import RadarBias, Truth
 
 MODELS: dict[str, type[WireModel]] = {
     "site": RadarSite,
@@ -51,6 +51,7 @@ __all__ = [
     "FrameSpec",
     "LatencyStats",
     "PlotBatch",
+    "RadarBias",
     "RadarHealth",
     "RadarKind",
     "RadarSite",

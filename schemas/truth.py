@@ -6,8 +6,21 @@ from pydantic import Field, model_validator
 
 from . import columns as col
 from .base import WireModel
+from .keys import ID_PATTERN
 
 _COLUMNS = ("target_id", "lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "x", "y")
+
+
+class RadarBias(WireModel):
+    """The systematic errors a simulated radar applies (reported = (1 + range_gain) ×
+    true range + range, azimuth + azimuth, time + time): the truth a registration
+    estimate is scored against."""
+
+    radar_id: str = Field(pattern=ID_PATTERN, description="Radar id")
+    azimuth: float = Field(0.0, description="Azimuth offset, rad clockwise")
+    range: float = Field(0.0, description="Range offset, m")
+    range_gain: float = Field(0.0, gt=-0.5, lt=0.5, description="Range gain error, 1")
+    time: float = Field(0.0, description="Time-stamping offset, s")
 
 
 class Truth(WireModel):
@@ -26,6 +39,9 @@ class Truth(WireModel):
     vel_up: list[float] = Field(default_factory=list, description="Velocity up, m/s")
     x: list[float] | None = Field(None, description="Planar scenarios: east, m, scenario plane")
     y: list[float] | None = Field(None, description="Planar scenarios: north, m, scenario plane")
+    radar_bias: list[RadarBias] = Field(
+        default_factory=list, description="Simulated radars' systematic errors (biased ones)"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> Truth:

@@ -9,6 +9,18 @@ covariance in the system frame, R = J_f J R_s Jᵀ J_fᵀ with the analytic pola
 
 Output coordinates follow the tracker convention of :mod:`fusion.frames.system_frame`:
 x east, y north (, z up), metres.
+
+Plots near the radar (issue 17 §3): a 2-D plot whose height and slant range disagree
+(|sin e| ≥ 1) or whose elevation is ill-conditioned is kept, converted to the moments
+of its position on the slant-range sphere (:func:`fusion.frames.polar.near_radar_moments`)
+with a covariance covering the disagreement, and flagged in ``near_radar``; only
+physically impossible values (range not > 0, no height and none assumed) are rejected.
+
+Registration (issue 17): a radar's estimated systematic errors
+(:class:`fusion.frames.sensor_bias.SensorBias`) are removed from the reported range,
+azimuth and time before step (1) (sensor_bias eq. 2), and the sensitivity of every
+converted position to range and azimuth, ∂z/∂(D, ψ) = J_f J[:, :2], is returned for the
+registration estimator (:mod:`fusion.registration`).
 """
 
 from __future__ import annotations
@@ -22,10 +34,12 @@ from .geodesy import enu_to_geodetic, normal_section_radius
 from .polar import (
     debiased_enu,
     elevation_from_altitude,
+    near_radar_moments,
     spherical_jacobian,
     spherical_to_enu,
     vertical_moments_3d,
 )
+from .sensor_bias import SensorBias
 from .system_frame import SystemFrame
 
 _ELEVATION_NEWTON_STEPS = 3
@@ -40,7 +54,14 @@ class ConvertedPlots:
     time: (m,) int64 plot times, ns UTC.
     valid: (m,) bool; ``reasons[i]`` says why plot i is invalid ('' when valid).
     site_position: (ndim,) the radar's position in the frame.
-    notes: per-plot remarks on valid plots (e.g. an assumed altitude was used)."""
+    notes: per-plot remarks on valid plots (e.g. an assumed altitude was used).
+    polar_jacobian: (m, ndim, 2) ∂z/∂(D, ψ) in m/m and m/rad (polar radars; NaN where
+      not valid), the sensitivity of a position to range and azimuth errors.
+    slant_range: (m,) bias-corrected slant range D, m (polar radars).
+    bias: the correction that was applied (None: none).
+    near_radar: (m,) bool, valid plots converted by the near-radar projection (height
+      and slant range disagree, |sin e| ≥ 1, or the elevation is ill-conditioned close
+      to the radar; issue 17 §3) — kept, with a covariance covering the disagreement."""
 
     z: np.ndarray
     R: np.ndarray
@@ -51,6 +72,10 @@ class ConvertedPlots:
     radar_id: str
     ndim: int
     notes: list[str] = field(default_factory=list)
+    polar_jacobian: np.ndarray | None = None
+    slant_range: np.ndarray | None = None
+    bias: SensorBias | None = None
+    near_radar: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.z.shape[0]
@@ -58,6 +83,11 @@ class ConvertedPlots:
     @property
     def n_invalid(self) -> int:
         return int((~self.valid).sum())
+
+    @property
+    def n_near_radar(self) -> int:
+        """Plots kept by the near-radar projection (a counter for the service Status)."""
+        return 0 if self.near_radar is None else int(self.near_radar.sum())
 
     def select_valid(self) -> ConvertedPlots:
         """Only the valid plots (reasons/notes filtered alike)."""
@@ -72,6 +102,10 @@ class ConvertedPlots:
             self.radar_id,
             self.ndim,
             [self.notes[i] for i in idx] if self.notes else [],
+            None if self.polar_jacobian is None else self.polar_jacobian[idx],
+            None if self.slant_range is None else self.slant_range[idx],
+            self.bias,
+            None if self.near_radar is None else self.near_radar[idx],
         )
 
 
@@ -85,6 +119,7 @@ def convert_plots(
     assumed_altitude: float | None = None,
     sigma_assumed_altitude: float | None = None,
     k_earth: float = 1.0,
+    bias: SensorBias | None = None,
 ) -> ConvertedPlots:
     """Convert ``batch`` (plots of radar ``site``) into ``frame``.
 
@@ -96,26 +131,19 @@ def convert_plots(
       the elevation solve into the horizontal covariance (issue 7).
     k_earth: effective-Earth factor for the 2-D elevation solve (1 = geometric WGS-84,
       solved exactly on the ellipsoid; 4/3 = standard refraction, sphere of k·R_α).
+    bias: the radar's estimated systematic errors, removed from range, azimuth and the
+      plot times first (sensor_bias eq. 2; polar radars only, None = no correction).
 
     Raises ValueError for a batch/site mismatch (wrong radar id, polar plots from a
     cartesian site or the reverse); bad individual plots are marked invalid with a reason.
     """
-    if ndim not in (2, 3):
-        raise ValueError(f"ndim = {ndim}: must be 2 or 3")
-    if batch.radar_id != site.radar_id:
-        raise ValueError(
-            f"batch.radar_id = {batch.radar_id!r} does not match site.radar_id = {site.radar_id!r}"
-        )
-    if not k_earth > 0:
-        raise ValueError(f"k_earth = {k_earth}: must be > 0")
-    if assumed_altitude is not None and not np.isfinite(assumed_altitude):
-        raise ValueError(f"assumed_altitude = {assumed_altitude}: must be finite metres")
-    sig_assumed = 3000.0 if sigma_assumed_altitude is None else float(sigma_assumed_altitude)
-    if not sig_assumed > 0:
-        raise ValueError(f"sigma_assumed_altitude = {sigma_assumed_altitude}: must be > 0 m")
-
+    sig_assumed = _check_arguments(
+        site, batch, ndim, assumed_altitude, sigma_assumed_altitude, k_earth, bias
+    )
     m = len(batch)
     time = batch.column("time") if m else np.zeros(0, np.int64)
+    if bias is not None:
+        time = time - bias.time_ns
     site_pos = frame.site_position(site.lat, site.lon, site.alt)
     if site.kind is RadarKind.CARTESIAN:
         if m and not batch.is_cartesian:
@@ -127,18 +155,33 @@ def convert_plots(
             site, batch, ndim, assumed_altitude, sig_assumed
         )
         height = np.full(m, np.nan)
+        Jp = D = None
+        near = np.zeros(m, bool)
     else:
         if m and batch.is_cartesian:
             raise ValueError(
                 f"radar {site.radar_id!r} is a {site.kind.value} radar but its batch carries "
                 "x/y plots"
             )
-        enu, C, valid, reasons, notes, height = _polar_enu(
-            frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth
+        P, height = _polar_enu(
+            frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth, bias
         )
+        enu, C, valid, reasons, notes = P.enu, P.C, P.valid, P.reasons, P.notes
+        Jp, D, near = P.Jp, P.D, P.near
 
+    z, R, dz_dpolar = _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim)
+    return ConvertedPlots(
+        z, R, time, valid, reasons, site_pos[:ndim].copy(), site.radar_id, ndim, notes,
+        dz_dpolar, D, bias, near,
+    )  # fmt: skip
+
+
+def _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim):
+    """Steps (2)-(3): site ENU → frame positions, R = J_f C J_fᵀ, ∂z/∂(D, ψ) = J_f Jp."""
+    m = len(valid)
     z = np.full((m, ndim), np.nan)
     R = np.full((m, ndim, ndim), np.nan)
+    dz_dpolar = None if Jp is None else np.full((m, ndim, 2), np.nan)
     idx = np.flatnonzero(valid)
     if idx.size and site.kind is RadarKind.CARTESIAN and frame.kind is FrameKind.PLANAR:
         # the plane is the frame: offsets from the site's plane position, R unchanged
@@ -153,9 +196,30 @@ def convert_plots(
             pos[known, 2] = height[idx][known]
         z[idx] = pos[:, :ndim]
         R[idx] = 0.5 * (Rf + np.swapaxes(Rf, -1, -2))[:, :ndim, :ndim]
-    return ConvertedPlots(
-        z, R, time, valid, reasons, site_pos[:ndim].copy(), site.radar_id, ndim, notes
-    )
+        if dz_dpolar is not None:
+            dz_dpolar[idx] = (Jf @ Jp[idx][:, :, :2])[:, :ndim]
+    return z, R, dz_dpolar
+
+
+def _check_arguments(site, batch, ndim, assumed_altitude, sigma_assumed, k_earth, bias):
+    """Batch-level argument checks of :func:`convert_plots` (ValueError naming the value);
+    returns the σ of the assumed altitude (default 3000 m)."""
+    if ndim not in (2, 3):
+        raise ValueError(f"ndim = {ndim}: must be 2 or 3")
+    if batch.radar_id != site.radar_id:
+        raise ValueError(
+            f"batch.radar_id = {batch.radar_id!r} does not match site.radar_id = {site.radar_id!r}"
+        )
+    if not k_earth > 0:
+        raise ValueError(f"k_earth = {k_earth}: must be > 0")
+    if assumed_altitude is not None and not np.isfinite(assumed_altitude):
+        raise ValueError(f"assumed_altitude = {assumed_altitude}: must be finite metres")
+    sig_assumed = 3000.0 if sigma_assumed is None else float(sigma_assumed)
+    if not sig_assumed > 0:
+        raise ValueError(f"sigma_assumed_altitude = {sigma_assumed}: must be > 0 m")
+    if bias is not None and site.kind is RadarKind.CARTESIAN and not bias.is_zero:
+        raise ValueError(f"radar {site.radar_id!r} is a cartesian sensor: no bias correction")
+    return sig_assumed
 
 
 def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
@@ -176,105 +240,207 @@ def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
     return enu, C, valid, [""] * m, [""] * m
 
 
-def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth):
+@dataclass
+class _Polar:
+    """Working columns of one polar batch: bias-corrected range D and azimuth ψ,
+    measured elevation, height h and its σ, which plots use a measured elevation, and
+    the per-plot outputs filled by the conversion phases."""
+
+    D: np.ndarray
+    psi: np.ndarray
+    elev: np.ndarray
+    h: np.ndarray
+    sig_h: np.ndarray
+    use_elev: np.ndarray
+    valid: np.ndarray
+    reasons: list[str]
+    notes: list[str]
+    enu: np.ndarray
+    C: np.ndarray
+    Jp: np.ndarray  # ∂(e, n, u)/∂(D, ψ, θ or h)
+    near: np.ndarray
+    h_measured: np.ndarray
+
+
+def _polar_enu(frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth, bias):
+    P = _polar_inputs(site, batch, bias, assumed_altitude, sig_assumed)
+    i3 = np.flatnonzero(P.use_elev & P.valid)
+    if i3.size:
+        _enu_measured_elevation(P, site, i3, debias)
+    i2 = np.flatnonzero(~P.use_elev & P.valid)
+    if i2.size:
+        _enu_from_height(P, site, i2, debias, k_earth)
+    height = np.full(len(P.D), np.nan)
+    height[i2] = P.h[i2]
+    P.enu[~P.valid] = np.nan
+    return P, height
+
+
+def _polar_inputs(site, batch, bias, assumed_altitude, sig_assumed) -> _Polar:
+    """Columns of the batch, the bias correction (sensor_bias eq. 2), the assumed
+    altitude where a height is missing, and the checks of physically impossible values
+    (range not > 0, no height and none assumed)."""
     m = len(batch)
     D = batch.column("range") if m else np.zeros(0)
     psi = batch.column("azimuth") if m else np.zeros(0)
+    if bias is not None and m:
+        D, psi, _ = bias.correct(D, psi, np.zeros(0, np.int64))
     elev = batch.column("elevation")
     alt = batch.column("altitude")
     elev = np.full(m, np.nan) if elev is None else elev
-    alt = np.full(m, np.nan) if alt is None else alt
-    reasons = [""] * m
-    notes = [""] * m
-    valid = np.ones(m, bool)
-    sD, sPsi = site.sigma_range, site.sigma_azimuth
-
-    # Which plots use a measured elevation (3-D radar) and which solve it from a height.
-    use_elev = np.isfinite(elev) if site.kind is RadarKind.THREE_D else np.zeros(m, bool)
-    h = alt.copy()
-    sig_h = np.full(m, site.sigma_altitude)
-    need_h = ~use_elev & ~np.isfinite(h)
+    h = np.full(m, np.nan) if alt is None else alt.copy()
+    P = _Polar(
+        D, psi, elev, h, np.full(m, site.sigma_altitude),
+        np.isfinite(elev) if site.kind is RadarKind.THREE_D else np.zeros(m, bool),
+        np.ones(m, bool), [""] * m, [""] * m,
+        np.zeros((m, 3)), np.zeros((m, 3, 3)), np.full((m, 3, 3), np.nan), np.zeros(m, bool),
+        np.isfinite(h),
+    )  # fmt: skip
+    need_h = ~P.use_elev & ~np.isfinite(h)
     if need_h.any():
         if assumed_altitude is None:
             what = "altitude (flight level)" if site.kind is RadarKind.TWO_D else "elevation"
             for i in np.flatnonzero(need_h):
-                reasons[i] = f"plot {i}: {what} unknown and no assumed_altitude configured"
-            valid &= ~need_h
+                P.reasons[i] = f"plot {i}: {what} unknown and no assumed_altitude configured"
+            P.valid &= ~need_h
         else:
             h[need_h] = assumed_altitude
-            sig_h[need_h] = sig_assumed
+            P.sig_h[need_h] = sig_assumed
             for i in np.flatnonzero(need_h):
-                notes[i] = f"assumed altitude {assumed_altitude} m ± {sig_assumed} m"
+                P.notes[i] = f"assumed altitude {assumed_altitude} m ± {sig_assumed} m"
     bad_range = ~(D > 0)
-    for i in np.flatnonzero(bad_range & valid):
-        reasons[i] = f"plot {i}: range = {D[i]} m: must be > 0"
-    valid &= ~bad_range
+    for i in np.flatnonzero(bad_range & P.valid):
+        P.reasons[i] = f"plot {i}: range = {D[i]} m: must be > 0"
+    P.valid &= ~bad_range
+    return P
 
-    enu = np.zeros((m, 3))
-    C = np.zeros((m, 3, 3))
-    # --- 3-D radar plots with a measured elevation ------------------------------------
-    i3 = np.flatnonzero(use_elev & valid)
-    if i3.size:
-        th = elev[i3]
-        if debias:
-            mom = vertical_moments_3d(D[i3], sD, th, site.sigma_elevation)
-            rho_m, u_m = D[i3] * np.cos(th), D[i3] * np.sin(th)
-            lam_t = np.exp(-0.5 * site.sigma_elevation**2)
-            enu[i3], C[i3] = debiased_enu(
-                rho_m, u_m, None, psi[i3], sPsi, lam_vertical=lam_t, moments_vertical=mom
-            )
-        else:
-            enu[i3] = spherical_to_enu(D[i3], psi[i3], th)
-            J = spherical_jacobian(D[i3], psi[i3], th)
-            Rs = np.diag([sD**2, sPsi**2, site.sigma_elevation**2])
-            C[i3] = J @ Rs @ np.swapaxes(J, -1, -2)
-    # --- plots whose elevation comes from a height -------------------------------------
-    i2 = np.flatnonzero(~use_elev & valid)
-    if i2.size:
-        radius = k_earth * normal_section_radius(site.lat, psi[i2])
-        sol = elevation_from_altitude(D[i2], h[i2], site.alt, radius)
-        bad = ~sol.feasible
-        for j in np.flatnonzero(bad):
-            i = i2[j]
-            reasons[i] = (
-                f"plot {i}: range = {D[i]:.1f} m and altitude = {h[i]:.1f} m are "
-                f"inconsistent with the site height {site.alt} m (|sin elevation| >= 1)"
-            )
-        valid[i2[bad]] = False
-        keep = ~bad
-        i2, theta = i2[keep], sol.theta[keep]
-        dth_dD, dth_dh = sol.dtheta_dD[keep], sol.dtheta_dh[keep]
-        if i2.size and k_earth == 1.0:
-            theta = _refine_elevation_on_ellipsoid(site, D[i2], psi[i2], h[i2], theta)
-        # Jacobian of (D, ψ, h) → (e, n, u) through θ(D, h).
-        Js = spherical_jacobian(D[i2], psi[i2], theta)
-        T = np.zeros((i2.size, 3, 3))
-        T[:, 0, 0] = T[:, 1, 1] = 1.0
-        T[:, 2, 0] = dth_dD
-        T[:, 2, 2] = dth_dh
-        J = Js @ T
+
+def _enu_measured_elevation(P: _Polar, site, i3, debias) -> None:
+    """3-D radar plots with a measured elevation (spec 01 §2-3, 004 eq. 11-12)."""
+    D, psi, th, sD = P.D[i3], P.psi[i3], P.elev[i3], site.sigma_range
+    J = spherical_jacobian(D, psi, th)
+    P.Jp[i3] = J
+    if debias:
+        mom = vertical_moments_3d(D, sD, th, site.sigma_elevation)
+        lam_t = np.exp(-0.5 * site.sigma_elevation**2)
+        P.enu[i3], P.C[i3] = debiased_enu(
+            D * np.cos(th), D * np.sin(th), None, psi, site.sigma_azimuth,
+            lam_vertical=lam_t, moments_vertical=mom,
+        )  # fmt: skip
+    else:
+        P.enu[i3] = spherical_to_enu(D, psi, th)
+        Rs = np.diag([sD**2, site.sigma_azimuth**2, site.sigma_elevation**2])
+        P.C[i3] = J @ Rs @ np.swapaxes(J, -1, -2)
+
+
+def _enu_from_height(P: _Polar, site, i2, debias, k_earth) -> None:
+    """Plots whose elevation comes from a height (2-D radars; spec 01 §3): θ(D, h) on the
+    sphere, refined on the ellipsoid; where the height and the slant range disagree or
+    θ is ill-conditioned (close to or over the radar) the near-radar projection of
+    :func:`fusion.frames.polar.near_radar_moments` instead (issue 17 §3)."""
+    radius = k_earth * normal_section_radius(site.lat, P.psi[i2])
+    sol = elevation_from_altitude(P.D[i2], P.h[i2], site.alt, radius)
+    D = P.D[i2]
+    u_m = D * sol.sin_theta  # height above the site's tangent plane the altitude implies
+    du_dh = (radius + P.h[i2]) / (radius + site.alt)  # ∂(D sinθ)/∂h on the sphere
+    sig_u = _near_radar_sigma(D, u_m, du_dh * P.sig_h[i2], site.sigma_range)
+    # an assumed altitude (issue 7) keeps the linearised conversion unless impossible
+    measured = P.h_measured[i2]
+    near = (measured & _ill_conditioned(D, u_m, sig_u, site.sigma_range)) | ~sol.feasible
+    if near.any():
+        _enu_near_radar(P, site, i2[near], u_m[near], sig_u[near], sol.sin_theta[near])
+    keep = ~near
+    i2, theta = i2[keep], sol.theta[keep]
+    if i2.size == 0:
+        return
+    D, psi, h = P.D[i2], P.psi[i2], P.h[i2]
+    dth_dD, dth_dh = sol.dtheta_dD[keep], sol.dtheta_dh[keep]
+    if k_earth == 1.0:
+        theta = _refine_elevation_on_ellipsoid(site, D, psi, h, theta)
+    # Jacobian of (D, ψ, h) → (e, n, u) through θ(D, h).
+    T = np.zeros((i2.size, 3, 3))
+    T[:, 0, 0] = T[:, 1, 1] = 1.0
+    T[:, 2, 0] = dth_dD
+    T[:, 2, 2] = dth_dh
+    J = spherical_jacobian(D, psi, theta) @ T
+    P.Jp[i2] = J
+    sD, sPsi, sh = site.sigma_range, site.sigma_azimuth, P.sig_h[i2]
+    if debias:
+        # (ρ, u) are nearly linear in (D, h): their covariance by linearisation.
+        st, ct = np.sin(theta), np.cos(theta)
+        A = np.zeros((i2.size, 2, 2))
+        A[:, 0, 0] = ct - D * st * dth_dD
+        A[:, 0, 1] = -D * st * dth_dh
+        A[:, 1, 0] = st + D * ct * dth_dD
+        A[:, 1, 1] = D * ct * dth_dh
+        Cru = A @ (np.eye(2) * np.stack([np.full(i2.size, sD**2), sh**2], -1)[:, None])
+        Cru = Cru @ np.swapaxes(A, -1, -2)
+        P.enu[i2], P.C[i2] = debiased_enu(D * ct, D * st, Cru, psi, sPsi)
+    else:
         Rs = np.zeros((i2.size, 3, 3))
-        Rs[:, 0, 0], Rs[:, 1, 1], Rs[:, 2, 2] = sD**2, sPsi**2, sig_h[i2] ** 2
-        if debias:
-            rho = D[i2] * np.cos(theta)
-            u = D[i2] * np.sin(theta)
-            # (ρ, u) are nearly linear in (D, h): their covariance by linearisation.
-            A = np.zeros((i2.size, 2, 2))
-            A[:, 0, 0] = np.cos(theta) - D[i2] * np.sin(theta) * dth_dD
-            A[:, 0, 1] = -D[i2] * np.sin(theta) * dth_dh
-            A[:, 1, 0] = np.sin(theta) + D[i2] * np.cos(theta) * dth_dD
-            A[:, 1, 1] = D[i2] * np.cos(theta) * dth_dh
-            Cdh = np.zeros((i2.size, 2, 2))
-            Cdh[:, 0, 0], Cdh[:, 1, 1] = sD**2, sig_h[i2] ** 2
-            Cru = A @ Cdh @ np.swapaxes(A, -1, -2)
-            enu[i2], C[i2] = debiased_enu(rho, u, Cru, psi[i2], sPsi)
-        else:
-            enu[i2] = spherical_to_enu(D[i2], psi[i2], theta)
-            C[i2] = J @ Rs @ np.swapaxes(J, -1, -2)
-    height = np.full(m, np.nan)
-    height[i2] = h[i2]
-    enu[~valid] = np.nan
-    return enu, C, valid, reasons, notes, height
+        Rs[:, 0, 0], Rs[:, 1, 1], Rs[:, 2, 2] = sD**2, sPsi**2, sh**2
+        P.enu[i2] = spherical_to_enu(D, psi, theta)
+        P.C[i2] = J @ Rs @ np.swapaxes(J, -1, -2)
+
+
+_CROSS_RANGE_FLOOR = 1.0  # m², see _enu_near_radar
+NEAR_RADAR_NONLINEARITY = 0.1
+"""Linearisation limit: a plot is converted by the near-radar projection when the
+second-order term of ρ(u) = √(D² − u²) over σ_u, ½|ρ''|σ_u² = ½ D² σ_u²/ρ³, exceeds this
+fraction of the linearised ground-range σ, √(u² σ_u² + D² σ_D²)/ρ — i.e. when
+½ D² σ_u² / (ρ² √(u² σ_u² + D² σ_D²)) > 0.1 — or when |sin θ| ≥ 1 (no real ρ)."""
+
+
+def _near_radar_sigma(D, u_m, sig_u_h, sigma_range):
+    """σ of the height above the site plane for the near-radar projection: the height
+    noise, the range noise (the sphere's radius is itself measured) and the observed
+    disagreement max(|u_m| − D, 0) (barometric vs geometric height, a wrong code), so
+    that the covariance covers it: σ_u² = σ_h² + σ_D² + max(|u_m| − D, 0)²."""
+    excess = np.maximum(np.abs(u_m) - D, 0.0)
+    return np.sqrt(sig_u_h**2 + sigma_range**2 + excess**2)
+
+
+def _ill_conditioned(D, u_m, sig_u, sigma_range):
+    """The criterion of :data:`NEAR_RADAR_NONLINEARITY` (vectorised)."""
+    rho2 = D * D - u_m * u_m
+    lin = np.sqrt((u_m * sig_u) ** 2 + (D * sigma_range) ** 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = 0.5 * D * D * sig_u**2 / (rho2 * lin)
+    return ~(rho2 > 0) | ~(ratio <= NEAR_RADAR_NONLINEARITY)
+
+
+def _enu_near_radar(P: _Polar, site, idx, u_m, sig_u, sin_theta) -> None:
+    """Near-radar projection (issue 17 §3): the truncated-Gaussian moments of (ρ, u) on
+    the slant-range sphere (:func:`near_radar_moments`), then e = ρ sinψ, n = ρ cosψ with
+
+        C = Var ρ r̂r̂ᵀ + (E[ρ²] σ_ψ² + 1 m²) t̂t̂ᵀ (+ Var u and Cov(ρ, u) r̂ vertically),
+
+    r̂ = (sinψ, cosψ, 0), t̂ = (cosψ, −sinψ, 0). The 1 m² cross-range floor keeps the
+    covariance from collapsing to a line over the radar (ρ → 0) and covers the
+    spherical approximation (centimetres). No Jacobian is given (the registration does
+    not use these plots)."""
+    E_rho, E_u, var_rho, var_u, cov_ru = near_radar_moments(P.D[idx], u_m, sig_u)
+    sp, cp = np.sin(P.psi[idx]), np.cos(P.psi[idx])
+    r_hat = np.stack([sp, cp, np.zeros_like(sp)], -1)
+    t_hat = np.stack([cp, -sp, np.zeros_like(sp)], -1)
+    outer = lambda a, b: a[:, :, None] * b[:, None, :]  # noqa: E731
+    C = var_rho[:, None, None] * outer(r_hat, r_hat)
+    cross = (var_rho + E_rho**2) * site.sigma_azimuth**2 + _CROSS_RANGE_FLOOR
+    C += cross[:, None, None] * outer(t_hat, t_hat)
+    up = np.zeros_like(r_hat)
+    up[:, 2] = 1.0
+    C += cov_ru[:, None, None] * (outer(r_hat, up) + outer(up, r_hat))
+    C += var_u[:, None, None] * outer(up, up)
+    P.enu[idx] = E_rho[:, None] * r_hat + E_u[:, None] * up
+    P.C[idx] = C
+    P.near[idx] = True
+    for j, i in enumerate(idx):
+        gap = abs(u_m[j]) - P.D[i]
+        what = "disagree" if abs(sin_theta[j]) >= 1.0 else "ill-conditioned"
+        P.notes[i] = (P.notes[i] + "; " if P.notes[i] else "") + (
+            f"near the radar ({what}: height vs slant range {gap:+.0f} m): projected on the "
+            f"range sphere, ± {np.sqrt(var_rho[j]):.0f} m in ground range"
+        )
 
 
 def _refine_elevation_on_ellipsoid(site, D, psi, h, theta0):

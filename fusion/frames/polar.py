@@ -142,3 +142,51 @@ def vertical_moments_3d(D, sigma_D, theta, sigma_theta):
     Ec, Es, Ecc, Ess, Esc = _trig_moments(theta, sigma_theta)
     ED2 = D * D + sigma_D * sigma_D
     return D * Ec, D * Es, ED2 * Ecc, ED2 * Esc, ED2 * Ess
+
+
+_NEAR_NODES = 48
+_NEAR_SPAN = 8.0  # integrate the Gaussian of u over ±8σ (inside the sphere)
+
+
+def near_radar_moments(D, u_m, sigma_u):
+    """Moments of (ρ, u) for a plot whose height disagrees with its slant range or
+    whose elevation is ill-conditioned (close to or over the radar; issue 17 §3).
+
+    The point lies on the sphere of radius D about the radar (e² + n² + u² = D², local
+    ENU), so u ∈ [−D, D] and ρ = √(D² − u²). The height measurement says u ≈ u_m
+    (u_m = D sinθ of :func:`elevation_from_altitude`, unclipped, may exceed D) with
+    standard deviation σ_u. The posterior of u is N(u_m, σ_u²) truncated to [−D, D]
+    (a flat prior on the sphere's height), and the moments E[u], E[u²], E[ρ], E[ρ²],
+    E[ρu] follow by Gauss–Legendre quadrature over φ with u = D sin φ, ρ = D cos φ
+    (smooth in φ, so the √ at the poles costs nothing), restricted to u_m ± 8σ_u.
+    E[u] and E[u²] are those of the truncated normal (closed form, scipy.stats.truncnorm)
+    and E[ρ²] = D² − E[u²] exactly.
+
+    Returns (E[ρ], E[u], Var ρ, Var u, Cov(ρ, u)), each (m,), m and m²."""
+    D, u_m, sig = np.broadcast_arrays(*(np.asarray(a, float) for a in (D, u_m, sigma_u)))
+    top = 1.0 - 1e-12
+    lo = np.clip((u_m - _NEAR_SPAN * sig) / D, -1.0, top)
+    hi = np.clip((u_m + _NEAR_SPAN * sig) / D, -top, 1.0)
+    lo = np.minimum(lo, hi - 1e-12)
+    phi_lo, phi_hi = np.arcsin(lo), np.arcsin(hi)
+    x, w = np.polynomial.legendre.leggauss(_NEAR_NODES)
+    half = 0.5 * (phi_hi - phi_lo)[..., None]
+    phi = 0.5 * (phi_hi + phi_lo)[..., None] + half * x
+    u = D[..., None] * np.sin(phi)
+    rho = D[..., None] * np.cos(phi)
+    z2 = ((u - u_m[..., None]) / sig[..., None]) ** 2
+    # weight: Gaussian density of u times du = ρ dφ (constant factors cancel; the
+    # smallest exponent is taken out so that a far tail does not underflow)
+    wt = w * half * rho * np.exp(-0.5 * (z2 - z2.min(axis=-1, keepdims=True)))
+    norm = wt.sum(axis=-1)
+    pole = norm <= 0.0  # the window shrank onto a pole (ρ = 0 at every node)
+    norm = np.where(pole, 1.0, norm)
+
+    def E(f):
+        return (wt * f).sum(axis=-1) / norm
+
+    E_u, E_rho = np.where(pole, np.sign(u_m) * D, E(u)), E(rho)
+    var_u = np.where(pole, 0.0, np.maximum(E(u * u) - E_u**2, 0.0))
+    var_rho = np.maximum(E(rho * rho) - E_rho**2, 0.0)
+    cov = np.where(pole, 0.0, E(rho * u) - E_rho * E_u)
+    return E_rho, E_u, var_rho, var_u, cov

@@ -68,31 +68,12 @@ def beam_crossing_times(
     return t, az, el, r, converged
 
 
-def radar_scan(
-    cfg: SensorConfig,
-    k: int,
-    targets: TargetSet,
-    locate: Locate,
-    rng: np.random.Generator,
-    start_time_ns: int,
-    radar_index: int = 0,
-) -> ScanData:
-    """Plots of scan ``k`` of a 2d/3d radar (see module docstring for the geometry).
-
-    Target plots: detected with probability ``site.p_detection`` when alive at the
-    crossing, within [min_range, max_range] (slant) and at or above ``min_elevation``;
-    range + N(0, σ_range²), azimuth + N(0, σ_azimuth²) wrapped into [0, 2π), 3d:
-    elevation + N(0, σ_elevation²); 2d: altitude = true height + N(0, σ_altitude²),
-    quantised to ``altitude_quantum``. Clutter: Poisson with ``site.clutter_density`` per
-    m² per scan over the annulus [min_range, max_range] plus ``cfg.regions``, uniform in
-    area; its time is when the beam passes its azimuth. Random draws per scan are in a
-    fixed order, so a seeded generator reproduces the scan exactly."""
+def _target_plots(cfg: SensorConfig, t0: float, targets: TargetSet, locate: Locate, rng):
+    """Detected target plots of the scan starting at t0 (s): (time s, target id, range m,
+    azimuth rad, elevation rad or altitude m, target index), biased then noisy."""
     site = cfg.site
-    period = site.scan_period
-    t0 = cfg.scan_time(k)
-    t1 = t0 + period
+    t1 = t0 + site.scan_period
     three_d = site.kind == "3d"
-
     cand = np.flatnonzero((targets.t_birth < t1) & (targets.t_death > t0))
     u_det = rng.random(cand.size)
     noise = rng.standard_normal((cand.size, 3))
@@ -115,8 +96,10 @@ def radar_scan(
     tt = t[ok]
     tid = targets.target_id[cand[ok]]
     n_ok = noise[ok]
-    rr = np.maximum(r[ok] + site.sigma_range * n_ok[:, 0], 0.0)
-    aa = wrap_azimuth(az[ok] + site.sigma_azimuth * n_ok[:, 1])
+    # systematic errors (fusion.frames.sensor_bias eq. 1), then the random noise
+    r_b, az_b, _ = cfg.bias.distort(r[ok], az[ok], np.zeros(0, np.int64))
+    rr = np.maximum(r_b + site.sigma_range * n_ok[:, 0], 0.0)
+    aa = wrap_azimuth(az_b + site.sigma_azimuth * n_ok[:, 1])
     if three_d:
         third = np.clip(el[ok] + site.sigma_elevation * n_ok[:, 2], -math.pi / 2, math.pi / 2)
     else:
@@ -125,21 +108,63 @@ def radar_scan(
             third = np.round(third / cfg.altitude_quantum) * cfg.altitude_quantum
         third = np.clip(third, -1000.0, 100_000.0)
 
-    # clutter
+    return tt, tid, rr, aa, third, cand[ok]
+
+
+def _clutter(cfg: SensorConfig, t0: float, rng: np.random.Generator):
+    """Poisson clutter of one scan: (range m, azimuth rad, time s, elevation or altitude)
+    over the coverage annulus and ``cfg.regions``, uniform in area."""
+    site = cfg.site
     regions = [AnnulusRegion(site.min_range, site.max_range, 0.0, TWO_PI, site.clutter_density)]
     regions.extend(cfg.regions)
     samples = [reg.sample(rng) for reg in regions]
     cr = np.concatenate([s[0] for s in samples])
     ca = np.concatenate([s[1] for s in samples])
-    ct = t0 + period * ca / TWO_PI
-    if three_d:
+    ct = t0 + site.scan_period * ca / TWO_PI
+    if site.kind == "3d":
         cthird = rng.uniform(0.0, cfg.clutter_max_elevation, cr.size)
     else:
         cthird = rng.uniform(0.0, cfg.clutter_max_altitude, cr.size)
         if cfg.altitude_quantum > 0.0:
             cthird = np.round(cthird / cfg.altitude_quantum) * cfg.altitude_quantum
+    return cr, ca, ct, cthird
+
+
+def radar_scan(
+    cfg: SensorConfig,
+    k: int,
+    targets: TargetSet,
+    locate: Locate,
+    rng: np.random.Generator,
+    start_time_ns: int,
+    radar_index: int = 0,
+) -> ScanData:
+    """Plots of scan ``k`` of a 2d/3d radar (see module docstring for the geometry).
+
+    Target plots: detected with probability ``site.p_detection`` when alive at the
+    crossing, within [min_range, max_range] (slant) and at or above ``min_elevation``;
+    range + N(0, σ_range²), azimuth + N(0, σ_azimuth²) wrapped into [0, 2π), 3d:
+    elevation + N(0, σ_elevation²); 2d: altitude = true height + N(0, σ_altitude²),
+    quantised to ``altitude_quantum``. Clutter: Poisson with ``site.clutter_density`` per
+    m² per scan over the annulus [min_range, max_range] plus ``cfg.regions``, uniform in
+    area; its time is when the beam passes its azimuth. Random draws per scan are in a
+    fixed order, so a seeded generator reproduces the scan exactly.
+
+    Systematic errors ``cfg.bias`` (:class:`fusion.frames.sensor_bias.SensorBias`, eq. 1)
+    act on the target plots' true range and azimuth before the noise; the time offset
+    shifts every reported time of the radar (plots, sector bounds), so the plot of a
+    target seen at true time t carries the time t + b_t."""
+    site = cfg.site
+    period = site.scan_period
+    t0 = cfg.scan_time(k)
+    three_d = site.kind == "3d"
+
+    tt, tid, rr, aa, third, cand_ok = _target_plots(cfg, t0, targets, locate, rng)
+    cr, ca, ct, cthird = _clutter(cfg, t0, rng)
 
     time_s = np.concatenate([tt, ct])
+    # the radar's clock runs cfg.bias.time ahead: every time it reports is shifted
+    start_time_ns = start_time_ns + cfg.bias.time_ns
     time_ns = start_time_ns + np.rint(time_s * 1e9).astype(np.int64)
     order = np.argsort(time_ns, kind="stable")
     bounds = start_time_ns + np.rint(
@@ -151,8 +176,8 @@ def radar_scan(
     third_all = np.concatenate([third, cthird])[order]
     mode_s = mode_3a = None
     if cfg.report_mode_s:
-        mode_s = np.concatenate([targets.mode_s[cand[ok]], np.full(cr.size, -1)])[order]
-        mode_3a = np.concatenate([targets.mode_3a[cand[ok]], np.full(cr.size, -1)])[order]
+        mode_s = np.concatenate([targets.mode_s[cand_ok], np.full(cr.size, -1)])[order]
+        mode_3a = np.concatenate([targets.mode_3a[cand_ok], np.full(cr.size, -1)])[order]
     return ScanData(
         radar_id=site.radar_id,
         radar_index=radar_index,

@@ -59,6 +59,7 @@ from .scenario import (
     probability,
 )
 from .sensor import AnnulusRegion, RectRegion, SensorConfig
+from .site_bias import apply_site_biases, bias_parameters
 from .trajectories import G0, TargetSet, TrajectoryBuilder
 
 FT = 0.3048
@@ -578,11 +579,12 @@ SCENARIO_SPECS: dict[str, _Spec] = {
     ),
     "crossing-4g": _Spec(
         "one radar, two targets at 50 km in opposite 4 g turns that cross (spec 01 §7)",
-        _CROSS_PARAMS, _build_crossing, 72.0, 2,
+        {**_CROSS_PARAMS, **bias_parameters(["radar"])}, _build_crossing, 72.0, 2,
     ),
     "regional": _Spec(
         "4 real radar sites (Belgrade, Vršac, Timișoara, Novi Sad), mixed 2d/3d, air traffic",
-        _REGIONAL_PARAMS, _build_regional, 300.0, 40,
+        {**_REGIONAL_PARAMS, **bias_parameters([r.radar_id for r in _REGIONAL_RADARS])},
+        _build_regional, 300.0, 40,
     ),
 }  # fmt: skip
 
@@ -630,6 +632,7 @@ def build_scenario(
                Param(0, "", in_range(1, 10_000)))  # fmt: skip
     values = {k: coerce(name, k, params.get(k, prm.default), prm) for k, prm in allowed.items()}
     tgt, sensors, frame, plane = spec.builder(values, seed, dur, n)
+    sensors = apply_site_biases(sensors, values)
     truth_period = values["truth_period"] or sensors[0].site.scan_period
     values["truth_period"] = truth_period
     record = {"seed": seed, "duration": dur, "targets": n, **values}

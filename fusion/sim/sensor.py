@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from skyfuse.fusion.frames.sensor_bias import SensorBias
 from skyfuse.schemas import RadarSite
 
 
@@ -92,6 +93,8 @@ class SensorConfig:
     * ``coverage``: cartesian sensor only, (x_min, x_max, y_min, y_max) m of the uniform
       clutter at ``site.clutter_density``.
     * ``report_mode_s``: fill the mode_s / mode_3a columns (from the targets' codes).
+    * ``bias``: the radar's systematic errors (polar radars; truth for registration,
+      never told to the tracker).
     """
 
     site: RadarSite
@@ -104,6 +107,7 @@ class SensorConfig:
     regions: tuple = field(default_factory=tuple)
     coverage: tuple[float, float, float, float] | None = None
     report_mode_s: bool = False
+    bias: SensorBias = field(default_factory=SensorBias)
 
     def __post_init__(self) -> None:
         if self.site.kind == "cartesian":
@@ -115,6 +119,8 @@ class SensorConfig:
             for r in self.regions:
                 if not isinstance(r, RectRegion):
                     raise ValueError("cartesian sensors take RectRegion clutter regions")
+            if not self.bias.is_zero:
+                raise ValueError(f"cartesian sensor {self.site.radar_id}: no bias model")
         else:
             for r in self.regions:
                 if not isinstance(r, AnnulusRegion):

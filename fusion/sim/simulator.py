@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import pymap3d
-from skyfuse.schemas import PlotBatch, RadarSite, Truth, keys
+from skyfuse.schemas import PlotBatch, RadarBias, RadarSite, Truth, keys
 
 from .cartesian import cartesian_scan
 from .radar import radar_scan
@@ -218,7 +218,8 @@ class Simulator:
         return out
 
     def truth_message(self, time_ns: int) -> Truth:
-        """``Truth`` of the targets alive at ``time_ns`` (x/y only for planar scenarios)."""
+        """``Truth`` of the targets alive at ``time_ns`` (x/y only for planar scenarios)
+        and the radars' systematic errors."""
         d = self.truth_at(np.array([time_ns]))
         a = d["alive"][0]
         planar = self.scenario.planar
@@ -233,4 +234,17 @@ class Simulator:
             vel_up=d["vel_up"][0, a].tolist(),
             x=d["x"][0, a].tolist() if planar else None,
             y=d["y"][0, a].tolist() if planar else None,
+            radar_bias=self.radar_biases(),
         )
+
+    def radar_biases(self) -> list[RadarBias]:
+        """The systematic errors of the radars that have any (``Truth.radar_bias``)."""
+        out = []
+        for cfg in self.scenario.sensors:
+            b = cfg.bias
+            if not b.is_zero:
+                out.append(
+                    RadarBias(radar_id=cfg.site.radar_id, azimuth=b.azimuth, range=b.range,
+                              range_gain=b.range_gain, time=b.time)
+                )  # fmt: skip
+        return out

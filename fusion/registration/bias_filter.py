@@ -1,0 +1,123 @@
+"""Recursive estimation of the radars' bias vectors from common-target residuals.
+
+The state is the stacked bias vector β = (β_1, …, β_n) of the n radars, β_r =
+(b_ψ, b_D, g, b_t) (:mod:`fusion.frames.sensor_bias`), with the reference radars' β fixed
+at 0 (absolute registration needs a datum: a radar surveyed and trusted, or a set of
+them, as in ARTAS). The measurement of each pair of plots of one target from radars a
+and b is linear in β (:mod:`fusion.registration.common_target` eq. 2):
+
+    y_k = H_{a,k} β_a − H_{b,k} β_b + w_k,   w_k ~ N(0, W_k)                        (1)
+
+With a Gaussian prior β ~ N(0, P_0) and biases constant (or a random walk of variance
+Q Δt), the Kalman filter for this static state is recursive least squares: its estimate
+is the maximum a-posteriori / linearised maximum-likelihood estimate of the exact-ML
+registration of Zhou, Leung & Yip ("An exact maximum likelihood registration algorithm
+for data fusion", IEEE Trans. Signal Processing 45(6), 1997) and Okello & Ristic
+("Maximum likelihood registration for multiple dissimilar sensors", IEEE TAES 39(3),
+2003), computed recursively over the pairs instead of in one batch — the "Kalman
+filter registration" used by operational multi-radar trackers. One batch of pairs is one
+update in information form (Bar-Shalom, Li & Kirubarajan 2001, §7.2, eq. 7.2.1-3):
+
+    Λ⁺ = Λ + Σ_k H_kᵀ W_k⁻¹ H_k,   η⁺ = η + Σ_k H_kᵀ W_k⁻¹ y_k,   β̂ = (Λ⁺)⁻¹ η⁺       (2)
+
+Before the update every pair is gated on its normalised innovation
+ν_kᵀ (H_k P H_kᵀ + W_k)⁻¹ ν_k ≤ χ²_2(p_gate) (wrong associations, manoeuvres). The
+state is kept in units of the prior σ (s = β/σ_0, P_0 = I) so that radians, metres,
+ppm and seconds are conditioned alike.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+from .common_target import ResidualPairs
+
+
+class BiasFilter:
+    """Kalman / recursive-least-squares filter on the stacked bias vectors."""
+
+    def __init__(self, prior_sigma: np.ndarray, estimated: np.ndarray, p_gate: float) -> None:
+        self.sigma0 = np.asarray(prior_sigma, float).reshape(4)
+        self.estimated = np.asarray(estimated, bool).reshape(4)
+        self.gate = float(chi2.ppf(p_gate, 2))
+        self.reference: list[bool] = []
+        self.s = np.zeros(0)  # normalised state, 4 per radar
+        self.P = np.zeros((0, 0))
+        self.pairs_used = np.zeros(0, np.int64)
+        self.pairs_rejected = np.zeros(0, np.int64)
+
+    @property
+    def n_radars(self) -> int:
+        return len(self.reference)
+
+    def add_radar(self, reference: bool) -> int:
+        """Register a radar; returns its index. Reference radars have no free state."""
+        self.reference.append(bool(reference))
+        n = 4 * self.n_radars
+        P = np.zeros((n, n))
+        P[: n - 4, : n - 4] = self.P
+        P[n - 4 :, n - 4 :] = np.diag(self._free(len(self.reference) - 1).astype(float))
+        self.s, self.P = np.r_[self.s, np.zeros(4)], P
+        self.pairs_used = np.r_[self.pairs_used, 0]
+        self.pairs_rejected = np.r_[self.pairs_rejected, 0]
+        return self.n_radars - 1
+
+    def _free(self, r: int) -> np.ndarray:
+        return self.estimated & (not self.reference[r])
+
+    def drift(self, variance_fraction: float) -> None:
+        """Random walk: add ``variance_fraction`` × prior variance to the free states."""
+        if self.n_radars:
+            free = np.concatenate([self._free(r) for r in range(self.n_radars)])
+            self.P[np.diag_indices_from(self.P)] += variance_fraction * free
+
+    def bias(self, r: int) -> np.ndarray:
+        """Estimate of radar r's bias vector (rad, m, 1, s)."""
+        return self.s[4 * r : 4 * r + 4] * self.sigma0
+
+    def sigma(self, r: int) -> np.ndarray:
+        """Standard deviations of radar r's estimate (0 for fixed components)."""
+        return np.sqrt(np.maximum(np.diag(self.P)[4 * r : 4 * r + 4], 0.0)) * self.sigma0
+
+    def covariance(self, r: int) -> np.ndarray:
+        """(4, 4) covariance of radar r's estimate in SI units."""
+        sl = slice(4 * r, 4 * r + 4)
+        return self.P[sl, sl] * np.outer(self.sigma0, self.sigma0)
+
+    def _stacked_h(self, pairs: ResidualPairs) -> np.ndarray:
+        """H of eq. (1) over all pairs, (k, 2, 4n), in normalised units, fixed columns 0."""
+        k, n = len(pairs), self.n_radars
+        H = np.zeros((k, 2, n, 4))
+        rows = np.arange(k)
+        H[rows, :, pairs.a, :] += pairs.HA * self.sigma0
+        H[rows, :, pairs.b, :] -= pairs.HB * self.sigma0
+        free = np.array([self._free(r) for r in range(n)])
+        return (H * free[None, None]).reshape(k, 2, 4 * n)
+
+    def update(self, pairs: ResidualPairs) -> int:
+        """Gate and apply one batch of pairs (eq. 2); returns the number used."""
+        if len(pairs) == 0 or self.n_radars == 0:
+            return 0
+        H = self._stacked_h(pairs)
+        informative = np.abs(H).sum(axis=(1, 2)) > 0
+        nu = pairs.y - np.einsum("kij,j->ki", H, self.s)
+        S = H @ self.P @ np.swapaxes(H, 1, 2) + pairs.W
+        d2 = np.einsum("ki,ki->k", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+        ok = informative & (d2 <= self.gate)
+        np.add.at(self.pairs_rejected, pairs.a[informative & ~ok], 1)
+        if not ok.any():
+            return 0
+        # information update over the free components only (fixed ones stay exactly 0)
+        idx = np.flatnonzero(np.concatenate([self._free(r) for r in range(self.n_radars)]))
+        H, y, Wi = H[ok][:, :, idx], pairs.y[ok], np.linalg.inv(pairs.W[ok])
+        HtWi = np.swapaxes(H, 1, 2) @ Wi
+        Pf, sf = self.P[np.ix_(idx, idx)], self.s[idx]
+        info = np.linalg.inv(Pf) + (HtWi @ H).sum(axis=0)
+        eta = np.linalg.solve(Pf, sf) + np.einsum("kij,kj->i", HtWi, y)
+        Pn = np.linalg.inv(info)
+        self.P[np.ix_(idx, idx)] = 0.5 * (Pn + Pn.T)
+        self.s[idx] = Pn @ eta
+        np.add.at(self.pairs_used, pairs.a[ok], 1)
+        np.add.at(self.pairs_used, pairs.b[ok], 1)
+        return int(ok.sum())

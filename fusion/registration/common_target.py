@@ -1,0 +1,147 @@
+"""Common-target residuals: pairs of plots of one track from two different radars.
+
+For a plot of radar A at (corrected) time t_A on track T, converted to the system plane
+as z_A with the correction β̂_A applied (β = (b_ψ, b_D, g, b_t), :mod:`fusion.frames.
+sensor_bias`), the linearised bias model is (Fischer, Muehe & Cameron 1980, §3; Okello &
+Ristic 2003, eq. 3-5)
+
+    z_A = p_T(t_A) + H_A (β_A − β̂_A) + w_A,   H_A = [∂z/∂ψ, ∂z/∂D, D ∂z/∂D, −v_T]   (1)
+
+(the time column: a clock offset b_t puts the plot at p_T(t_A − b_t) ≈ p_T(t_A) − v b_t).
+With the most recent plot of another radar B on the same track, at t_B within
+``max_pair_dt``, aligned to t_A with the track velocity v_T, the pair residual is
+
+    y = z_A − z_B − v_T (t_A − t_B) + H_A β̂_A − H_B β̂_B = H_A β_A − H_B β_B + w       (2)
+    W = R_A + R_B + Δt² P_vv + q |Δt|³/3 I                                          (3)
+
+(Δt = t_A − t_B; P_vv the track's velocity covariance; the last term the white-
+acceleration motion over Δt, spec 01 §4). The target position cancels, so (2) is linear
+in the biases alone: the measurement of the registration filter. Every plot enters at
+most one pair (both plots of a pair are consumed), so the residuals of different pairs
+share no plot noise. Horizontal (x, y) components only.
+
+The buffer of plots awaiting a partner is a set of NumPy columns bounded by
+``capacity``; plots older than ``max_pair_dt`` are dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class PlotColumns:
+    """Plots of tracks (arrays over k plots): track id, radar index, time ns, horizontal
+    position z (k, 2) m, covariance R (k, 2, 2) m², bias sensitivity H (k, 2, 4), the
+    correction applied β̂ (k, 4), track velocity v (k, 2) m/s and its covariance
+    P_vv (k, 2, 2)."""
+
+    track: np.ndarray
+    radar: np.ndarray
+    time: np.ndarray
+    z: np.ndarray
+    R: np.ndarray
+    H: np.ndarray
+    applied: np.ndarray
+    v: np.ndarray
+    Pvv: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.track)
+
+    @classmethod
+    def empty(cls) -> PlotColumns:
+        return cls(
+            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
+            np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 4)), np.zeros((0, 4)),
+            np.zeros((0, 2)), np.zeros((0, 2, 2)),
+        )  # fmt: skip
+
+    def take(self, idx) -> PlotColumns:
+        return PlotColumns(*(getattr(self, f)[idx] for f in _FIELDS))
+
+    @staticmethod
+    def concat(a: PlotColumns, b: PlotColumns) -> PlotColumns:
+        return PlotColumns(*(np.concatenate([getattr(a, f), getattr(b, f)]) for f in _FIELDS))
+
+
+_FIELDS = ("track", "radar", "time", "z", "R", "H", "applied", "v", "Pvv")
+
+
+@dataclass
+class ResidualPairs:
+    """Pair residuals (eq. 2-3): y (k, 2), W (k, 2, 2), H_A, H_B (k, 2, 4), radar
+    indices a, b (k,), and the pairs' times (k,) ns."""
+
+    y: np.ndarray
+    W: np.ndarray
+    HA: np.ndarray
+    HB: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    time: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.y)
+
+
+class PairBuffer:
+    """Plots awaiting a partner from another radar, and the pairing of eq. (2)."""
+
+    def __init__(self, max_pair_dt: float, q: float, capacity: int) -> None:
+        self.max_dt_ns = int(max_pair_dt * 1e9)
+        self.q = float(q)
+        self.capacity = int(capacity)
+        self.store = PlotColumns.empty()
+        self.dropped = 0
+
+    def add(self, new: PlotColumns) -> ResidualPairs:
+        """Pair the new plots (one radar's batch) with stored plots of other radars;
+        store the unpaired ones; return the residuals of the pairs."""
+        t_now = int(new.time.max()) if len(new) else None
+        if t_now is not None:
+            self._expire(t_now)
+        s = self.store
+        dt = new.time[:, None] - s.time[None, :]
+        ok = (
+            (new.track[:, None] == s.track[None, :])
+            & (new.radar[:, None] != s.radar[None, :])
+            & (np.abs(dt) <= self.max_dt_ns)
+        )
+        cost = np.where(ok, np.abs(dt), np.iinfo(np.int64).max)
+        best = np.argmin(cost, axis=1) if len(s) else np.zeros(len(new), np.int64)
+        has = ok[np.arange(len(new)), best] if len(s) else np.zeros(len(new), bool)
+        # a stored plot partners at most one new plot (the nearest in time)
+        ia = np.flatnonzero(has)
+        ib = best[ia]
+        order = np.lexsort((cost[ia, ib], ib))
+        first = np.r_[True, ib[order][1:] != ib[order][:-1]] if len(order) else order
+        ia, ib = ia[order][first], ib[order][first]
+        pairs = self._residuals(new.take(ia), s.take(ib))
+        keep_store = np.ones(len(s), bool)
+        keep_store[ib] = False
+        # a newer plot of the same (track, radar) replaces the stored one
+        rest = new.take(np.setdiff1d(np.arange(len(new)), ia))
+        key_s = s.track * 64 + s.radar
+        keep_store &= ~np.isin(key_s, rest.track * 64 + rest.radar)
+        self.store = PlotColumns.concat(s.take(np.flatnonzero(keep_store)), rest)
+        if len(self.store) > self.capacity:
+            n_drop = len(self.store) - self.capacity
+            self.dropped += n_drop
+            self.store = self.store.take(np.arange(n_drop, len(self.store)))
+        return pairs
+
+    def _expire(self, t_now: int) -> None:
+        fresh = np.flatnonzero(t_now - self.store.time <= self.max_dt_ns)
+        if len(fresh) < len(self.store):
+            self.store = self.store.take(fresh)
+
+    def _residuals(self, A: PlotColumns, B: PlotColumns) -> ResidualPairs:
+        dt = (A.time - B.time) * 1e-9
+        hb = lambda X, b: np.einsum("kij,kj->ki", X, b)  # noqa: E731
+        y = A.z - B.z - A.v * dt[:, None] + hb(A.H, A.applied) - hb(B.H, B.applied)
+        W = A.R + B.R + dt[:, None, None] ** 2 * A.Pvv
+        W = W + (self.q * np.abs(dt) ** 3 / 3.0)[:, None, None] * np.eye(2)
+        return ResidualPairs(y, W, A.H, B.H, A.radar, B.radar, A.time.copy())
