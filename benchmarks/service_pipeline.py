@@ -104,6 +104,7 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         ready = [service_alive_key("fusion")] + [service_alive_key(c.name) for c in sensors]
         assert wait_for_tokens(s, ready, 60.0) == [], "services did not start"
         go = declare_liveliness(s, service_alive_key("bench"))
+        spy = _profile(fusion, a.profile, rate)
         t0 = time.monotonic()
         last_fusion_status = [0.0]
 
@@ -137,6 +138,8 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         fs = status["bench"]
         t_done = last_fusion_status[0]
         go.undeclare()
+        if spy is not None:
+            spy.wait(timeout=60)
         fusion.terminate()
         inbox.close()
     lat = fs.latency_ms
@@ -163,6 +166,21 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
     }
 
 
+def _profile(fusion: Child, out: Path | None, rate: float):
+    """py-spy on the fusion process for the sending time (collapsed stacks, ``--profile``)."""
+    if out is None:
+        return None
+    import subprocess
+
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = ["py-spy", "record", "-p", str(fusion.proc.pid), "-f", "raw", "-r", "50", "-d"]
+    cmd += [str(int(out_seconds[0])), "-o", str(out / f"fusion-{rate:.0f}.txt")]
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+out_seconds = [15.0]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--rates", default="1000,5000,20000")
@@ -172,7 +190,9 @@ def main() -> None:
     ap.add_argument("--reorder-wait", type=float, default=0.1)
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
     a = ap.parse_args()
+    out_seconds[0] = a.seconds
     base = sim_plot_rate(a.targets, a.seed)
     print(f"regional, {RADARS} radars, {a.targets} aircraft: {base:.0f} plots per simulated s;"
           f" {os.cpu_count()} cores", flush=True)  # fmt: skip
