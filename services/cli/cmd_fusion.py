@@ -1,8 +1,10 @@
 """``skyfuse fusion [--config fusion.toml] [--listen EP] [--connect EP]``: the fusion
 service. Subscribes to every radar's plots and sites, orders batches across radars,
 runs the configured tracker and publishes on ``skyfuse/@v1/fusion/{id}/…``:
-``tracks`` (a TrackBatch after each cycle), ``events`` (TrackEvents), ``status``
-(periodic Status) and the queryable ``snapshot`` (the latest TrackBatch).
+``tracks`` (the track feed: a delta TrackBatch after each cycle — or group of cycles
+when several batches are ready at once — and the full picture every ``--full-interval``
+s), ``events`` (TrackEvents), ``status`` (periodic Status with the backlog) and the
+queryable ``snapshot`` (the full picture now; see ``schemas.tracks`` for the contract).
 
 TOML: ``[fusion]`` (this service, incl. ``[[fusion.sites]]``), ``[tracker]`` (the
 tracker, see ``fusion.tracker.TrackerConfig``), ``[transport]``. Environment:
@@ -160,10 +162,9 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
     pub_events = declare_publisher(session, keys.fusion_events(fid))
     pub_status = declare_publisher(session, keys.fusion_status(fid))
     snapshot_key = keys.fusion_snapshot(fid)
-    latest = {"payload": None}
 
     def answer_snapshot(q) -> None:
-        payload = latest["payload"]
+        payload = core.snapshot_payload()
         if payload is not None:
             q.reply(snapshot_key, payload)
         else:
@@ -185,16 +186,16 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
 
     def publish(outputs) -> None:
         for out in outputs:
-            b = out.tracks
-            payload = b.to_json_bytes()
-            pub_tracks.put(payload)
-            if cat062 is not None:
-                cat062.send(b)
+            for msg in (out.tracks, out.full):
+                if msg is None:
+                    continue
+                pub_tracks.put(msg.to_json_bytes())
+                if cat062 is not None:
+                    cat062.send(msg.model())
             for ev in out.events:
                 pub_events.put(ev.to_json_bytes())
                 if cat062 is not None:
                     cat062.terminated(ev)
-            latest["payload"] = payload
             core.published(out)
 
     def handle(item) -> None:
@@ -242,11 +243,12 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
                 core.rejected["not processed: shutdown deadline"] += len(left) - i
                 break
             handle(item)
-        for p in core.buffer.flush():
-            if time.monotonic() > deadline:
-                core.rejected["not processed: shutdown deadline"] += 1
-                continue
-            publish([o for o in [core.cycle(p)] if o is not None])
+        left = core.buffer.flush()
+        while left and time.monotonic() <= deadline:
+            group, left = left[: core.cfg.bulk_max], left[core.cfg.bulk_max :]
+            publish([o for o in [core.cycle_group(group)] if o is not None])
+        if left:
+            core.rejected["not processed: shutdown deadline"] += len(left)
         if inbox.discarded:
             core.rejected["not processed: arrived after the stop"] += inbox.discarded
         if core.rejected.get("not processed: shutdown deadline"):

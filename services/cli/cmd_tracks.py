@@ -17,7 +17,7 @@ import sys
 import time
 
 from pydantic import BaseModel, Field, ValidationError
-from skyfuse.schemas import TrackBatch, TrackEvent, TrackStatus, keys
+from skyfuse.schemas import TrackBatch, TrackEvent, TrackPicture, TrackStatus, keys
 from skyfuse.services.cli.config import add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
@@ -129,7 +129,13 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
     inbox.subscribe(session, f"{base}/events", "events")
     t0 = time.monotonic()
     batches = 0
-    latest: TrackBatch | None = None
+    picture = TrackPicture()  # the feed's deltas and fulls rebuilt (schemas.tracks)
+    if not cfg.json_lines and cfg.fusion_id != "*":  # joined late: start from the snapshot
+        for _, payload in query(session, f"{base}/snapshot", timeout=2.0):
+            try:
+                picture.apply(TrackBatch.from_json_bytes(payload))
+            except ValidationError as e:
+                log.warning("invalid snapshot: %s", e.errors()[0]["msg"])
     events: list[TrackEvent] = []
     live = None
     if not cfg.json_lines:
@@ -158,7 +164,7 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
                 continue
             try:
                 if item.tag == "tracks":
-                    latest = TrackBatch.from_json_bytes(item.payload)
+                    picture.apply(TrackBatch.from_json_bytes(item.payload))
                     batches += 1
                 else:
                     events.append(TrackEvent.from_json_bytes(item.payload))
@@ -166,7 +172,7 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
             except ValidationError as e:
                 log.warning("invalid message on %s: %s", item.key, e.errors()[0]["msg"])
                 continue
-            live.update(render_table(latest, events, cfg.all_tracks))
+            live.update(render_table(picture.batch(), events, cfg.all_tracks))
     finally:
         inbox.close()
         if live is not None:

@@ -28,7 +28,16 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, Field
-from skyfuse.schemas import FrameSpec, PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
+from skyfuse.schemas import (
+    FrameSpec,
+    PlotBatch,
+    RadarSite,
+    Status,
+    TrackBatch,
+    TrackPicture,
+    TrackStatus,
+    Truth,
+)
 from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
 
 log = logging.getLogger(__name__)
@@ -170,6 +179,7 @@ def evaluate_recording(
     stats = ReadStats()
     truths: list[Truth] = []
     batches: list[TrackBatch] = []
+    picture = TrackPicture()
     sites: dict[str, RadarSite] = {}
     plot_batches = plots = 0
     det_ids: list[np.ndarray] = []
@@ -186,8 +196,9 @@ def evaluate_recording(
                 tid = m.column("target_id")
                 det_ids.append(tid[tid >= 0])
                 det_times.append(m.column("time")[tid >= 0])
-        elif isinstance(m, TrackBatch):
-            batches.append(m)
+        elif isinstance(m, TrackBatch):  # the feed's deltas and fulls, rebuilt
+            if picture.apply(m):
+                batches.append(picture.batch())
         elif isinstance(m, Truth):
             truths.append(m)
         elif isinstance(m, RadarSite):

@@ -31,7 +31,16 @@ import pymap3d
 from foxglove import messages as fg
 from pydantic import BaseModel, Field, ValidationError
 from skyfuse import schemas
-from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
+from skyfuse.schemas import (
+    PlotBatch,
+    RadarKind,
+    RadarSite,
+    TrackBatch,
+    TrackPicture,
+    TrackStatus,
+    Truth,
+    keys,
+)
 from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from skyfuse.services.runtime.transport import Received
 
@@ -43,6 +52,9 @@ FOXGLOVE_TOPICS = {
     "truth": "/foxglove/truth",
     "sites": "/foxglove/sites",
 }
+_MAX_FEEDS = 64
+"""Fusion ids whose track picture the Foxglove channels rebuild, at most."""
+
 _COLORS = {
     "tracks": fg.Color(r=0.1, g=0.4, b=1.0, a=1.0),
     "plots": fg.Color(r=1.0, g=0.6, b=0.0, a=0.6),
@@ -144,6 +156,7 @@ class Recorder:
         self.files: list[Path] = []
         self.counts: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
+        self._pictures: dict[str, TrackPicture] = {}
         self.messages = 0
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
@@ -292,7 +305,10 @@ class Recorder:
             if len(msg.time):
                 self._scan_plots.setdefault(msg.radar_id, []).append(msg)
         elif isinstance(msg, TrackBatch):
-            conf = [t for t in msg.tracks if t.status == TrackStatus.CONFIRMED]
+            picture = self._picture(msg.fusion_id)
+            if picture is None or not picture.apply(msg):
+                return
+            conf = [t for t in picture.tracks.values() if t.status == TrackStatus.CONFIRMED]
             fixes = location_fixes(
                 msg.time,
                 msg.fusion_id,
@@ -309,6 +325,17 @@ class Recorder:
                 location_fixes(msg.time, "truth", msg.lat, msg.lon, msg.alt, _COLORS["truth"]),
                 log_time,
             )
+
+    def _picture(self, fusion_id: str) -> TrackPicture | None:
+        """The track picture of one fusion id, rebuilt from its deltas and fulls (at most
+        ``_MAX_FEEDS`` fusion ids; beyond, counted and not drawn)."""
+        pic = self._pictures.get(fusion_id)
+        if pic is None:
+            if len(self._pictures) >= _MAX_FEEDS:
+                self.rejected["foxglove: too many fusion ids"] += 1
+                return None
+            pic = self._pictures[fusion_id] = TrackPicture()
+        return pic
 
     def summary(self) -> dict:
         return {
