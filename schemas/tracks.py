@@ -173,7 +173,9 @@ class TrackPicture:
         else:
             if self.cycle is not None and batch.cycle <= self.cycle:
                 return False
-            if self.cycle is None or batch.cycle != self.cycle + 1:
+            if self.cycle is None:  # joined the feed at its first delta, or late
+                self.complete = batch.cycle == 1
+            elif batch.cycle != self.cycle + 1:
                 self.complete = False
             for i in batch.removed:
                 self.tracks.pop(i, None)
