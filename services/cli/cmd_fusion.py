@@ -171,7 +171,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
             q.reply_err(b"no tracks yet")
 
     queryable = session.declare_queryable(snapshot_key, answer_snapshot)
-    inbox = Inbox(capacity=core.cfg.queue)
+    inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")
     inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
@@ -221,12 +221,15 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
             if duration is not None and now - t0 >= duration:
                 break
             room = core.cfg.queue - len(core.buffer)
-            if room > 0:  # a full reorder buffer stops the reading: back-pressure (BLOCK)
+            if room > 0 and not core.over_backlog(now):
                 item = inbox.get(timeout=_next_wait(core, now))
                 if item is not None:
                     handle(item)
                     for more in inbox.drain(min(1000, room)):
                         handle(more)
+            else:  # stop reading: the bounded inbox fills, Zenoh (BLOCK) slows the senders
+                core.counters["reading_paused"] += 1
+                time.sleep(min(0.01, _next_wait(core, now)))
             publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval

@@ -89,7 +89,17 @@ class FusionConfig(BaseModel):
         1.0, gt=0, description="Period of the full-picture TrackBatch on the feed, s"
     )
     bulk_max: int = Field(
-        500, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
+        50, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
+    )
+    max_backlog: float = Field(
+        2.0,
+        gt=0,
+        description="Stop reading input while a batch has waited longer than the reorder "
+        "wait plus this, s: the bounded inbox fills and the publishers are slowed down "
+        "(back-pressure), so the latency stays bounded",
+    )
+    inbox: int = Field(
+        2_000, ge=10, le=1_000_000, description="Messages in the receive queue, at most"
     )
     behind_after: float = Field(
         0.5,
@@ -105,8 +115,8 @@ class FusionConfig(BaseModel):
         10_000,
         ge=10,
         le=1_000_000,
-        description="Batches waiting in the reorder buffer (and messages in the receive "
-        "queue), at most; beyond it the publishers are slowed down",
+        description="Batches waiting in the reorder buffer, at most; beyond it the "
+        "publishers are slowed down",
     )
 
     def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
@@ -375,6 +385,14 @@ class FusionCore:
             plots_per_s_out=self.rate_out.rate(now),
             behind=age > self.cfg.reorder_wait + self.cfg.behind_after,
         )
+
+    def over_backlog(self, now: float | None = None) -> bool:
+        """A batch has waited longer than reorder wait + ``max_backlog``: stop reading."""
+        oldest = next(iter(self._waiting.values()), None)
+        if oldest is None:
+            return False
+        now = time.monotonic() if now is None else now
+        return now - oldest[0] > self.cfg.reorder_wait + self.cfg.max_backlog
 
     def _has_site(self, batch: PlotBatch) -> bool:
         if self._radar(batch.radar_id).site is not None:
