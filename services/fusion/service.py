@@ -91,15 +91,16 @@ class FusionConfig(BaseModel):
     bulk_max: int = Field(
         50, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
     )
-    max_backlog: float = Field(
-        2.0,
+    max_backlog: float | None = Field(
+        None,
         gt=0,
-        description="Stop reading input while a batch has waited longer than the reorder "
-        "wait plus this, s: the bounded inbox fills and the publishers are slowed down "
-        "(back-pressure), so the latency stays bounded",
+        description="Opt-in: stop reading input while a batch has waited longer than the "
+        "reorder wait plus this, s (the inbox fills and the publishers are slowed down); "
+        "batches held back in the senders may then arrive out of sequence (counted). "
+        "Default: off, back-pressure only from the queue bound",
     )
     inbox: int = Field(
-        2_000, ge=10, le=1_000_000, description="Messages in the receive queue, at most"
+        10_000, ge=10, le=1_000_000, description="Messages in the receive queue, at most"
     )
     behind_after: float = Field(
         0.5,
@@ -389,7 +390,7 @@ class FusionCore:
     def over_backlog(self, now: float | None = None) -> bool:
         """A batch has waited longer than reorder wait + ``max_backlog``: stop reading."""
         oldest = next(iter(self._waiting.values()), None)
-        if oldest is None:
+        if oldest is None or self.cfg.max_backlog is None:
             return False
         now = time.monotonic() if now is None else now
         return now - oldest[0] > self.cfg.reorder_wait + self.cfg.max_backlog
