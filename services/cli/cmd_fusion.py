@@ -3,8 +3,10 @@ service. Subscribes to every radar's plots and sites, orders batches across rada
 runs the configured tracker and publishes on ``skyfuse/@v1/fusion/{id}/…``:
 ``tracks`` (the track feed: a delta TrackBatch after each cycle — or group of cycles
 when several batches are ready at once — and the full picture every ``--full-interval``
-s), ``events`` (TrackEvents), ``status`` (periodic Status with the backlog) and the
-queryable ``snapshot`` (the full picture now; see ``schemas.tracks`` for the contract).
+s), ``events`` (TrackEvents), ``status`` (periodic Status with the backlog; also a
+queryable answering the last one) and the queryable ``snapshot`` (the full picture now;
+see ``schemas.tracks`` for the contract). Payloads are JSON with the Zenoh encoding
+``application/json;skyfuse.{Model}/{schema version}``.
 
 TOML: ``[fusion]`` (this service, incl. ``[[fusion.sites]]``), ``[tracker]`` (the
 tracker, see ``fusion.tracker.TrackerConfig``), ``[transport]``. Environment:
@@ -36,6 +38,7 @@ from skyfuse.services.runtime.transport import (
     declare_liveliness,
     declare_publisher,
     open_session,
+    payload_encoding,
     query,
     service_alive_key,
     transport_config,
@@ -163,14 +166,21 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
     pub_status = declare_publisher(session, keys.fusion_status(fid))
     snapshot_key = keys.fusion_snapshot(fid)
 
+    status_key = keys.fusion_status(fid)
+    last_status = {"payload": core.status().to_json_bytes()}
+
     def answer_snapshot(q) -> None:
         payload = core.snapshot_payload()
         if payload is not None:
-            q.reply(snapshot_key, payload)
+            q.reply(snapshot_key, payload, encoding=payload_encoding(snapshot_key))
         else:
             q.reply_err(b"no tracks yet")
 
+    def answer_status(q) -> None:  # the last Status published (status_interval old at most)
+        q.reply(status_key, last_status["payload"], encoding=payload_encoding(status_key))
+
     queryable = session.declare_queryable(snapshot_key, answer_snapshot)
+    status_queryable = session.declare_queryable(status_key, answer_status)
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")
@@ -233,7 +243,8 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
             publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval
-                pub_status.put(core.status().to_json_bytes())
+                last_status["payload"] = core.status().to_json_bytes()
+                pub_status.put(last_status["payload"])
     finally:
         token.undeclare()
         inbox.close()
@@ -262,6 +273,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
         st = core.status()
         pub_status.put(st.to_json_bytes())
         queryable.undeclare()
+        status_queryable.undeclare()
         lat = st.latency_ms
         log.info(
             "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
