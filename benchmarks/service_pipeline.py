@@ -19,6 +19,7 @@ fusion's resident memory (VmRSS, start of the level and maximum), feed message c
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
         [--targets 1000] [--radars 4] [--reorder-wait 0.2] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
+        [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
 
 from __future__ import annotations
@@ -73,9 +74,34 @@ def make_level_files(rate: float, speed: float, a, work: Path) -> tuple[Path, di
         f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
         f"radars={a.radars}", "--out", str(rec), "--no-progress",
     )  # fmt: skip
+    if a.no_offline:
+        return rec, recording_facts(rec)
     skyfuse_cli("track", str(rec), "--out", str(work / "offline.mcap"), "--json", str(js),
                 "--no-progress")  # fmt: skip
     return rec, json.loads(js.read_text())
+
+
+def recording_facts(rec: Path) -> dict:
+    """What the level needs from ``skyfuse track``'s summary, without running it
+    (``--no-offline``): frame (stereographic at the sites' mean), radars, batches, plots."""
+    from skyfuse.schemas import PlotBatch, RadarSite
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    sites, batches, plots = {}, 0, 0
+    for r in iter_recording(rec):
+        if isinstance(r.message, RadarSite):
+            sites[r.message.radar_id] = r.message
+        elif isinstance(r.message, PlotBatch):
+            batches, plots = batches + 1, plots + len(r.message)
+    lat0 = float(np.mean([s.lat for s in sites.values()]))
+    lon0 = float(np.mean([s.lon for s in sites.values()]))
+    return {
+        "frame": {"lat0": lat0, "lon0": lon0},
+        "radars": sorted(sites),
+        "batches": batches,
+        "plots_processed": plots,
+        "timing": {"plots_per_s": None},
+    }
 
 
 def rss_mb(pid: int) -> float | None:
@@ -124,12 +150,29 @@ class Follower:
         return fs.counters.get("queued", 0) == 0
 
 
+def sites_toml(rec: Path, work: Path) -> Path:
+    """The recording's radar sites as the fusion's configured sites (``[[fusion.sites]]``):
+    a replay publishes each site once at its start, which a fusion service that has not
+    yet been discovered by the publisher misses."""
+    import tomli_w
+    from skyfuse.schemas import RadarSite
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    sites = {r.message.radar_id: r.message for r in iter_recording(rec)
+             if isinstance(r.message, RadarSite)}  # fmt: skip
+    path = work / "fusion.toml"
+    rows = [s.model_dump(mode="json", exclude_none=True) for s in sites.values()]
+    path.write_text(tomli_w.dumps({"fusion": {"sites": rows}}))
+    return path
+
+
 def start_children(rec: Path, speed: float, radars: list[str], frame, a, work: Path, rate):
     ep = loopback_endpoint()
     fusion = Child(
         "fusion",
         [
-            "--log-level", "WARNING", "fusion", "--fusion-id", "bench", "--reorder-wait",
+            "--log-level", "WARNING", "fusion", "--config", str(sites_toml(rec, work)),
+            "--fusion-id", "bench", "--reorder-wait",
             str(a.reorder_wait), "--frame-kind", "stereographic", "--frame-lat0",
             repr(frame[0]), "--frame-lon0", repr(frame[1]), "--status-interval", "0.5",
             "--latency-window", "1000000", "--connect", ep,
@@ -209,6 +252,7 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "rss_mb_start": r1(rss0),
         "rss_mb_max": r1(max(f.rss)) if f.rss else None,
         "rss_mb_end": r1(f.rss[-1]) if f.rss else None,
+        "rss_mb_series": [r1(x) for x in f.rss[:: max(1, len(f.rss) // 40)]],
         "tracks_confirmed_end": fs.tracks_confirmed,
         "offline_confirmed_final": offline.get("confirmed_tracks_final"),
         "rejected": fs.rejected,
@@ -238,6 +282,7 @@ def main() -> None:
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
+    ap.add_argument("--no-offline", action="store_true", help="skip skyfuse track (soak runs)")
     a = ap.parse_args()
     base = sim_plot_rate(a)
     print(f"regional, {a.radars} radars, {a.targets} aircraft: {base:.0f} plots per simulated s;"
