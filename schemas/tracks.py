@@ -16,8 +16,11 @@
 A client subscribes to ``tracks`` first, then either queries ``snapshot`` or waits for
 the next full message, and applies the deltas whose ``cycle`` is greater than the full's;
 a gap in the delta cycles means a lost message: the picture is marked incomplete until
-the next full message (:class:`TrackPicture` does exactly that). Messages without
-``kind`` (older recordings) are full pictures.
+the next full message (:class:`TrackPicture` does exactly that). A feed read from its
+first delta (``cycle`` 1, e.g. the MCAP of ``skyfuse track``) is complete from the start.
+After a restart of the service its cycles start again from 1: older-looking deltas are
+ignored until the next full message replaces the picture. Messages without ``kind``
+(older recordings) are full pictures.
 """
 
 from __future__ import annotations
