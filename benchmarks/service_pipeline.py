@@ -1,16 +1,25 @@
-"""Sustained plots/s and latency through sensor → fusion → feed, as separate processes
-over Zenoh on loopback (3 simulated radars of the regional scenario, the fusion service,
-and this process as the feed subscriber).
+"""Sustained plots/s, latency and memory of one ``skyfuse fusion`` process fed over Zenoh
+on loopback by several publisher processes, and the offline ``skyfuse track`` speed on
+the same plots in the same run (the live/offline ratio is the figure to watch).
 
-For each offered rate R (plots/s) the scenario is run at the speed that makes its plot
-rate R; the script reports the rate offered by the sensors, the rate the fusion service
-sustained (plots applied / time until it caught up, or until the ``--drain`` limit
-after the sensors finished: then the backlog is reported), the latency from the sensor's
-sweep end to the TrackBatch publication (fusion Status percentiles; it includes the
-reorder wait), and the TrackBatches the feed received.
+For each offered rate R (plots/s): the ``regional`` scenario (``--radars`` radars,
+``--targets`` aircraft) is simulated for ``--seconds`` × speed simulated seconds into an
+MCAP file, where speed makes its plot rate R; ``skyfuse track`` runs on that file (offline
+plots/s); then one ``skyfuse replay --radars ID --speed speed`` process per radar
+publishes it to one ``skyfuse fusion`` (same frame as ``skyfuse track``: stereographic at
+the sites' mean), and this process follows the fusion Status and the track feed. The
+script reports the offered rate, the rate the fusion sustained (plots applied / time to
+apply them, or up to the ``--drain`` limit after the publishers finished; then the
+backlog is reported), latency percentiles from the publisher's sweep-end stamp to the
+publication of the delta that contains the batch (fusion Status, over every batch; it
+includes the reorder wait), the largest backlog and whether Status said "behind", the
+fusion's resident memory (VmRSS, start of the level and maximum), feed message counts
+(delta/full), and the load average.
 
-    python benchmarks/service_pipeline.py [--rates 1000,5000,20000] [--seconds 15]
-        [--targets 150] [--reorder-wait 0.1] [--json out.json]
+    python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
+        [--targets 1000] [--radars 4] [--reorder-wait 0.2] [--json out.json]
+        [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
+        [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
 
 from __future__ import annotations
@@ -18,17 +27,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from skyfuse.fusion.sim import Simulator, build_scenario  # noqa: E402
 from skyfuse.schemas import Status, keys  # noqa: E402
-from skyfuse.services.evaluation.demo import Child  # noqa: E402
+from skyfuse.services.evaluation.demo import Child, python_env  # noqa: E402
 from skyfuse.services.runtime.transport import (  # noqa: E402
     Inbox,
     TransportConfig,
@@ -39,143 +51,242 @@ from skyfuse.services.runtime.transport import (  # noqa: E402
     wait_for_tokens,
 )
 
-RADARS = 3
 
-
-def sim_plot_rate(targets: int, seed: int, duration: float = 60.0) -> float:
+def sim_plot_rate(a, duration: float = 30.0) -> float:
     """Plots per simulated second of the scenario (all radars)."""
-    sc = build_scenario("regional", seed=seed, duration=duration, targets=targets, radars=RADARS)
-    n = sum(len(ev.message.time) for ev in Simulator(sc, seed=seed).run() if ev.kind == "plots")
+    sc = build_scenario(
+        "regional", seed=a.seed, duration=duration, targets=a.targets, radars=a.radars
+    )
+    n = sum(len(ev.message.time) for ev in Simulator(sc, seed=a.seed).run() if ev.kind == "plots")
     return n / duration
 
 
-def run_level(rate: float, speed: float, a, work: Path) -> dict:
-    sc_duration = a.seconds * speed
-    sc = build_scenario(
-        "regional", seed=a.seed, duration=sc_duration, targets=a.targets, radars=RADARS
-    )
-    f = sc.frame
+def skyfuse_cli(*args: str) -> None:
+    cmd = [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "--log-level", "WARNING"]
+    subprocess.run([*cmd, *args], check=True, env=python_env(), stdout=subprocess.DEVNULL)
+
+
+def make_level_files(rate: float, speed: float, a, work: Path) -> tuple[Path, dict]:
+    """The level's recording, and ``skyfuse track`` on it (its JSON summary)."""
+    rec, js = work / f"level-{rate:.0f}.mcap", work / f"track-{rate:.0f}.json"
+    skyfuse_cli(
+        "simulate", "--scenario", "regional", "--seed", str(a.seed), "--duration",
+        f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
+        f"radars={a.radars}", "--out", str(rec), "--no-progress",
+    )  # fmt: skip
+    if a.no_offline:
+        return rec, recording_facts(rec)
+    skyfuse_cli("track", str(rec), "--out", str(work / "offline.mcap"), "--json", str(js),
+                "--no-progress")  # fmt: skip
+    return rec, json.loads(js.read_text())
+
+
+def recording_facts(rec: Path) -> dict:
+    """What the level needs from ``skyfuse track``'s summary, without running it
+    (``--no-offline``): frame (stereographic at the sites' mean), radars, batches, plots."""
+    from skyfuse.schemas import PlotBatch, RadarSite
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    sites, batches, plots = {}, 0, 0
+    for r in iter_recording(rec):
+        if isinstance(r.message, RadarSite):
+            sites[r.message.radar_id] = r.message
+        elif isinstance(r.message, PlotBatch):
+            batches, plots = batches + 1, plots + len(r.message)
+    lat0 = float(np.mean([s.lat for s in sites.values()]))
+    lon0 = float(np.mean([s.lon for s in sites.values()]))
+    return {
+        "frame": {"lat0": lat0, "lon0": lon0},
+        "radars": sorted(sites),
+        "batches": batches,
+        "plots_processed": plots,
+        "timing": {"plots_per_s": None},
+    }
+
+
+def rss_mb(pid: int) -> float | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        return None
+    return None
+
+
+class Follower:
+    """Status of every service and counts of the fusion feed, from this process."""
+
+    def __init__(self, session, fusion_pid: int) -> None:
+        self.inbox = Inbox()
+        self.inbox.subscribe(session, f"{keys.PREFIX}/fusion/bench/*", "fusion")
+        self.inbox.subscribe(session, f"{keys.PREFIX}/service/*/status", "status")
+        self.status: dict[str, Status] = {}
+        self.feed = {"delta": 0, "full": 0}
+        self.pid = fusion_pid
+        self.rss: list[float] = []
+        self.max_backlog = 0
+        self.behind_seen = False
+
+    def pump(self, timeout: float) -> None:
+        item = self.inbox.get(timeout)
+        while item is not None:
+            if item.key.endswith("/tracks"):
+                self.feed["full" if b'"kind":"full"' in item.payload[:80] else "delta"] += 1
+            elif item.key.endswith("/status"):
+                st = Status.from_json_bytes(item.payload)
+                self.status[st.service_id] = st
+                if st.service_id == "bench" and st.backlog is not None:
+                    self.max_backlog = max(self.max_backlog, st.backlog.batches)
+                    self.behind_seen |= st.backlog.behind
+                    if (r := rss_mb(self.pid)) is not None:
+                        self.rss.append(r)
+            item = self.inbox.get(0) if self.inbox.qsize() else None
+
+    def caught_up(self, published: int) -> bool:
+        fs = self.status.get("bench")
+        if fs is None or fs.counters.get("batches_received", 0) < published:
+            return False
+        return fs.counters.get("queued", 0) == 0
+
+
+def sites_toml(rec: Path, work: Path) -> Path:
+    """The recording's radar sites as the fusion's configured sites (``[[fusion.sites]]``):
+    a replay publishes each site once at its start, which a fusion service that has not
+    yet been discovered by the publisher misses."""
+    import tomli_w
+    from skyfuse.schemas import RadarSite
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    sites = {r.message.radar_id: r.message for r in iter_recording(rec)
+             if isinstance(r.message, RadarSite)}  # fmt: skip
+    path = work / "fusion.toml"
+    rows = [s.model_dump(mode="json", exclude_none=True) for s in sites.values()]
+    path.write_text(tomli_w.dumps({"fusion": {"sites": rows}}))
+    return path
+
+
+def start_children(rec: Path, speed: float, radars: list[str], frame, a, work: Path, rate):
     ep = loopback_endpoint()
-    common = ["--connect", ep]
-    scen = [
-        "--scenario", "regional", "--seed", str(a.seed), "--duration", str(sc_duration),
-        "--targets", str(a.targets), "--param", f"radars={RADARS}",
-    ]  # fmt: skip
     fusion = Child(
         "fusion",
         [
-            "--log-level", "WARNING", "fusion", "--fusion-id", "bench", "--reorder-wait",
-            str(a.reorder_wait), "--frame-lat0", repr(f.lat0), "--frame-lon0", repr(f.lon0),
-            "--status-interval", "0.5", "--latency-window", "1000000", *common,
+            "--log-level", "WARNING", "fusion", "--config", str(sites_toml(rec, work)),
+            "--fusion-id", "bench", "--reorder-wait",
+            str(a.reorder_wait), "--frame-kind", "stereographic", "--frame-lat0",
+            repr(frame[0]), "--frame-lon0", repr(frame[1]), "--status-interval", "0.5",
+            "--latency-window", "1000000", "--connect", ep,
         ],
         work / f"fusion-{rate:.0f}.log",
     )  # fmt: skip
-    sensors = [
-        Child(
-            f"sensor-{s.radar_id}",
-            [
-                "--log-level",
-                "WARNING",
-                "sensor",
-                "--radar",
-                s.radar_id,
-                *scen,
-                "--speed",
-                f"{speed:.4f}",
-                "--wait-for",
-                "bench",
-                "--status-interval",
-                "1",
-                *common,
-            ],
-            work / f"sensor-{s.radar_id}-{rate:.0f}.log",
-        )
-        for s in sc.sites
+    replay = ["--log-level", "WARNING", "replay", str(rec), "--speed", f"{speed:.4f}"]
+    replay += ["--wait-for", "bench", "--wait-timeout", "60", "--connect", ep]
+    pubs = [
+        Child(f"replay-{r}", [*replay, "--radars", r], work / f"replay-{r}-{rate:.0f}.log")
+        for r in radars
     ]
-    status: dict[str, Status] = {}
-    track_batches = 0
+    return ep, fusion, pubs
+
+
+def run_level(rate: float, speed: float, a, work: Path) -> dict:
+    rec, offline = make_level_files(rate, speed, a, work)
+    frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
+    ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate)
+    load0 = os.getloadavg()
     with open_session(TransportConfig(listen=[ep])) as s:
-        inbox = Inbox()
-        inbox.subscribe(s, f"{keys.PREFIX}/fusion/bench/*", "fusion")
-        inbox.subscribe(s, f"{keys.PREFIX}/service/*/status", "status")
         fusion.start()
-        for c in sensors:
+        f = Follower(s, 0)
+        assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
+        f.pid = fusion.proc.pid
+        rss0 = rss_mb(f.pid)
+        for c in pubs:
             c.start()
-        ready = [service_alive_key("fusion")] + [service_alive_key(c.name) for c in sensors]
-        assert wait_for_tokens(s, ready, 60.0) == [], "services did not start"
         go = declare_liveliness(s, service_alive_key("bench"))
+        spy = _profile(fusion, a.profile, rate, a.seconds)
         t0 = time.monotonic()
-        last_fusion_status = [0.0]
-
-        def pump(timeout: float) -> None:
-            nonlocal track_batches
-            item = inbox.get(timeout)
-            while item is not None:
-                if item.key.endswith("/tracks"):
-                    track_batches += 1
-                elif item.key.endswith("/status"):
-                    st = Status.from_json_bytes(item.payload)
-                    status[st.service_id] = st
-                    if st.service_id == "bench":
-                        last_fusion_status[0] = time.monotonic() - t0
-                item = inbox.get(0) if inbox.qsize() else None
-
-        while any(c.poll() is None for c in sensors):
-            pump(0.2)
+        while any(c.poll() is None for c in pubs):
+            f.pump(0.2)
         t_sent = time.monotonic() - t0
-        published = sum(status[c.name].counters["batches"] for c in sensors if c.name in status)
-        plots_sent = sum(status[c.name].counters["plots"] for c in sensors if c.name in status)
+        published = offline["batches"]
         deadline = time.monotonic() + a.drain
-        while time.monotonic() < deadline:
-            pump(0.2)
-            fs = status.get("bench")
-            if fs and fs.counters.get("batches_received", 0) >= published:
-                if fs.counters.get("queued", 0) == 0:
-                    break
+        while time.monotonic() < deadline and not f.caught_up(published):
+            f.pump(0.2)
+        t_done = time.monotonic() - t0
         time.sleep(0.7)
-        pump(0.1)
-        fs = status["bench"]
-        t_done = last_fusion_status[0]
+        f.pump(0.1)
         go.undeclare()
+        if spy is not None:
+            spy.wait(timeout=60)
         fusion.terminate()
-        inbox.close()
-    lat = fs.latency_ms
+        f.inbox.close()
+    return level_result(rate, speed, offline, f, t_sent, t_done, rss0, load0)
+
+
+def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0) -> dict:
+    fs = f.status["bench"]
+    lat, c = fs.latency_ms, fs.counters
+    applied = c.get("plots_applied", 0)
+    live = applied / t_done if t_done > 0 else 0.0
+    off = offline["timing"]["plots_per_s"]
+    r1 = lambda v: None if v is None else round(v, 1)  # noqa: E731
     return {
-        "offered_plots_per_s": round(plots_sent / t_sent, 1),
         "target_rate": rate,
         "speed": round(speed, 3),
-        "batches_sent": published,
-        "plots_sent": plots_sent,
+        "plots": offline["plots_processed"],
+        "batches": offline["batches"],
+        "offered_plots_per_s": round(offline["plots_processed"] / t_sent, 1),
         "send_s": round(t_sent, 2),
         "measured_s": round(t_done, 2),
-        "caught_up": fs.counters.get("batches_received", 0) >= published
-        and fs.counters.get("queued", 0) == 0,
-        "backlog_plots": plots_sent - fs.counters.get("plots_applied", 0),
-        "fusion_plots_in": fs.counters.get("plots_in"),
-        "fusion_cycles": fs.counters.get("cycles"),
-        "fusion_plots_applied": fs.counters.get("plots_applied"),
-        "sustained_plots_per_s": round(fs.counters.get("plots_applied", 0) / t_done, 1),
-        "feed_track_batches": track_batches,
-        "latency_ms_p50": round(lat.p50, 1) if lat and lat.p50 is not None else None,
-        "latency_ms_p99": round(lat.p99, 1) if lat and lat.p99 is not None else None,
-        "rejected": fs.rejected,
+        "caught_up": f.caught_up(offline["batches"]),
+        "backlog_plots_end": offline["plots_processed"] - applied,
+        "sustained_plots_per_s": round(live, 1),
+        "offline_plots_per_s": off,
+        "live_over_offline": round(live / off, 3) if off else None,
+        "latency_ms": {k: r1(getattr(lat, k)) for k in ("p50", "p90", "p99", "max")},
+        "latency_count": lat.count,
+        "cycles": c.get("cycles"),
+        "groups": c.get("groups"),
+        "feed_messages": dict(f.feed),
+        "max_backlog_batches": f.max_backlog,
+        "behind_seen": f.behind_seen,
+        "rss_mb_start": r1(rss0),
+        "rss_mb_max": r1(max(f.rss)) if f.rss else None,
+        "rss_mb_end": r1(f.rss[-1]) if f.rss else None,
+        "rss_mb_series": [r1(x) for x in f.rss[:: max(1, len(f.rss) // 40)]],
         "tracks_confirmed_end": fs.tracks_confirmed,
+        "offline_confirmed_final": offline.get("confirmed_tracks_final"),
+        "rejected": fs.rejected,
+        "loadavg_start": [round(x, 2) for x in load0],
+        "loadavg_end": [round(x, 2) for x in os.getloadavg()],
     }
+
+
+def _profile(fusion: Child, out: Path | None, rate: float, seconds: float):
+    """py-spy on the fusion process for the sending time (collapsed stacks, ``--profile``)."""
+    if out is None:
+        return None
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = ["py-spy", "record", "-p", str(fusion.proc.pid), "-f", "raw", "-r", "50", "-d"]
+    cmd += [str(int(seconds)), "-o", str(out / f"fusion-{rate:.0f}.txt")]
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--rates", default="1000,5000,20000")
-    ap.add_argument("--seconds", type=float, default=15.0, help="wall seconds per level")
-    ap.add_argument("--targets", type=int, default=150)
+    ap.add_argument("--rates", default="2000,5000,20000")
+    ap.add_argument("--seconds", type=float, default=10.0, help="wall seconds per level")
+    ap.add_argument("--targets", type=int, default=1000)
+    ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 or 4")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--reorder-wait", type=float, default=0.1)
+    ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
+    ap.add_argument("--no-offline", action="store_true", help="skip skyfuse track (soak runs)")
     a = ap.parse_args()
-    base = sim_plot_rate(a.targets, a.seed)
-    print(f"regional, {RADARS} radars, {a.targets} aircraft: {base:.0f} plots per simulated s;"
-          f" {os.cpu_count()} cores", flush=True)  # fmt: skip
+    base = sim_plot_rate(a)
+    print(f"regional, {a.radars} radars, {a.targets} aircraft: {base:.0f} plots per simulated s;"
+          f" {os.cpu_count()} cores, load {os.getloadavg()}", flush=True)  # fmt: skip
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for rate in (float(r) for r in a.rates.split(",")):
@@ -183,8 +294,11 @@ def main() -> None:
             print(json.dumps(r), flush=True)
             results.append(r)
     if a.json:
-        a.json.write_text(json.dumps({"base_plots_per_sim_s": base, "levels": results}, indent=2))
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        out = {"config": {k: str(v) for k, v in vars(a).items()}, "base_plots_per_sim_s": base}
+        a.json.write_text(json.dumps({**out, "levels": results}, indent=2))
 
 
 if __name__ == "__main__":
+    np.seterr(all="ignore")
     main()

@@ -11,14 +11,16 @@ from . import keys
 from .base import SCHEMA_VERSION, WireModel
 from .plots import PlotBatch
 from .site import RadarKind, RadarSite
-from .status import LatencyStats, RadarHealth, Status
+from .status import Backlog, LatencyStats, RadarHealth, Status
 from .tracks import (
+    FeedKind,
     FrameKind,
     FrameSpec,
     Track,
     TrackBatch,
     TrackEvent,
     TrackEventKind,
+    TrackPicture,
     TrackStatus,
 )
 from .truth import RadarBias, Truth
@@ -47,6 +49,8 @@ def model_for_key(key: str) -> type[WireModel]:
 __all__ = [
     "MODELS",
     "SCHEMA_VERSION",
+    "Backlog",
+    "FeedKind",
     "FrameKind",
     "FrameSpec",
     "LatencyStats",
@@ -60,6 +64,7 @@ __all__ = [
     "TrackBatch",
     "TrackEvent",
     "TrackEventKind",
+    "TrackPicture",
     "TrackStatus",
     "Truth",
     "WireModel",

@@ -28,6 +28,19 @@ class LatencyStats(WireModel):
     max: float | None = None
 
 
+class Backlog(WireModel):
+    """Load of a service that queues its input (the fusion service's reorder buffer)."""
+
+    batches: int = Field(0, ge=0, description="Batches waiting to be applied")
+    plots: int = Field(0, ge=0, description="Plots in those batches")
+    oldest_wait_s: float = Field(0.0, ge=0.0, description="Wait so far of the oldest one, s")
+    plots_per_s_in: float = Field(0.0, ge=0.0, description="Plots accepted, 1/s (window)")
+    plots_per_s_out: float = Field(0.0, ge=0.0, description="Plots applied, 1/s (window)")
+    behind: bool = Field(
+        False, description="A batch has waited longer than the reorder wait plus a margin"
+    )
+
+
 class Status(WireModel):
     service: str = Field(description="Service kind: sensor, fusion, recorder, replay")
     service_id: str = Field(pattern=ID_PATTERN)
@@ -39,4 +52,5 @@ class Status(WireModel):
     latency_ms: LatencyStats | None = None
     tracks_confirmed: int | None = Field(None, ge=0)
     tracks_total: int | None = Field(None, ge=0)
+    backlog: Backlog | None = None
     message: str = ""

@@ -1,4 +1,27 @@
-"""Fused track feed: ``Track``, ``TrackBatch`` (one fusion cycle), ``TrackEvent``."""
+"""Fused track feed: ``Track``, ``TrackBatch`` (a delta or the full picture),
+``TrackEvent``, and :class:`TrackPicture`, which rebuilds the picture from the feed.
+
+**Feed contract** (key ``skyfuse/@v1/fusion/{id}/tracks``): every message is a
+``TrackBatch`` whose ``kind`` says what it is.
+
+* ``kind = "delta"`` (after each fusion cycle, or group of cycles when the service works
+  in bulk): ``tracks`` holds only the tracks that changed — new, updated by a plot,
+  confirmed — and ``removed`` the ids that left the picture (terminated, merged, no
+  longer published). Tracks not named keep their last row (each ``Track`` has its own
+  ``time``). ``cycle`` is +1 per delta; ``batches`` counts the plot batches it applies.
+* ``kind = "full"`` (at the service's ``full_interval``, default 1 s, and as the answer
+  of the ``snapshot`` queryable): every track of the picture after delta ``cycle``; it
+  replaces the picture.
+
+A client subscribes to ``tracks`` first, then either queries ``snapshot`` or waits for
+the next full message, and applies the deltas whose ``cycle`` is greater than the full's;
+a gap in the delta cycles means a lost message: the picture is marked incomplete until
+the next full message (:class:`TrackPicture` does exactly that). A feed read from its
+first delta (``cycle`` 1, e.g. the MCAP of ``skyfuse track``) is complete from the start.
+After a restart of the service its cycles start again from 1: older-looking deltas are
+ignored until the next full message replaces the picture. Messages without ``kind``
+(older recordings) are full pictures.
+"""
 
 from __future__ import annotations
 
@@ -74,17 +97,30 @@ class Track(WireModel):
         return self
 
 
+class FeedKind(StrEnum):
+    """``delta``: changed tracks + removed ids; ``full``: the whole picture."""
+
+    DELTA = "delta"
+    FULL = "full"
+
+
 class TrackBatch(WireModel):
-    """All live tracks after one fusion cycle (one applied plot batch)."""
+    """One message of the track feed: the changes of one fusion cycle (``delta``) or the
+    whole picture (``full``); see the module docstring for the contract."""
 
     fusion_id: str = Field(pattern=ID_PATTERN)
     cycle: int = Field(ge=0, description="Fusion cycle number")
     time: int = Field(ge=0, description="Time of the cycle (the applied batch's time_end), ns UTC")
+    kind: FeedKind = Field(FeedKind.FULL, description="delta (changed tracks) or full picture")
     frame: FrameSpec
     state_labels: list[str] = Field(description="Names of the state components, e.g. x, vx, y, vy")
     source_radar: str | None = Field(None, description="Radar whose batch triggered this cycle")
     source_seq: int | None = Field(None, description="That batch's sequence number")
+    batches: int = Field(1, ge=0, description="Plot batches this delta applies (0 in a full)")
     tracks: list[Track] = Field(default_factory=list)
+    removed: list[int] = Field(
+        default_factory=list, description="delta: ids of tracks that left the picture"
+    )
 
     @model_validator(mode="after")
     def _check_dims(self) -> TrackBatch:
@@ -95,6 +131,8 @@ class TrackBatch(WireModel):
                     f"track {t.track_id} has a state of length {len(t.state)} but "
                     f"state_labels has {n}"
                 )
+        if self.kind is FeedKind.FULL and self.removed:
+            raise ValueError("removed: a full message lists no removed tracks")
         return self
 
 
@@ -115,3 +153,46 @@ class TrackEvent(WireModel):
     other_track_id: int | None = Field(None, ge=0)
     existence: float = Field(ge=0.0, le=1.0)
     reason: str = ""
+
+
+class TrackPicture:
+    """The picture rebuilt from the track feed (consumer side of the contract above).
+
+    ``apply`` each received TrackBatch in arrival order; ``tracks`` (id → Track) is the
+    picture, ``complete`` tells whether it is known to be whole (a full message seen and
+    no delta lost since), ``batch()`` gives it as one full TrackBatch."""
+
+    def __init__(self) -> None:
+        self.tracks: dict[int, Track] = {}
+        self.cycle: int | None = None
+        self.complete = False
+        self.header: TrackBatch | None = None
+
+    def apply(self, batch: TrackBatch) -> bool:
+        """Apply one message; ``False`` if it was already contained (an old delta)."""
+        if batch.kind is FeedKind.FULL:
+            self.tracks = {t.track_id: t for t in batch.tracks}
+            self.complete = True
+        else:
+            if self.cycle is not None and batch.cycle <= self.cycle:
+                return False
+            if self.cycle is None:  # joined the feed at its first delta, or late
+                self.complete = batch.cycle == 1
+            elif batch.cycle != self.cycle + 1:
+                self.complete = False
+            for i in batch.removed:
+                self.tracks.pop(i, None)
+            for t in batch.tracks:
+                self.tracks[t.track_id] = t
+        self.cycle = batch.cycle
+        self.header = batch
+        return True
+
+    def batch(self) -> TrackBatch | None:
+        """The picture as a full TrackBatch (header of the last message), or ``None``."""
+        if self.header is None:
+            return None
+        tracks = [self.tracks[i] for i in sorted(self.tracks)]
+        return self.header.model_copy(
+            update={"kind": FeedKind.FULL, "tracks": tracks, "removed": [], "batches": 0}
+        )

@@ -11,7 +11,8 @@ I062/100    system Cartesian x/y (LSB 0.5 m), only for a stereographic batch fra
             (the system plane of I100 is a stereographic projection)
 I062/185    velocity VX = ``vel_east``, VY = ``vel_north``, LSB 0.25 m/s
 I062/040    track number = ``track_id`` mod 65536 (I040 has 16 bits)
-I062/080    status: MON (1 = one radar updated the track), CNF (0 confirmed /
+I062/080    status: MON (1 = monosensor: at most one radar updated the track; 0 =
+            multisensor: two or more), CNF (0 confirmed /
             1 tentative), SIM, TSB (first message of the track from this writer),
             TSE (last message: status terminated)
 I062/136    measured flight level where the altitude is known:
@@ -143,7 +144,7 @@ class Cat062Writer:
         )
         raw["040"] = number
         raw["080"] = (
-            int(len(track.radars) == 1),  # MON
+            int(len(track.radars) <= 1),  # MON: multisensor only with two radars or more
             int(track.status == TrackStatus.TENTATIVE),  # CNF
             int(self.simulated),  # SIM
             int(last),  # TSE

@@ -50,6 +50,12 @@ class Cat062Config(BaseModel):
     service_id: int = Field(1, ge=0, le=255, description="I062/015 service identification")
     simulated: bool = Field(False, description="Set SIM in I062/080 (tracks of simulated data)")
     count: int | None = Field(None, gt=0, description="Exit after this many track batches")
+    answer_wait: float = Field(
+        3.0,
+        gt=0,
+        description="Warn (listing the fusion ids alive) when the fusion service "
+        "has not been heard within this many seconds",
+    )
     duration: float | None = Field(None, gt=0, description="Exit after this many seconds")
 
     @field_validator("udp")
@@ -185,14 +191,51 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+class FusionIdsHeard:
+    """Which fusion ids publish (from their ``status`` keys, bounded), and one warning
+    when the bridged id has not been heard within ``wait`` seconds."""
+
+    MAX_IDS = 32
+
+    def __init__(self, fusion_id: str, wait: float) -> None:
+        self.fusion_id, self.wait = fusion_id, wait
+        self.ids: set[str] = set()
+        self.answered = self.warned = False
+
+    def saw(self, key: str) -> None:
+        try:
+            owner = keys.parse(key).owner
+        except ValueError:
+            return
+        if owner == self.fusion_id:
+            self.answered = True
+        elif owner is not None and len(self.ids) < self.MAX_IDS:
+            self.ids.add(owner)
+
+    def check(self, elapsed: float) -> None:
+        if self.answered or self.warned or elapsed < self.wait:
+            return
+        self.warned = True
+        alive = ", ".join(sorted(self.ids)) or "none"
+        log.warning(
+            "cat062: no fusion service %r answered within %.0f s; fusion ids alive: %s "
+            "(choose one with --fusion-id)",
+            self.fusion_id,
+            self.wait,
+            alive,
+        )
+
+
 def bridge(session, sender: Cat062UdpSender, cfg: Cat062Config, stop) -> Counter:
     """Forward the feed until ``stop`` (or ``count`` batches / ``duration`` s)."""
     inbox = Inbox(capacity=10_000)
     inbox.subscribe(session, keys.fusion_tracks(cfg.fusion_id), "tracks")
     inbox.subscribe(session, keys.fusion_events(cfg.fusion_id), "events")
+    inbox.subscribe(session, f"{keys.PREFIX}/fusion/*/status", "status")
     token = declare_liveliness(session, service_alive_key(f"cat062-{cfg.fusion_id}"))
     log.info("cat062: fusion %s → udp %s:%d", cfg.fusion_id, *sender.address)
     t0 = time.monotonic()
+    heard = FusionIdsHeard(cfg.fusion_id, cfg.answer_wait)
     try:
         while not stop.is_set():
             if cfg.duration is not None and time.monotonic() - t0 >= cfg.duration:
@@ -200,12 +243,14 @@ def bridge(session, sender: Cat062UdpSender, cfg: Cat062Config, stop) -> Counter
             if cfg.count is not None and sender.stats["batches"] >= cfg.count:
                 break
             item = inbox.get(timeout=0.1)
+            heard.check(time.monotonic() - t0)
             if item is None:
                 continue
+            heard.saw(item.key)
             try:
                 if item.tag == "tracks":
                     sender.send(TrackBatch.from_json_bytes(item.payload))
-                else:
+                elif item.tag == "events":
                     sender.terminated(TrackEvent.from_json_bytes(item.payload))
             except ValidationError as e:
                 sender.stats["invalid_messages"] += 1

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from pydantic import ValidationError
-from skyfuse.schemas import Status, TrackBatch, TrackStatus, keys
+from skyfuse.schemas import Status, TrackBatch, TrackPicture, TrackStatus, keys
 from skyfuse.services.cli.config import ConfigError, add_json_argument, build_config
 from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
@@ -303,6 +303,7 @@ class _View:
         self.live_enabled = live
         self.status: dict[str, Status] = {}
         self.tracks: TrackBatch | None = None
+        self._picture = TrackPicture()  # the feed's deltas and fulls rebuilt
         self.start_at = None
         self._live = None
         self._last_log = 0.0
@@ -322,7 +323,8 @@ class _View:
                 st = Status.from_json_bytes(item.payload)
                 self.status[st.service_id] = st
             elif item.tag == "tracks":
-                self.tracks = TrackBatch.from_json_bytes(item.payload)
+                self._picture.apply(TrackBatch.from_json_bytes(item.payload))
+                self.tracks = self._picture.batch()
                 if fox is not None:
                     _fox_tracks(fox, self.tracks)
             elif item.tag == "truth" and fox is not None:

@@ -1,8 +1,12 @@
 """``skyfuse fusion [--config fusion.toml] [--listen EP] [--connect EP]``: the fusion
 service. Subscribes to every radar's plots and sites, orders batches across radars,
 runs the configured tracker and publishes on ``skyfuse/@v1/fusion/{id}/…``:
-``tracks`` (a TrackBatch after each cycle), ``events`` (TrackEvents), ``status``
-(periodic Status) and the queryable ``snapshot`` (the latest TrackBatch).
+``tracks`` (the track feed: a delta TrackBatch after each cycle — or group of cycles
+when several batches are ready at once — and the full picture every ``--full-interval``
+s), ``events`` (TrackEvents), ``status`` (periodic Status with the backlog; also a
+queryable answering the last one) and the queryable ``snapshot`` (the full picture now;
+see ``schemas.tracks`` for the contract). Payloads are JSON with the Zenoh encoding
+``application/json;skyfuse.{Model}/{schema version}``.
 
 TOML: ``[fusion]`` (this service, incl. ``[[fusion.sites]]``), ``[tracker]`` (the
 tracker, see ``fusion.tracker.TrackerConfig``), ``[transport]``. Environment:
@@ -30,6 +34,7 @@ from skyfuse.services.runtime.transport import (
     add_transport_arguments,
     declare_liveliness,
     declare_publisher,
+    payload_encoding,
     query,
     service_alive_key,
 )
@@ -118,135 +123,142 @@ def run(args: argparse.Namespace) -> int:
 def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat062=None) -> None:
     """The service loop: until ``stop`` is set (or ``duration`` s elapse). ``cat062``: a
     :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output."""
-    fid = core.cfg.fusion_id
-    pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
-    pub_events = declare_publisher(session, keys.fusion_events(fid))
-    pub_status = declare_publisher(session, keys.fusion_status(fid))
-    snapshot_key = keys.fusion_snapshot(fid)
-    latest = {"payload": None}
-
-    def answer_snapshot(q) -> None:
-        payload = latest["payload"]
-        if payload is not None:
-            q.reply(snapshot_key, payload)
-        else:
-            q.reply_err(b"no tracks yet")
-
-    queryable = session.declare_queryable(snapshot_key, answer_snapshot)
-    inbox = _open_inputs(session, core)
+    svc = _Service(session, core, cat062)
+    inbox = Inbox(capacity=core.cfg.inbox)
+    inbox.subscribe(session, keys.ALL_SITES, "site")
+    inbox.subscribe(session, keys.ALL_PLOTS, "plots")
+    inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
+    # sites published before we joined: ask the sensors' queryables
+    for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
+        core.on_site_payload(key, payload)
     token = declare_liveliness(session, service_alive_key("fusion"))
-    log.info("fusion %s running (reorder wait %.2f s)", fid, core.cfg.reorder_wait)
+    log.info("fusion %s running (reorder wait %.2f s)", core.cfg.fusion_id, core.cfg.reorder_wait)
     t0 = time.monotonic()
     next_status = t0
-    asked_site: dict[str, float] = {}
-
-    def publish(outputs) -> None:
-        for out in outputs:
-            b = out.tracks
-            payload = b.to_json_bytes()
-            pub_tracks.put(payload)
-            if cat062 is not None:
-                cat062.send(b)
-            for ev in out.events:
-                pub_events.put(ev.to_json_bytes())
-                if cat062 is not None:
-                    cat062.terminated(ev)
-            latest["payload"] = payload
-            core.published(out)
-
-    def handle(item) -> None:
-        if item.tag == "plots":
-            batch = core.on_plots_payload(item.key, item.payload, time.monotonic(), item.sent_ns)
-            if batch is not None:
-                r = core.radars.get(batch.radar_id)
-                if r is not None and r.site is None:
-                    # ask the sensor's queryable, at most once a second per radar
-                    now = time.monotonic()
-                    if now - asked_site.get(batch.radar_id, -1e9) > 1.0:
-                        asked_site[batch.radar_id] = now
-                        for key, payload in query(session, keys.radar_site(batch.radar_id), 0.5):
-                            core.on_site_payload(key, payload)
-        elif item.tag == "site":
-            core.on_site_payload(item.key, item.payload)
-        elif item.tag == "alive":
-            core.on_alive(item.key, item.put)
-
     try:
         while not stop.is_set():
             now = time.monotonic()
             if duration is not None and now - t0 >= duration:
                 break
             room = core.cfg.queue - len(core.buffer)
-            if room > 0:  # a full reorder buffer stops the reading: back-pressure (BLOCK)
+            if room > 0 and not core.over_backlog(now):
                 item = inbox.get(timeout=_next_wait(core, now))
                 if item is not None:
-                    handle(item)
+                    svc.handle(item)
                     for more in inbox.drain(min(1000, room)):
-                        handle(more)
-            publish(core.poll(budget_s=0.2))
+                        svc.handle(more)
+            else:  # stop reading: the bounded inbox fills, Zenoh (BLOCK) slows the senders
+                core.counters["reading_paused"] += 1
+                time.sleep(min(0.01, _next_wait(core, now)))
+            svc.publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval
-                pub_status.put(core.status().to_json_bytes())
+                svc.publish_status()
     finally:
         token.undeclare()
         inbox.close()
-        _drain_on_stop(core, inbox, handle, publish, stop)
-        st = core.status()
-        pub_status.put(st.to_json_bytes())
-        queryable.undeclare()
-        _log_totals(core, st)
+        svc.shutdown(inbox, getattr(stop, "grace", 4.5))
 
 
-def _open_inputs(session, core: FusionCore) -> Inbox:
-    """Subscribe to the sites, plots and radar liveliness; take the sites published
-    before we joined from the sensors' queryables."""
-    inbox = Inbox(capacity=core.cfg.queue)
-    inbox.subscribe(session, keys.ALL_SITES, "site")
-    inbox.subscribe(session, keys.ALL_PLOTS, "plots")
-    inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
-    for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
-        core.on_site_payload(key, payload)
-    return inbox
+class _Service:
+    """The fusion service's Zenoh side: publishers, queryables (snapshot, Status), input
+    handling and the shutdown drain."""
 
+    def __init__(self, session, core: FusionCore, cat062) -> None:
+        fid = core.cfg.fusion_id
+        self.session, self.core, self.cat062 = session, core, cat062
+        self.pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
+        self.pub_events = declare_publisher(session, keys.fusion_events(fid))
+        self.pub_status = declare_publisher(session, keys.fusion_status(fid))
+        self.snapshot_key, self.status_key = keys.fusion_snapshot(fid), keys.fusion_status(fid)
+        self.last_status = core.status().to_json_bytes()
+        self.queryables = [
+            session.declare_queryable(self.snapshot_key, self._answer_snapshot),
+            session.declare_queryable(self.status_key, self._answer_status),
+        ]
+        self.asked_site: dict[str, float] = {}
 
-def _drain_on_stop(core: FusionCore, inbox, handle, publish, stop) -> None:
-    """Apply what was already received, but never past the shutdown deadline."""
-    grace = getattr(stop, "grace", 4.5)
-    deadline = time.monotonic() + max(0.5, grace - 1.5)
-    left = inbox.drain(1_000_000)
-    for i, item in enumerate(left):
-        if time.monotonic() > deadline:
-            core.rejected["not processed: shutdown deadline"] += len(left) - i
-            break
-        handle(item)
-    for p in core.buffer.flush():
-        if time.monotonic() > deadline:
-            core.rejected["not processed: shutdown deadline"] += 1
-            continue
-        publish([o for o in [core.cycle(p)] if o is not None])
-    if inbox.discarded:
-        core.rejected["not processed: arrived after the stop"] += inbox.discarded
-    if core.rejected.get("not processed: shutdown deadline"):
-        log.error(
-            "shutdown deadline: %d batches not processed",
-            core.rejected["not processed: shutdown deadline"],
-        )
+    def _answer_snapshot(self, q) -> None:
+        payload = self.core.snapshot_payload()
+        if payload is not None:
+            q.reply(self.snapshot_key, payload, encoding=payload_encoding(self.snapshot_key))
+        else:
+            q.reply_err(b"no tracks yet")
 
+    def _answer_status(self, q) -> None:  # the last Status published (status_interval old)
+        q.reply(self.status_key, self.last_status, encoding=payload_encoding(self.status_key))
 
-def _log_totals(core: FusionCore, st) -> None:
-    lat = st.latency_ms
-    log.info(
-        "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
-        "p50 %s ms p99 %s ms; rejected %s",
-        core.cfg.fusion_id,
-        core.counters["batches_in"],
-        core.counters["plots_in"],
-        core.counters["cycles"],
-        st.tracks_confirmed,
-        _fmt(lat.p50),
-        _fmt(lat.p99),
-        dict(core.rejected) or "none",
-    )
+    def publish_status(self) -> None:
+        self.last_status = self.core.status().to_json_bytes()
+        self.pub_status.put(self.last_status)
+
+    def publish(self, outputs) -> None:
+        for out in outputs:
+            for msg in (out.tracks, out.full):
+                if msg is None:
+                    continue
+                self.pub_tracks.put(msg.to_json_bytes())
+                if self.cat062 is not None:
+                    self.cat062.send(msg.model())
+            for ev in out.events:
+                self.pub_events.put(ev.to_json_bytes())
+                if self.cat062 is not None:
+                    self.cat062.terminated(ev)
+            self.core.published(out)
+
+    def handle(self, item) -> None:
+        core = self.core
+        if item.tag == "plots":
+            batch = core.on_plots_payload(item.key, item.payload, time.monotonic(), item.sent_ns)
+            if batch is not None:
+                r = core.radars.get(batch.radar_id)
+                if r is not None and r.site is None:
+                    self._ask_site(batch.radar_id)
+        elif item.tag == "site":
+            core.on_site_payload(item.key, item.payload)
+        elif item.tag == "alive":
+            core.on_alive(item.key, item.put)
+
+    def _ask_site(self, radar_id: str) -> None:
+        """Ask the sensor's site queryable, at most once a second per radar."""
+        now = time.monotonic()
+        if now - self.asked_site.get(radar_id, -1e9) > 1.0:
+            self.asked_site[radar_id] = now
+            for key, payload in query(self.session, keys.radar_site(radar_id), 0.5):
+                self.core.on_site_payload(key, payload)
+
+    def shutdown(self, inbox: Inbox, grace: float) -> None:
+        """Apply what was already received, but never past the shutdown deadline; then
+        the last Status and a summary line."""
+        core, late = self.core, "not processed: shutdown deadline"
+        deadline = time.monotonic() + max(0.5, grace - 1.5)
+        left = inbox.drain(1_000_000)
+        for i, item in enumerate(left):
+            if time.monotonic() > deadline:
+                core.rejected[late] += len(left) - i
+                break
+            self.handle(item)
+        pending = core.buffer.flush()
+        while pending and time.monotonic() <= deadline:
+            group, pending = pending[: core.cfg.bulk_max], pending[core.cfg.bulk_max :]
+            self.publish([o for o in [core.cycle_group(group)] if o is not None])
+        if pending:
+            core.rejected[late] += len(pending)
+        if inbox.discarded:
+            core.rejected["not processed: arrived after the stop"] += inbox.discarded
+        if core.rejected.get(late):
+            log.error("shutdown deadline: %d batches not processed", core.rejected[late])
+        self.publish_status()
+        for q in self.queryables:
+            q.undeclare()
+        st, c = core.status(), core.counters
+        log.info(
+            "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
+            "p50 %s ms p99 %s ms; rejected %s",
+            core.cfg.fusion_id, c["batches_in"], c["plots_in"], c["cycles"],
+            st.tracks_confirmed, _fmt(st.latency_ms.p50), _fmt(st.latency_ms.p99),
+            dict(core.rejected) or "none",
+        )  # fmt: skip
 
 
 def _next_wait(core: FusionCore, now: float) -> float:

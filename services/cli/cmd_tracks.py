@@ -1,8 +1,10 @@
 """``skyfuse tracks [--json] [--connect EP]``: follow the fused track feed.
 
-Without ``--json``: a live table (rich) of the confirmed tracks of the latest
-TrackBatch, with the last track events. With ``--json``: one JSON object per line,
-``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent.
+Without ``--json``: a live table (rich) of the confirmed tracks of the picture rebuilt
+from the feed (the snapshot, then the deltas and full messages: ``schemas.TrackPicture``),
+with the last track events; when the output is not a terminal, plain tab-separated text
+(the picture at each full message, every second by default). With ``--json``: one
+JSON object per line, ``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent.
 ``--snapshot`` asks the fusion service's queryable for the current tracks once and
 prints them. Works from any host that can reach a Zenoh endpoint of the network
 (``--connect tcp/HOST:PORT``, peer or client mode)."""
@@ -17,7 +19,7 @@ import sys
 import time
 
 from pydantic import BaseModel, Field, ValidationError
-from skyfuse.schemas import TrackBatch, TrackEvent, TrackStatus, keys
+from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPicture, TrackStatus, keys
 from skyfuse.services.cli.config import add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
@@ -92,6 +94,18 @@ def render_table(batch: TrackBatch | None, events: list[TrackEvent], all_tracks:
     return Group(table, *lines)
 
 
+def plain_table(batch: TrackBatch | None, all_tracks: bool) -> str:
+    """The picture as tab-separated lines (for files and pipes: nothing truncated)."""
+    if batch is None:
+        return ""
+    lines = ["\t".join([*_COLUMNS, "radars"])]
+    for t in sorted(batch.tracks, key=lambda t: t.track_id):
+        if all_tracks or t.status == TrackStatus.CONFIRMED:
+            lines.append("\t".join(_row(t)))
+    lines.append(f"# fusion {batch.fusion_id} cycle {batch.cycle}: {len(lines) - 1} tracks")
+    return "\n".join(lines) + "\n"
+
+
 def run(args: argparse.Namespace) -> int:
     cfg = build_config(TracksConfig, args)
     tcfg = _transport_config(args)
@@ -116,11 +130,35 @@ def _snapshot(session, key: str, cfg: TracksConfig) -> int:
     for k, payload in replies:
         if cfg.json_lines:
             sys.stdout.write(json.dumps({"topic": k, "message": json.loads(payload)}) + "\n")
+        elif not sys.stdout.isatty():
+            sys.stdout.write(plain_table(TrackBatch.from_json_bytes(payload), cfg.all_tracks))
         else:
             from rich.console import Console
 
             Console().print(render_table(TrackBatch.from_json_bytes(payload), [], cfg.all_tracks))
     return EXIT_OK
+
+
+class Pictures:
+    """One rebuilt picture per fusion id (at most ``MAX`` ids), and the latest updated."""
+
+    MAX = 32
+
+    def __init__(self) -> None:
+        self.by_id: dict[str, TrackPicture] = {}
+        self.last: str | None = None
+
+    def apply(self, msg: TrackBatch) -> None:
+        pic = self.by_id.get(msg.fusion_id)
+        if pic is None:
+            if len(self.by_id) >= self.MAX:
+                return
+            pic = self.by_id[msg.fusion_id] = TrackPicture()
+        pic.apply(msg)
+        self.last = msg.fusion_id
+
+    def latest(self) -> TrackBatch | None:
+        return None if self.last is None else self.by_id[self.last].batch()
 
 
 def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
@@ -129,10 +167,17 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
     inbox.subscribe(session, f"{base}/events", "events")
     t0 = time.monotonic()
     batches = 0
-    latest: TrackBatch | None = None
+    pictures = Pictures()  # the feed's deltas and fulls rebuilt, per fusion id
+    if not cfg.json_lines:  # joined late: start from the snapshots
+        for _, payload in query(session, f"{base}/snapshot", timeout=2.0):
+            try:
+                pictures.apply(TrackBatch.from_json_bytes(payload))
+            except ValidationError as e:
+                log.warning("invalid snapshot: %s", e.errors()[0]["msg"])
+    plain = not cfg.json_lines and not sys.stdout.isatty()
     events: list[TrackEvent] = []
     live = None
-    if not cfg.json_lines:
+    if not cfg.json_lines and not plain:
         from rich.live import Live
 
         live = Live(render_table(None, [], cfg.all_tracks), refresh_per_second=4, screen=False)
@@ -158,15 +203,20 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
                 continue
             try:
                 if item.tag == "tracks":
-                    latest = TrackBatch.from_json_bytes(item.payload)
+                    msg = TrackBatch.from_json_bytes(item.payload)
+                    pictures.apply(msg)
                     batches += 1
+                    if plain and msg.kind is FeedKind.FULL:
+                        sys.stdout.write(plain_table(pictures.latest(), cfg.all_tracks))
+                        sys.stdout.flush()
                 else:
                     events.append(TrackEvent.from_json_bytes(item.payload))
                     del events[:-20]
             except ValidationError as e:
                 log.warning("invalid message on %s: %s", item.key, e.errors()[0]["msg"])
                 continue
-            live.update(render_table(latest, events, cfg.all_tracks))
+            if live is not None:
+                live.update(render_table(pictures.latest(), events, cfg.all_tracks))
     finally:
         inbox.close()
         if live is not None:

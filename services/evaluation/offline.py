@@ -32,7 +32,15 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
-from skyfuse.schemas import FrameKind, PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth
+from skyfuse.schemas import (
+    FrameKind,
+    PlotBatch,
+    RadarSite,
+    TrackBatch,
+    TrackEvent,
+    TrackPicture,
+    Truth,
+)
 from skyfuse.services.evaluation.numbers import rejection_reasons
 from skyfuse.services.fusion.system_frame import frame_for_sites
 
@@ -69,9 +77,12 @@ class Step:
     out: object
     ms: float
     pipeline: object
-    _wire: tuple[TrackBatch, list[TrackEvent]] | None = None
+    _wire: tuple[object, list[TrackEvent]] | None = None
 
-    def wire(self) -> tuple[TrackBatch, list[TrackEvent]]:
+    def wire(self) -> tuple[object, list[TrackEvent]]:
+        """The published delta (a ``services.fusion.feed.FeedMessage``: only the tracks
+        this step changed) and the events; call it at every step or never, since each
+        delta is relative to the previous one."""
         if self._wire is None:
             p = self.pipeline
             self._wire = (p.track_batch(self.out, self.batch), p.track_events(self.out))
@@ -143,6 +154,7 @@ class _Run:
         self.counts: Counter = Counter()
         self.frame = None
         self.pipeline = None
+        self.picture = TrackPicture()
         self.last_time: int | None = None
 
     def fix_frame(self, spec) -> None:
@@ -175,11 +187,14 @@ class _Run:
             for o in self.obs:
                 o.on_truth(msg)
         elif isinstance(msg, TrackBatch) and self.cfg.tracker is None:
+            # the recorded feed: deltas and fulls, rebuilt into the picture (schemas.tracks)
             if self.frame is None:
                 self.fix_frame(msg.frame)
             self.counts["track batches"] += 1
-            for o in self.obs:
-                o.on_tracks(msg)
+            if self.picture.apply(msg):
+                picture = self.picture.batch()
+                for o in self.obs:
+                    o.on_tracks(picture)
         else:
             for o in self.obs:
                 o.on_message(msg)

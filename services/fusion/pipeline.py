@@ -1,31 +1,29 @@
 """One fusion cycle from wire messages to wire messages: ``PlotBatch`` → convert to the
 system frame (:func:`fusion.frames.convert_plots`) → :class:`Tracker` step →
-``TrackBatch`` + ``TrackEvent`` (lat/lon/alt, velocity east/north/up, speed, heading).
+the delta of the track feed (:mod:`services.fusion.feed`: lat/lon/alt, velocity
+east/north/up, speed, heading, built from arrays) + ``TrackEvent``. Several batches can go
+through in one pass (:meth:`TrackPipeline.process_group`, the bulk path).
 
 The same code path serves the live fusion service and the offline ``skyfuse track``.
 """
 
 from __future__ import annotations
 
-import math
+import dataclasses
 
 import numpy as np
 from skyfuse.fusion.frames import SystemFrame, convert_plots
+from skyfuse.fusion.frames.plot_conversion import ConvertedPlots
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.fusion.tracker.tracker import Tracker, TrackerOutput
-from skyfuse.schemas import (
-    FrameSpec,
-    PlotBatch,
-    RadarSite,
-    Track,
-    TrackBatch,
-    TrackEvent,
-    TrackEventKind,
-    TrackStatus,
-)
+from skyfuse.schemas import FrameSpec, PlotBatch, RadarSite, TrackEvent, TrackEventKind
 from skyfuse.services.fusion.adapter import measurement_batch_from
+from skyfuse.services.fusion.feed import FeedBuilder, FeedMessage
 
-TWO_PI = 2.0 * math.pi
+_COLUMNS = (
+    "range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude", "mode_s",
+    "mode_3a", "target_id",
+)  # fmt: skip
 
 
 class TrackPipeline:
@@ -53,12 +51,17 @@ class TrackPipeline:
         self.publish = publish
         self.debias = debias
         self.assumed_altitude = assumed_altitude
-        self.cycle = 0
         self.rejected: dict[str, int] = {}
+        self.feed = FeedBuilder(
+            self.frame, self.cfg.ndim, list(self.tracker.model.labels), fusion_id, publish
+        )
 
     def step(self, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
         """Convert and apply one batch; return the tracker's array output."""
-        converted = convert_plots(
+        return self._track(self._convert(site, batch), site, batch)
+
+    def _convert(self, site: RadarSite, batch: PlotBatch):
+        return convert_plots(
             self.frame,
             site,
             batch,
@@ -66,98 +69,94 @@ class TrackPipeline:
             ndim=self.cfg.ndim,
             assumed_altitude=self.assumed_altitude,
         )
+
+    def _track(self, converted, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
         mb = measurement_batch_from(converted, site, batch)
         out = self.tracker.step(mb)
         for k, v in out.batch.rejected.items():
             self.rejected[k] = self.rejected.get(k, 0) + v
         return out
 
-    def process(self, site: RadarSite, batch: PlotBatch) -> tuple[TrackBatch, list[TrackEvent]]:
+    def process(self, site: RadarSite, batch: PlotBatch) -> tuple[FeedMessage, list[TrackEvent]]:
+        """One batch: its delta message and events."""
         out = self.step(site, batch)
         return self.track_batch(out, batch), self.track_events(out)
 
-    def track_batch(self, out: TrackerOutput, batch: PlotBatch | None = None) -> TrackBatch:
-        """The published TrackBatch for one tracker output."""
-        self.cycle += 1
-        rows = np.flatnonzero(out.confirmed) if self.publish == "confirmed" else np.arange(len(out))
-        x = out.states[rows]
-        k = self.cfg.ndim
-        px, py = x[:, 0], x[:, 2]
-        pz = x[:, 4] if k == 3 else np.zeros(len(rows))
-        vx, vy = x[:, 1], x[:, 3]
-        vz = x[:, 5] if k == 3 else np.zeros(len(rows))
-        tracks = []
-        if len(rows):
-            lat, lon, alt = self.frame.to_geodetic(px, py, pz)
-            ve, vn, vu = self.frame.velocity_to_enu(px, py, pz, vx, vy, vz)
-            heading = np.mod(np.arctan2(ve, vn), TWO_PI)
-            heading = np.where(heading >= TWO_PI, 0.0, heading)
-            speed = np.hypot(ve, vn)
-            tracks = self._tracks(out, rows, x, lat, lon, alt, ve, vn, vu, speed, heading)
-        return TrackBatch(
-            fusion_id=self.fusion_id,
-            cycle=self.cycle,
-            time=out.time_ns,
-            frame=self.frame.spec(),
-            state_labels=list(self.tracker.model.labels),
-            source_radar=out.radar_id,
-            source_seq=None if batch is None else batch.seq,
-            tracks=tracks,
-        )
+    def process_group(
+        self, items: list[tuple[RadarSite, PlotBatch]]
+    ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]:
+        """Several batches, in the given (time) order, in one pass: the plots of each
+        radar converted at once, one tracker step per batch, one delta message for the
+        group (the same picture as one message per batch). Returns the message (``None``
+        if no batch could be applied), the events, and the batches that failed with
+        their exception (the others are applied)."""
+        events: list[TrackEvent] = []
+        failed: list[tuple[PlotBatch, Exception]] = []
+        last = None
+        for (site, batch), converted in zip(items, self._convert_all(items)):
+            try:
+                if isinstance(converted, Exception):
+                    raise converted
+                out = self._track(converted, site, batch)
+            except Exception as e:
+                failed.append((batch, e))
+                continue
+            self.feed.record(out)
+            events += self.track_events(out)
+            last = batch
+        if last is None:
+            return None, events, failed
+        return self.feed.delta(last.radar_id, last.seq), events, failed
 
-    def _tracks(self, out, rows, x, lat, lon, alt, ve, vn, vu, speed, heading) -> list[Track]:
-        """Track messages of output rows ``rows``. The wire constraints (finite
-        covariance, lat/lon/heading ranges, non-negative ids) are checked for all rows at
-        once; when they hold the models are built without re-validating each field (the
-        shapes hold by construction), otherwise through the validating constructor,
-        which names the offending field."""
-        k = self.cfg.ndim
-        P = out.covariances[rows]
-        ok = (
-            np.isfinite(P).all()
-            and np.isfinite(x).all()
-            and ((lat >= -90.0) & (lat <= 90.0)).all()
-            and ((lon >= -180.0) & (lon <= 180.0)).all()
-            and ((heading >= 0.0) & (heading < TWO_PI)).all()
-            and np.isfinite(speed).all()
-            and (out.ids[rows] >= 0).all()
-            and out.time_ns >= 0
-        )
-        make = Track.model_construct if ok else Track
-        masks_u, first = np.unique(out.radar_mask[rows], return_index=True)
-        names = {int(m): out.radars_of(int(rows[r])) for m, r in zip(masks_u, first)}
-        ids = out.ids[rows].tolist()
-        conf = out.confirmed[rows].tolist()
-        exist = np.clip(out.existence[rows], 0.0, 1.0).tolist()
-        masks = out.radar_mask[rows].tolist()
-        upd = out.updates[rows].tolist()
-        cols = [a.tolist() for a in (lat, lon, ve, vn, speed, heading)]
-        alts = alt.tolist() if k == 3 else [None] * len(rows)
-        vus = vu.tolist() if k == 3 else [0.0] * len(rows)
-        states, covs = x.tolist(), P.tolist()
-        tracks = []
-        for j in range(len(rows)):
-            tracks.append(
-                make(
-                    track_id=ids[j],
-                    time=out.time_ns,
-                    status=TrackStatus.CONFIRMED if conf[j] else TrackStatus.TENTATIVE,
-                    existence=exist[j],
-                    state=states[j],
-                    covariance=covs[j],
-                    lat=cols[0][j],
-                    lon=cols[1][j],
-                    alt=alts[j],
-                    vel_east=cols[2][j],
-                    vel_north=cols[3][j],
-                    vel_up=vus[j],
-                    speed=cols[4][j],
-                    heading=cols[5][j],
-                    radars=list(names[masks[j]]),
-                    updates=upd[j],
-                )
-            )
-        return tracks
+    def _convert_all(self, items: list[tuple[RadarSite, PlotBatch]]) -> list:
+        """``convert_plots`` of every batch (or the exception it raised): the batches of
+        one radar with the same columns are concatenated and converted in one call, then
+        split back (row i of the result ↔ plot i, in batch order)."""
+        result: list = [None] * len(items)
+        groups: dict[tuple, list[int]] = {}
+        for i, (site, b) in enumerate(items):
+            cols = tuple(k for k in _COLUMNS if getattr(b, k) is not None)
+            groups.setdefault((b.radar_id, id(site), cols), []).append(i)
+        for (_, _, cols), idx in groups.items():
+            site = items[idx[0]][0]
+            if len(idx) > 1:
+                try:
+                    merged = _concat(items[idx[0]][1], [items[i][1] for i in idx], cols)
+                    conv = self._convert(site, merged)
+                except ValueError:  # one of them is bad: convert one by one to tell which
+                    pass
+                else:
+                    ends = np.cumsum([len(items[i][1]) for i in idx])
+                    for i, lo, hi in zip(idx, np.r_[0, ends[:-1]], ends):
+                        result[i] = _slice(conv, int(lo), int(hi))
+                    continue
+            for i in idx:
+                try:
+                    result[i] = self._convert(site, items[i][1])
+                except ValueError as e:
+                    result[i] = e
+        return result
+
+    def track_batch(self, out: TrackerOutput, batch: PlotBatch | None = None) -> FeedMessage:
+        """The delta message of one tracker output (see :mod:`services.fusion.feed`)."""
+        self.feed.record(out)
+        return self.feed.delta(out.radar_id, None if batch is None else batch.seq)
+
+    def full(self) -> FeedMessage | None:
+        """The full picture now (it also becomes the picture later deltas apply to)."""
+        return self.feed.full()
+
+    def snapshot(self) -> FeedMessage | None:
+        """The current picture, as a full message."""
+        return self.feed.snapshot()
+
+    def picture(self):
+        """The published picture (a ``TrackTable``)."""
+        return self.feed.picture
+
+    @property
+    def cycle(self) -> int:
+        return self.feed.cycle
 
     def track_events(self, out: TrackerOutput) -> list[TrackEvent]:
         return [
@@ -172,3 +171,40 @@ class TrackPipeline:
             )
             for e in out.events
         ]
+
+
+def _concat(first: PlotBatch, batches: list[PlotBatch], cols: tuple[str, ...]) -> PlotBatch:
+    """The plots of several validated batches of one radar as one batch (for the
+    conversion only: ``convert_plots`` reads the plot columns, the radar id and the
+    sweep times, and converts each plot independently)."""
+    data = {k: [v for b in batches for v in getattr(b, k)] for k in ("time", *cols)}
+    return PlotBatch.model_construct(
+        radar_id=first.radar_id,
+        scan=first.scan,
+        seq=first.seq,
+        sector_start=first.sector_start,
+        sector_width=first.sector_width,
+        time_start=min(b.time_start for b in batches),
+        time_end=max(b.time_end for b in batches),
+        **{k: None for k in _COLUMNS if k not in cols},
+        **data,
+    )
+
+
+def _slice(conv: ConvertedPlots, lo: int, hi: int) -> ConvertedPlots:
+    """Rows ``lo:hi`` of a conversion (reasons renumbered from 0, as for that batch)."""
+    reasons = [_renumber(r, lo) for r in conv.reasons[lo:hi]]
+    fields = {f.name: getattr(conv, f.name) for f in dataclasses.fields(conv)}
+    for k in ("z", "R", "time", "valid"):
+        fields[k] = fields[k][lo:hi]
+    fields["reasons"] = reasons
+    if isinstance(fields.get("notes"), list):
+        fields["notes"] = fields["notes"][lo:hi]
+    return ConvertedPlots(**fields)
+
+
+def _renumber(reason: str, offset: int) -> str:
+    if not reason.startswith("plot "):
+        return reason
+    head, _, rest = reason.partition(": ")
+    return f"plot {int(head[5:]) - offset}: {rest}"

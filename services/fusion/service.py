@@ -27,8 +27,6 @@ is taken as a wall-clock time (a live radar).
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import logging
 import re
 import time
@@ -39,6 +37,7 @@ from typing import Protocol
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError
 from skyfuse.schemas import (
+    Backlog,
     FrameKind,
     FrameSpec,
     LatencyStats,
@@ -46,11 +45,11 @@ from skyfuse.schemas import (
     RadarHealth,
     RadarSite,
     Status,
-    TrackBatch,
     TrackEvent,
-    TrackStatus,
     keys,
 )
+from skyfuse.services.fusion.feed import FeedMessage
+from skyfuse.services.fusion.reorder import ReorderBuffer, _Pending
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.runtime.lifecycle import RateWindow
 
@@ -90,6 +89,29 @@ class FusionConfig(BaseModel):
         "rejected and counted)",
     )
     status_interval: float = Field(1.0, gt=0, description="Status publication period, s")
+    full_interval: float = Field(
+        1.0, gt=0, description="Period of the full-picture TrackBatch on the feed, s"
+    )
+    bulk_max: int = Field(
+        50, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
+    )
+    max_backlog: float | None = Field(
+        None,
+        gt=0,
+        description="Opt-in: stop reading input while a batch has waited longer than the "
+        "reorder wait plus this, s (the inbox fills and the publishers are slowed down); "
+        "batches held back in the senders may then arrive out of sequence (counted). "
+        "Default: off, back-pressure only from the queue bound",
+    )
+    inbox: int = Field(
+        10_000, ge=10, le=1_000_000, description="Messages in the receive queue, at most"
+    )
+    behind_after: float = Field(
+        0.5,
+        gt=0,
+        description="Status says 'behind' when a batch has waited longer than the reorder "
+        "wait plus this, s",
+    )
     latency_window: int = Field(
         20_000, ge=10, description="Latency percentiles over the last N publications"
     )
@@ -98,8 +120,8 @@ class FusionConfig(BaseModel):
         10_000,
         ge=10,
         le=1_000_000,
-        description="Batches waiting in the reorder buffer (and messages in the receive "
-        "queue), at most; beyond it the publishers are slowed down",
+        description="Batches waiting in the reorder buffer, at most; beyond it the "
+        "publishers are slowed down",
     )
 
     def frame_spec(self, sites: list[RadarSite]) -> FrameSpec | None:
@@ -112,71 +134,21 @@ class FusionConfig(BaseModel):
 
 
 class CyclePipeline(Protocol):
-    """One fusion cycle: a batch in, the resulting TrackBatch and TrackEvents out (the
-    code path shared with the offline ``skyfuse track``)."""
+    """Fusion cycles: batches in (in time order), one delta of the track feed and the
+    TrackEvents out, the full picture on demand (the code path shared with the offline
+    ``skyfuse track``; :class:`skyfuse.services.fusion.pipeline.TrackPipeline`)."""
 
-    def process(self, site: RadarSite, batch: PlotBatch) -> tuple[TrackBatch, list[TrackEvent]]: ...
+    rejected: dict[str, int]
 
+    def process_group(
+        self, items: list[tuple[RadarSite, PlotBatch]]
+    ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]: ...
 
-@dataclass(order=True)
-class _Pending:
-    time_end: int
-    order: int
-    arrival: float = field(compare=False)
-    batch: PlotBatch = field(compare=False)
-    sent_ns: int | None = field(compare=False)
+    def full(self) -> FeedMessage | None: ...
 
+    def picture(self): ...
 
-class ReorderBuffer:
-    """Holds batches ``wait`` seconds (arrival clock) and releases them in
-    ``(time_end, arrival order)`` order; rejects late and duplicate batches."""
-
-    def __init__(self, wait: float) -> None:
-        self.wait = wait
-        self._heap: list[_Pending] = []
-        self._order = itertools.count()
-        self.last_time: int | None = None
-        self._seen: dict[str, deque] = {}
-
-    def __len__(self) -> int:
-        return len(self._heap)
-
-    def push(self, batch: PlotBatch, arrival: float, sent_ns: int | None = None) -> str | None:
-        """Queue ``batch``; return ``None`` or the reason it was refused."""
-        seen = self._seen.setdefault(batch.radar_id, deque(maxlen=256))
-        ident = (batch.seq, batch.time_end, batch.scan)
-        if ident in seen:
-            return "duplicate batch"
-        if self.last_time is not None and batch.time_end < self.last_time:
-            return "out of sequence"
-        seen.append(ident)
-        heapq.heappush(
-            self._heap, _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
-        )
-        return None
-
-    def pop_ready(self, now: float, limit: int | None = None) -> list[_Pending]:
-        """Batches whose hold has expired, in order (a held head holds back the rest),
-        at most ``limit``."""
-        out = []
-        while self._heap and now - self._heap[0].arrival >= self.wait:
-            if limit is not None and len(out) >= limit:
-                break
-            out.append(self._release())
-        return out
-
-    def next_due(self) -> float | None:
-        """Arrival-clock time the head of the buffer is due, or ``None`` if empty."""
-        return self._heap[0].arrival + self.wait if self._heap else None
-
-    def flush(self) -> list[_Pending]:
-        """Everything queued, in order."""
-        return [self._release() for _ in range(len(self._heap))]
-
-    def _release(self) -> _Pending:
-        p = heapq.heappop(self._heap)
-        self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
-        return p
+    def snapshot(self) -> FeedMessage | None: ...
 
 
 @dataclass
@@ -192,12 +164,17 @@ class _Radar:
 
 @dataclass
 class CycleOutput:
-    tracks: TrackBatch
+    """What one group of cycles publishes: the delta, the events, and the full picture
+    when it is due (``full_interval``)."""
+
+    tracks: FeedMessage
     events: list[TrackEvent]
-    sent_ns: int | None
-    """Sender's wall-clock stamp of the batch that triggered the cycle."""
-    time_end: int
+    sent_ns: list[int | None]
+    """Senders' wall-clock stamps of the applied batches."""
+    time_ends: list[int]
+    full: FeedMessage | None = None
     latency_ms: float | None = None
+    """The largest latency of the group's batches, once published."""
 
 
 class FusionCore:
@@ -214,8 +191,12 @@ class FusionCore:
         self.counters: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
         self.latencies: deque[float] = deque(maxlen=cfg.latency_window)
-        self.latest: TrackBatch | None = None
         self.started = time.monotonic()
+        self.rate_in = RateWindow(cfg.rate_window)
+        self.rate_out = RateWindow(cfg.rate_window)
+        self._next_full = 0.0
+        self._waiting: dict[int, tuple[float, int]] = {}
+        """Batches in the reorder buffer: id(batch) -> (arrival, plots), arrival order."""
         self._warned: set[str] = set()
         for site in cfg.sites:
             self.on_site(site, configured=True)
@@ -227,8 +208,8 @@ class FusionCore:
             r = self.radars[radar_id] = _Radar(radar_id, rate=RateWindow(self.cfg.rate_window))
         return r
 
-    def reject(self, reason: str, detail: str = "") -> None:
-        self.rejected[reason] += 1
+    def reject(self, reason: str, detail: str = "", n: int = 1) -> None:
+        self.rejected[reason] += n
         if self.rejected[reason] <= 3:
             log.warning("rejected input: %s%s", reason, f" ({detail})" if detail else "")
 
@@ -310,6 +291,8 @@ class FusionCore:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")
             return False
         n = len(batch.time)
+        self._waiting[id(batch)] = (arrival, n)
+        self.rate_in.add(n)
         r.batches += 1
         r.plots += n
         r.rate.add(n)
@@ -324,70 +307,130 @@ class FusionCore:
     ) -> list[CycleOutput]:
         """Run the cycles of the batches whose hold expired (all queued with ``flush``).
 
-        ``budget_s`` bounds the time spent (at least one cycle runs): the rest stays
-        queued for the next call, so a service that falls behind still reads its input
-        and publishes its Status in between."""
+        Every batch ready now is taken at once (at most ``bulk_max`` per group) and
+        applied in one pass, in the buffer's time order, with one delta message for the
+        group (:meth:`CyclePipeline.process_group`). ``budget_s`` bounds the time spent
+        (at least one group runs): the rest stays queued for the next call, so a service
+        that falls behind still reads its input and publishes its Status in between."""
         now = time.monotonic() if now is None else now
-        if flush:
-            return [out for p in self.buffer.flush() if (out := self._cycle(p)) is not None]
         t_end = None if budget_s is None else time.monotonic() + budget_s
         outs = []
         while True:
-            ready = self.buffer.pop_ready(now, limit=1)
+            if flush:
+                ready = self.buffer.flush()
+            else:
+                ready = self.buffer.pop_ready(now, limit=self.cfg.bulk_max)
             if not ready:
                 break
-            out = self._cycle(ready[0])
+            out = self.cycle_group(ready)
             if out is not None:
                 outs.append(out)
-            if t_end is not None and time.monotonic() >= t_end:
+            if flush or (t_end is not None and time.monotonic() >= t_end):
                 break
         return outs
 
     def cycle(self, p: _Pending) -> CycleOutput | None:
         """Run the cycle of one released batch (see :meth:`poll`)."""
-        return self._cycle(p)
+        return self.cycle_group([p])
 
-    def _cycle(self, p: _Pending) -> CycleOutput | None:
-        batch = p.batch
-        r = self._radar(batch.radar_id)
-        if r.site is None:
-            if batch.radar_id not in self._warned:
-                self._warned.add(batch.radar_id)
-                log.warning(
-                    "radar %s: plots but no site (no RadarSite message or configured site): "
-                    "its batches are dropped until the site is known",
-                    batch.radar_id,
-                )
-            self.reject("no site for radar", batch.radar_id)
+    def cycle_group(self, ready: list[_Pending]) -> CycleOutput | None:
+        """Apply released batches (in their order) in one pass; ``None`` if none applied."""
+        for p in ready:
+            self._left_buffer(p)
+        ready = [p for p in ready if self._has_site(p.batch)]
+        if not ready:
             return None
         if self.pipeline is None:
             self._start_pipeline()
+        items = [(self._radar(p.batch.radar_id).site, p.batch) for p in ready]
         try:
-            tracks, events = self.pipeline.process(r.site, batch)
-        except ValidationError as e:  # the pipeline built an invalid output message
-            self.reject("tracker error", f"invalid output: {_detail(e)}")
-            log.error("tracker output invalid on radar %s seq %s: %s", batch.radar_id, batch.seq, e)
-            return None
-        except ValueError as e:
-            self.reject("batch not convertible", f"radar {batch.radar_id}: {e}")
-            return None
+            msg, events, failed = self.pipeline.process_group(items)
         except Exception as e:  # a tracker bug must not kill the service
-            self.reject("tracker error", f"{type(e).__name__}: {e}")
-            log.exception("tracker error on radar %s seq %s", batch.radar_id, batch.seq)
+            self.reject("tracker error", f"{type(e).__name__}: {e}", len(ready))
+            log.exception("tracker error on a group of %d batches", len(ready))
             return None
-        self.counters["cycles"] += 1
-        self.counters["plots_applied"] += len(batch.time)
+        bad = set()
+        for batch, e in failed:
+            bad.add(id(batch))
+            if isinstance(e, ValueError):
+                self.reject("batch not convertible", f"radar {batch.radar_id}: {e}")
+            else:
+                self.reject("tracker error", f"{type(e).__name__}: {e}")
+                log.error("tracker error on radar %s seq %s: %r", batch.radar_id, batch.seq, e)
+        applied = [p for p in ready if id(p.batch) not in bad]
+        if msg is None:
+            return None
+        n = sum(len(p.batch.time) for p in applied)
+        self.counters["cycles"] += len(applied)
+        self.counters["groups"] += 1
+        self.counters["plots_applied"] += n
         self.counters["events"] += len(events)
-        self.latest = tracks
-        return CycleOutput(tracks, events, p.sent_ns, batch.time_end)
+        self.rate_out.add(n)
+        full = None
+        if time.monotonic() >= self._next_full:
+            self._next_full = time.monotonic() + self.cfg.full_interval
+            full = self.pipeline.full()
+        return CycleOutput(
+            msg, events, [p.sent_ns for p in applied], [p.time_end for p in applied], full
+        )
+
+    def _left_buffer(self, p: _Pending) -> None:
+        self._waiting.pop(id(p.batch), None)
+
+    def backlog(self, now: float | None = None) -> Backlog:
+        """Batches and plots waiting, the oldest one's wait, plot rates in and out, and
+        whether the service is behind (a batch waited longer than reorder wait +
+        ``behind_after``)."""
+        now = time.monotonic() if now is None else now
+        oldest = next(iter(self._waiting.values()), None)  # dicts keep arrival order
+        age = 0.0 if oldest is None else max(0.0, now - oldest[0])
+        return Backlog(
+            batches=len(self._waiting),
+            plots=sum(n for _, n in self._waiting.values()),
+            oldest_wait_s=age,
+            plots_per_s_in=self.rate_in.rate(now),
+            plots_per_s_out=self.rate_out.rate(now),
+            behind=age > self.cfg.reorder_wait + self.cfg.behind_after,
+        )
+
+    def over_backlog(self, now: float | None = None) -> bool:
+        """A batch has waited longer than reorder wait + ``max_backlog``: stop reading."""
+        oldest = next(iter(self._waiting.values()), None)
+        if oldest is None or self.cfg.max_backlog is None:
+            return False
+        now = time.monotonic() if now is None else now
+        return now - oldest[0] > self.cfg.reorder_wait + self.cfg.max_backlog
+
+    def _has_site(self, batch: PlotBatch) -> bool:
+        if self._radar(batch.radar_id).site is not None:
+            return True
+        if batch.radar_id not in self._warned:
+            self._warned.add(batch.radar_id)
+            log.warning(
+                "radar %s: plots but no site (no RadarSite message or configured site): "
+                "its batches are dropped until the site is known",
+                batch.radar_id,
+            )
+        self.reject("no site for radar", batch.radar_id)
+        return False
 
     def published(self, out: CycleOutput) -> None:
-        """Record the latency of a cycle output just published."""
-        ref = out.sent_ns if out.sent_ns is not None else out.time_end
-        lat = (time.time_ns() - ref) / 1e6
-        out.latency_ms = lat
-        self.latencies.append(lat)
-        self.counters["track_batches_published"] += 1
+        """Record the latency of each batch of a cycle output just published."""
+        t = time.time_ns()
+        lats = [
+            (t - (sent if sent is not None else end)) / 1e6
+            for sent, end in zip(out.sent_ns, out.time_ends)
+        ]
+        out.latency_ms = max(lats) if lats else None
+        self.latencies.extend(lats)
+        self.counters["track_batches_published"] += 1 + (out.full is not None)
+
+    def snapshot_payload(self) -> bytes | None:
+        """The current picture as a full TrackBatch (JSON), or ``None`` before any track
+        cycle; safe to call from another thread (the snapshot queryable)."""
+        pipe = self.pipeline
+        snap = None if pipe is None else pipe.snapshot()
+        return None if snap is None else snap.to_json_bytes()
 
     # --- status ----------------------------------------------------------------------
     def latency_stats(self) -> LatencyStats:
@@ -410,9 +453,10 @@ class FusionCore:
     def status(self) -> Status:
         now = time.monotonic()
         confirmed = total = None
-        if self.latest is not None:
-            total = len(self.latest.tracks)
-            confirmed = sum(t.status == TrackStatus.CONFIRMED for t in self.latest.tracks)
+        if self.pipeline is not None and self.counters["groups"]:
+            picture = self.pipeline.picture()
+            total = len(picture)
+            confirmed = int(np.count_nonzero(getattr(picture, "confirmed", [])))
         return Status(
             service="fusion",
             service_id=self.cfg.fusion_id,
@@ -433,6 +477,7 @@ class FusionCore:
                 for r in sorted(self.radars.values(), key=lambda r: r.radar_id)
             ],
             latency_ms=self.latency_stats(),
+            backlog=self.backlog(now),
             tracks_confirmed=confirmed,
             tracks_total=total,
             message=""

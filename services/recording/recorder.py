@@ -1,8 +1,13 @@
 """The MCAP recorder: every skyfuse message received on Zenoh goes to an MCAP file, one
 channel per key with the payload model's JSON Schema (:class:`services.recording.RecordingWriter`),
-plus Foxglove ``foxglove.LocationFixes`` channels (protobuf, from foxglove-sdk) that the
-Foxglove Map panel shows: ``/foxglove/tracks`` (confirmed tracks), ``/foxglove/plots``,
-``/foxglove/truth`` and ``/foxglove/sites``.
+plus Foxglove channels (protobuf, from foxglove-sdk) that the Foxglove Map panel shows:
+``foxglove.LocationFixes`` on ``/foxglove/tracks`` (confirmed tracks of the picture
+rebuilt from the delta/full feed, ``schemas.TrackPicture``), ``/foxglove/plots`` (one
+per radar revolution), ``/foxglove/truth`` and ``/foxglove/sites``, and
+``foxglove.GeoJSON`` on ``/foxglove/tracks_geojson`` (each track named ``T{id}`` with its
+heading, speed, altitude, existence and radars, and a heading line). Every Foxglove
+message is stamped with data time (plot, track, truth times; sites with the time of
+the latest data), the MCAP log time is the receive time.
 
 Durability: the writer's chunk in progress is closed and flushed every
 ``flush_interval`` seconds, so a recorder killed with SIGKILL loses at most the
@@ -20,6 +25,7 @@ model of its key, or a key outside the v1 key space, is counted by reason and sk
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time
@@ -31,7 +37,16 @@ import pymap3d
 from foxglove import messages as fg
 from pydantic import BaseModel, Field, ValidationError
 from skyfuse import schemas
-from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, TrackBatch, TrackStatus, Truth, keys
+from skyfuse.schemas import (
+    PlotBatch,
+    RadarKind,
+    RadarSite,
+    TrackBatch,
+    TrackPicture,
+    TrackStatus,
+    Truth,
+    keys,
+)
 from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from skyfuse.services.runtime.transport import Received
 
@@ -42,7 +57,13 @@ FOXGLOVE_TOPICS = {
     "plots": "/foxglove/plots",
     "truth": "/foxglove/truth",
     "sites": "/foxglove/sites",
+    "track_labels": "/foxglove/tracks_geojson",
 }
+HEADING_LINE_S = 60.0
+"""The heading line of a track on the map: where it is in this many seconds, s."""
+_MAX_FEEDS = 64
+"""Fusion ids whose track picture the Foxglove channels rebuild, at most."""
+
 _COLORS = {
     "tracks": fg.Color(r=0.1, g=0.4, b=1.0, a=1.0),
     "plots": fg.Color(r=1.0, g=0.6, b=0.0, a=0.6),
@@ -135,6 +156,35 @@ def location_fixes(
     return fg.LocationFixes(fixes=fixes)
 
 
+def track_features(tracks) -> fg.GeoJson:
+    """The tracks as a GeoJSON FeatureCollection for Foxglove's Map panel: per track a
+    Point (properties: id, heading in degrees clockwise from north, speed m/s, altitude
+    m, existence, radars) and a LineString from it to where it will be in
+    ``HEADING_LINE_S`` s at its velocity (local east/north offsets, pymap3d)."""
+    feats = []
+    if tracks:
+        lat = np.array([t.lat for t in tracks])
+        lon = np.array([t.lon for t in tracks])
+        ve = np.array([t.vel_east for t in tracks]) * HEADING_LINE_S
+        vn = np.array([t.vel_north for t in tracks]) * HEADING_LINE_S
+        lat2, lon2, _ = pymap3d.enu2geodetic(ve, vn, 0 * ve, lat, lon, 0 * ve)
+        for t, la2, lo2 in zip(tracks, lat2.tolist(), lon2.tolist()):
+            props = {
+                "name": f"T{t.track_id}",
+                "track_id": t.track_id,
+                "heading_deg": round(math.degrees(t.heading), 1),
+                "speed_mps": round(t.speed, 1),
+                "alt_m": None if t.alt is None else round(t.alt),
+                "existence": round(t.existence, 3),
+                "radars": ",".join(t.radars),
+            }
+            point = {"type": "Point", "coordinates": [t.lon, t.lat]}
+            line = {"type": "LineString", "coordinates": [[t.lon, t.lat], [lo2, la2]]}
+            for geom in (point, line):
+                feats.append({"type": "Feature", "geometry": geom, "properties": props})
+    return fg.GeoJson(geojson=json.dumps({"type": "FeatureCollection", "features": feats}))
+
+
 class Recorder:
     """Writes received samples to MCAP; the Zenoh side lives in ``cmd_record``."""
 
@@ -144,6 +194,7 @@ class Recorder:
         self.files: list[Path] = []
         self.counts: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
+        self._pictures: dict[str, TrackPicture] = {}
         self.messages = 0
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
@@ -152,6 +203,9 @@ class Recorder:
         self._opened_at = 0.0
         self._last_flush = time.monotonic()
         self._fg_schemas = {name: fg.LocationFixes.get_schema() for name in FOXGLOVE_TOPICS}
+        self._fg_schemas["track_labels"] = fg.GeoJson.get_schema()
+        self._data_time: int | None = None
+        """Latest data time seen (plots, tracks, truth), ns: the Foxglove time base."""
         self._open()
 
     # --- files ---------------------------------------------------------------------
@@ -217,7 +271,7 @@ class Recorder:
         self.bytes += len(payload)
         self.counts[topic] += 1
 
-    def _write_fg(self, name: str, msg: fg.LocationFixes, log_time: int) -> None:
+    def _write_fg(self, name: str, msg, log_time: int) -> None:
         schema = self._fg_schemas[name]
         cid = self._writer.channel_for(
             FOXGLOVE_TOPICS[name],
@@ -228,10 +282,13 @@ class Recorder:
         )
         self._writer.write_raw(cid, msg.encode(), log_time)
 
-    def _foxglove_site(self, site: RadarSite, log_time: int) -> None:
+    def _foxglove_site(self, site: RadarSite, log_time: int, stamp: int | None = None) -> None:
+        """The site on the map, stamped with the data time base (the scan's or the latest
+        data time; the receive time only before any data)."""
         if self.cfg.foxglove:
+            stamp = stamp if stamp is not None else self._data_time or log_time
             fixes = location_fixes(
-                log_time, site.radar_id, [site.lat], [site.lon], [site.alt], _COLORS["sites"]
+                stamp, site.radar_id, [site.lat], [site.lon], [site.alt], _COLORS["sites"]
             )
             self._write_fg("sites", fixes, log_time)
 
@@ -278,12 +335,14 @@ class Recorder:
         lat, lon, h = plot_positions(batches, site)
         fixes = location_fixes(batches[-1].time_end, radar_id, lat, lon, h, _COLORS["plots"])
         self._write_fg("plots", fixes, log_time)
+        self._foxglove_site(site, log_time, stamp=batches[-1].time_end)
 
     def _foxglove(self, msg, log_time: int) -> None:
         if isinstance(msg, RadarSite):
             self.sites[msg.radar_id] = (msg, msg.to_json_bytes())
             self._foxglove_site(msg, log_time)
         elif isinstance(msg, PlotBatch):
+            self._data_time = max(self._data_time or 0, msg.time_end)
             # one LocationFixes per radar revolution (a map shows scans, and it is 16x
             # cheaper than one per sector)
             pending = self._scan_plots.get(msg.radar_id)
@@ -292,7 +351,12 @@ class Recorder:
             if len(msg.time):
                 self._scan_plots.setdefault(msg.radar_id, []).append(msg)
         elif isinstance(msg, TrackBatch):
-            conf = [t for t in msg.tracks if t.status == TrackStatus.CONFIRMED]
+            picture = self._picture(msg.fusion_id)
+            if picture is None or not picture.apply(msg):
+                return
+            conf = [t for t in picture.tracks.values() if t.status == TrackStatus.CONFIRMED]
+            self._data_time = max(self._data_time or 0, msg.time)
+            self._write_fg("track_labels", track_features(conf), log_time)
             fixes = location_fixes(
                 msg.time,
                 msg.fusion_id,
@@ -309,6 +373,17 @@ class Recorder:
                 location_fixes(msg.time, "truth", msg.lat, msg.lon, msg.alt, _COLORS["truth"]),
                 log_time,
             )
+
+    def _picture(self, fusion_id: str) -> TrackPicture | None:
+        """The track picture of one fusion id, rebuilt from its deltas and fulls (at most
+        ``_MAX_FEEDS`` fusion ids; beyond, counted and not drawn)."""
+        pic = self._pictures.get(fusion_id)
+        if pic is None:
+            if len(self._pictures) >= _MAX_FEEDS:
+                self.rejected["foxglove: too many fusion ids"] += 1
+                return None
+            pic = self._pictures[fusion_id] = TrackPicture()
+        return pic
 
     def summary(self) -> dict:
         return {

@@ -148,10 +148,27 @@ class TransportError(RuntimeError):
 
 
 def declare_publisher(session: zenoh.Session, key: str, *, express: bool = False):
-    """A publisher on ``key`` with ``CongestionControl.BLOCK`` (no silent loss)."""
+    """A publisher on ``key`` with ``CongestionControl.BLOCK`` (no silent loss) and the
+    encoding of its payload (:func:`payload_encoding`)."""
     return session.declare_publisher(
-        key, congestion_control=zenoh.CongestionControl.BLOCK, express=express
+        key,
+        congestion_control=zenoh.CongestionControl.BLOCK,
+        express=express,
+        encoding=payload_encoding(key),
     )
+
+
+def payload_encoding(key: str) -> zenoh.Encoding:
+    """``application/json;skyfuse.{Model}/{schema version}`` for a key of the v1 key
+    space that carries a message (e.g. ``application/json;skyfuse.TrackBatch/1``), so
+    generic Zenoh tools can decode it; ``zenoh/bytes`` for any other key."""
+    from skyfuse.schemas import SCHEMA_VERSION, model_for_key
+
+    try:
+        model = model_for_key(key)
+    except ValueError:
+        return zenoh.Encoding.ZENOH_BYTES
+    return zenoh.Encoding.APPLICATION_JSON.with_schema(f"skyfuse.{model.__name__}/{SCHEMA_VERSION}")
 
 
 _STAMP = struct.Struct("<q")

@@ -102,6 +102,16 @@ def test_status_flags_over_a_track_life():
     assert first.simulated is True
 
 
+@pytest.mark.parametrize(
+    ("radars", "mono"), [((), True), (("25-11",), True), (("25-11", "25-12"), False)]
+)
+def test_monosensor_flag_follows_the_number_of_radars(radars, mono):
+    """I062/080 MON = 1 (monosensor) unless two or more radars updated the track."""
+    tr = make_track(3, np.random.default_rng(9), radars=radars)
+    (dec,) = decode_cat062(Cat062Writer(sac=1, sic=2).encode_batch(batch_of([tr]))[0])
+    assert dec.mono is mono
+
+
 def test_ned_frame_axes_are_swapped_to_east_north():
     rng = np.random.default_rng(5)
     tr = make_track(1, rng)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pymap3d
 import pytest
-from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, Truth, keys
+from skyfuse.schemas import PlotBatch, RadarSite, TrackBatch, TrackEvent, TrackPicture, Truth, keys
 from skyfuse.services.cli.main import main
 from skyfuse.services.recording.mcap_io import RecordingWriter, iter_recording
 
@@ -110,11 +110,15 @@ def test_track_command_writes_tracks_events_and_summary(tmp_path, capsys):
     batches = [r.message for r in iter_recording(out) if isinstance(r.message, TrackBatch)]
     events = [r.message for r in iter_recording(out) if isinstance(r.message, TrackEvent)]
     assert len(batches) == 25 and {e.kind.value for e in events} == {"confirmed"}
-    last = batches[-1]
+    picture = TrackPicture()  # the MCAP holds the feed's deltas: rebuild the picture
+    for b in batches:
+        picture.apply(b)
+    assert picture.complete
+    last = picture.batch()
     assert len(last.tracks) == 2 and last.state_labels == ["x", "vx", "y", "vy"]
-    pos = x0 + v * 25
-    lat, lon, _ = pymap3d.enu2geodetic(pos[:, 0], pos[:, 1], 0 * pos[:, 0], LAT, LON, 0)
-    for tr in last.tracks:
+    for tr in last.tracks:  # truth at the track's own time (its last update)
+        pos = x0 + v * (25 + (tr.time - batches[-1].time) / 1e9)
+        lat, lon, _ = pymap3d.enu2geodetic(pos[:, 0], pos[:, 1], 0 * pos[:, 0], LAT, LON, 0)
         d = [
             np.hypot(*pymap3d.geodetic2enu(tr.lat, tr.lon, 0, la, lo, 0)[:2])
             for la, lo in zip(lat, lon)

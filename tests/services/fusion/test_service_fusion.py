@@ -88,6 +88,11 @@ def test_fusion_service_inputs_liveliness_feed_and_clients(tmp_path):
             snap_out, _ = snap.communicate(timeout=20)
             assert snap.returncode == 0
             assert json.loads(snap_out)["topic"] == keys.fusion_snapshot("main")
+            # not a terminal: plain tab-separated text, nothing truncated
+            plain = skyfuse("tracks", "--snapshot", "--all-tracks", "--connect", ep)
+            plain_out = plain.communicate(timeout=20)[0].decode()
+            assert plain.returncode == 0 and plain_out.startswith("id\tstatus\tlat °")
+            assert "# fusion main cycle" in plain_out and "…" not in plain_out
             lines = [json.loads(x) for x in out.splitlines()]
             assert feed.returncode == 0 and len(lines) >= 3
             assert all(x["topic"] == keys.fusion_tracks("main") for x in lines)

@@ -12,20 +12,31 @@ from skyfuse.services.fusion.service import FusionConfig, FusionCore, ReorderBuf
 
 class RecordingPipeline:
     """Test double of the track pipeline: remembers the order batches arrive in and
-    returns an empty TrackBatch per cycle."""
+    returns an empty delta TrackBatch per group."""
 
     def __init__(self, frame: FrameSpec) -> None:
         self.frame = frame
         self.seen: list[tuple[str, int]] = []
+        self.rejected: dict[str, int] = {}
 
-    def process(self, site, batch):
-        self.seen.append((batch.radar_id, batch.time_end))
+    def process_group(self, items):
+        self.seen += [(batch.radar_id, batch.time_end) for _, batch in items]
+        last = items[-1][1]
         tb = TrackBatch(
-            fusion_id="t", cycle=len(self.seen), time=batch.time_end, frame=self.frame,
-            state_labels=["x", "vx", "y", "vy"], source_radar=batch.radar_id,
-            source_seq=batch.seq,
+            fusion_id="t", kind="delta", cycle=len(self.seen), time=last.time_end,
+            frame=self.frame, state_labels=["x", "vx", "y", "vy"], source_radar=last.radar_id,
+            source_seq=last.seq, batches=len(items),
         )  # fmt: skip
-        return tb, []
+        return tb, [], []
+
+    def full(self):
+        return None
+
+    def snapshot(self):
+        return None
+
+    def picture(self):
+        return []
 
 
 def core(**kw) -> tuple[FusionCore, list[RecordingPipeline]]:
@@ -70,7 +81,8 @@ def test_core_applies_in_time_order_and_counts_rejects():
         assert c.on_plots_payload(keys.radar_plots(b.radar_id), b.to_json_bytes(), 0.01 * i)
     assert c.poll(0.2) == []
     outs = c.poll(10.0)
-    assert len(outs) == len(batches)
+    assert sum(len(o.time_ends) for o in outs) == len(batches)
+    assert len(outs) == 1  # all ready at once: one pass, one message
     times = [t for _, t in made[0].seen]
     assert times == sorted(times)
     assert made[0].frame == FrameSpec(kind=FrameKind.STEREOGRAPHIC, lat0=45, lon0=20)

@@ -59,7 +59,7 @@ def test_replay_is_recorded_without_loss_and_stops_cleanly(tmp_path):
         assert counts[keys.radar_plots(r)] == n  # recorded == published
         assert counts[keys.radar_site(r)] == 1
     assert counts["/foxglove/plots"] == 2 * 3  # one per radar revolution
-    assert counts["/foxglove/sites"] == 2
+    assert counts["/foxglove/sites"] == 2 + 2 * 3  # on receipt, then with each scan
     summary = json.loads(stats.read_text())
     assert summary["rejected"] == {"invalid PlotBatch": 2}
     # contents are byte-identical to the source

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
 import math
 import signal
 import socket
@@ -272,9 +273,9 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
             n_batches = len(sensor.batches)
             seen: list = []
 
-            def all_tracks_in() -> bool:
+            def all_tracks_in() -> bool:  # the deltas say how many batches they apply
                 seen.extend(inbox.drain())
-                return len(seen) >= n_batches
+                return sum(json.loads(i.payload)["batches"] for i in seen) >= n_batches
 
             assert wait_for(all_tracks_in, 10.0), (len(seen), n_batches)
             time.sleep(0.3)

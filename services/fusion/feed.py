@@ -1,0 +1,310 @@
+"""The incremental track feed of one fusion id, over arrays of tracks.
+
+Contract (``schemas.tracks``: ``TrackBatch.kind``): a **delta** message carries only the
+tracks its cycle(s) changed — a track is *changed* when it enters the published set
+(new, or confirmed with ``publish = confirmed``), when a plot updated it (its
+``last_update`` time moved), or when its status changed — and lists in ``removed`` the
+ids that left the set (terminated, merged, or no longer published). A **full** message
+carries every published track, predicted to the message time, and replaces the
+picture. The service keeps the same picture its subscribers rebuild
+(:class:`FeedBuilder.picture`), so the snapshot answered at any instant plus the deltas
+after it give exactly the picture of a subscriber that has been listening all along.
+
+Several plot batches applied in one pass (the bulk path) give one delta whose rows are,
+per track, the row of the last cycle that changed it: the picture after the group is the
+picture after the same batches one by one. Outgoing messages are serialised from the
+arrays (``pydantic_core.to_json`` of plain lists; no ``Track`` model per row); their
+validity is checked by the tests against ``schemas.TrackBatch``.
+
+Units: ``state``/``covariance`` in the system frame (m, m/s, x east, y north, z up),
+lat/lon in degrees (WGS-84), alt in m above the ellipsoid, velocities east/north/up in
+m/s, heading in rad clockwise from north in [0, 2π).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+import pydantic_core
+from skyfuse.fusion.frames import SystemFrame
+from skyfuse.fusion.tracker.tracker import TrackerOutput
+from skyfuse.schemas import FeedKind, TrackBatch
+
+TWO_PI = 2.0 * math.pi
+
+_ARRAYS = (
+    "ids", "time", "last_update", "confirmed", "existence", "updates", "radar_mask",
+    "states", "covariances",
+)  # fmt: skip
+_GEO = ("lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "speed", "heading")
+
+
+@dataclass
+class TrackTable:
+    """Rows of published tracks as columns (row i = one track). ``states`` (n, d),
+    ``covariances`` (n, d, d); the geodetic columns are filled by :meth:`with_geodetic`."""
+
+    ids: np.ndarray
+    time: np.ndarray
+    last_update: np.ndarray
+    confirmed: np.ndarray
+    existence: np.ndarray
+    updates: np.ndarray
+    radar_mask: np.ndarray
+    states: np.ndarray
+    covariances: np.ndarray
+    geo: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @classmethod
+    def empty(cls, d: int) -> TrackTable:
+        z = np.zeros(0)
+        return cls(
+            *(z.astype(np.int64) for _ in range(3)), z.astype(bool), z, z.astype(np.int64),
+            z.astype(np.int64), np.zeros((0, d)), np.zeros((0, d, d)),
+            {k: z for k in _GEO},
+        )  # fmt: skip
+
+    @classmethod
+    def from_output(cls, out: TrackerOutput, rows: np.ndarray) -> TrackTable:
+        return cls(
+            out.ids[rows], np.full(len(rows), out.time_ns, np.int64), out.last_update_ns[rows],
+            out.confirmed[rows], np.clip(out.existence[rows], 0.0, 1.0), out.updates[rows],
+            out.radar_mask[rows], out.states[rows], out.covariances[rows],
+        )  # fmt: skip
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def take(self, idx: np.ndarray) -> TrackTable:
+        t = TrackTable(*(getattr(self, k)[idx] for k in _ARRAYS))
+        t.geo = {k: v[idx] for k, v in self.geo.items()}
+        return t
+
+    @staticmethod
+    def concat(parts: list[TrackTable]) -> TrackTable:
+        t = TrackTable(*(np.concatenate([getattr(p, k) for p in parts]) for k in _ARRAYS))
+        if all(p.geo for p in parts):
+            t.geo = {k: np.concatenate([p.geo[k] for p in parts]) for k in _GEO}
+        return t
+
+    def with_geodetic(self, frame: SystemFrame, ndim: int) -> TrackTable:
+        """Fill lat/lon/alt and the ENU velocity, speed and heading from the states
+        (state layout x, vx, y, vy[, z, vz]; the frame's inverse projection and its
+        velocity rotation, ``SystemFrame.to_geodetic`` / ``velocity_to_enu``)."""
+        x, n = self.states, len(self)
+        px, py, vx, vy = x[:, 0], x[:, 2], x[:, 1], x[:, 3]
+        pz = x[:, 4] if ndim == 3 else np.zeros(n)
+        vz = x[:, 5] if ndim == 3 else np.zeros(n)
+        if n:
+            lat, lon, alt = frame.to_geodetic(px, py, pz)
+            ve, vn, vu = frame.velocity_to_enu(px, py, pz, vx, vy, vz)
+        else:
+            lat = lon = alt = ve = vn = vu = np.zeros(0)
+        heading = np.mod(np.arctan2(ve, vn), TWO_PI)
+        heading = np.where(heading >= TWO_PI, 0.0, heading)
+        if ndim != 3:
+            vu = np.zeros(n)
+        geo = (lat, lon, alt, ve, vn, vu, np.hypot(ve, vn), heading)
+        self.geo = {k: np.asarray(v, dtype=float) for k, v in zip(_GEO, geo)}
+        return self
+
+    def publishable(self) -> np.ndarray:
+        """Rows that satisfy the wire constraints of ``schemas.Track`` (finite state and
+        covariance, lat/lon/heading in range, non-negative id and time)."""
+        g = self.geo
+        finite = np.isfinite(self.states).all(axis=1)
+        finite &= np.isfinite(self.covariances).all(axis=(1, 2))
+        for k in _GEO:
+            finite &= np.isfinite(g[k])
+        return (
+            finite
+            & (np.abs(g["lat"]) <= 90.0)
+            & (np.abs(g["lon"]) <= 180.0)
+            & (g["heading"] >= 0.0)
+            & (g["heading"] < TWO_PI)
+            & (self.ids >= 0)
+            & (self.time >= 0)
+        )
+
+    def rows(self, radar_names: list[str], ndim: int) -> list[dict]:
+        """The ``schemas.Track`` JSON objects of the rows (plain lists for the codec)."""
+        names = {}
+        for m in np.unique(self.radar_mask).tolist():
+            names[m] = [r for b, r in enumerate(radar_names) if m >> b & 1]
+        g = self.geo
+        cols = {
+            "track_id": self.ids.tolist(),
+            "time": self.time.tolist(),
+            "status": np.where(self.confirmed, "confirmed", "tentative").tolist(),
+            "existence": self.existence.tolist(),
+            "state": self.states.tolist(),
+            "covariance": self.covariances.tolist(),
+            **{k: g[k].tolist() for k in _GEO if k != "alt" or ndim == 3},
+            "radars": [names[m] for m in self.radar_mask.tolist()],
+            "updates": self.updates.tolist(),
+        }
+        keys = list(cols)
+        return [dict(zip(keys, r)) for r in zip(*cols.values())]
+
+
+@dataclass
+class FeedMessage:
+    """One outgoing TrackBatch (delta or full) as arrays; ``to_json_bytes`` serialises it,
+    ``model`` gives the validated ``schemas.TrackBatch`` (for CAT062 and the tests)."""
+
+    header: dict
+    table: TrackTable
+    removed: np.ndarray
+    radar_names: list[str]
+    ndim: int
+
+    @property
+    def kind(self) -> FeedKind:
+        return FeedKind(self.header["kind"])
+
+    @property
+    def cycle(self) -> int:
+        return self.header["cycle"]
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def to_json_bytes(self) -> bytes:
+        obj = {
+            **self.header,
+            "tracks": self.table.rows(self.radar_names, self.ndim),
+            "removed": self.removed.tolist(),
+        }
+        return pydantic_core.to_json({k: v for k, v in obj.items() if v is not None})
+
+    def model(self) -> TrackBatch:
+        return TrackBatch.from_json_bytes(self.to_json_bytes())
+
+
+class FeedBuilder:
+    """Change detection and the published picture of one fusion id (see the module
+    docstring). Call :meth:`record` after every tracker step, :meth:`delta` to close a
+    group of steps into one message, :meth:`full` for the full picture."""
+
+    def __init__(
+        self, frame: SystemFrame, ndim: int, labels: list[str], fusion_id: str, publish: str
+    ) -> None:
+        self.frame, self.ndim, self.publish = frame, ndim, publish
+        self.labels, self.fusion_id = list(labels), fusion_id
+        d = len(labels)
+        self.picture = TrackTable.empty(d).with_geodetic(frame, ndim)
+        self.cycle = 0
+        self.rejected: dict[str, int] = {}
+        self._known = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool))
+        self._parts: list[TrackTable] = []
+        self._last: TrackerOutput | None = None
+        self._pic_last: TrackerOutput | None = None
+        """The last output the picture includes (its time and radar names)."""
+        self._lock = threading.Lock()
+        self._source: tuple[str | None, int | None] = (None, None)
+        """Radar and seq of the last batch the picture includes."""
+        self._batches = 0
+
+    def _rows(self, out: TrackerOutput) -> np.ndarray:
+        if self.publish == "confirmed":
+            return np.flatnonzero(out.confirmed)
+        return np.arange(len(out))
+
+    def record(self, out: TrackerOutput) -> None:
+        """Note the rows one tracker step changed (against the picture so far)."""
+        rows = self._rows(out)
+        ids, lu, cf = out.ids[rows], out.last_update_ns[rows], out.confirmed[rows]
+        kid, klu, kcf = self._known
+        idx, known = _lookup(kid, ids)
+        changed = ~known
+        changed[known] = (klu[idx[known]] != lu[known]) | (kcf[idx[known]] != cf[known])
+        self._parts.append(TrackTable.from_output(out, rows[changed]))
+        self._known = (ids, lu, cf)
+        self._last = out
+        self._batches += 1
+
+    def delta(self, source_radar: str | None, source_seq: int | None) -> FeedMessage | None:
+        """The delta of the steps recorded since the last message (``None`` if none)."""
+        if self._last is None or not self._batches:
+            return None
+        table = TrackTable.concat(self._parts)
+        # per track, the row of the last step that changed it
+        _, last = np.unique(table.ids[::-1], return_index=True)
+        table = table.take(np.sort(len(table) - 1 - last))
+        final = self._known[0]
+        table = table.take(np.flatnonzero(np.isin(table.ids, final)))
+        table, bad = self._checked(table.with_geodetic(self.frame, self.ndim))
+        if len(bad):  # not publishable now: out of the picture until it changes again
+            keep = ~np.isin(self._known[0], bad)
+            self._known = tuple(a[keep] for a in self._known)
+            final = self._known[0]
+        removed = self.picture.ids[~np.isin(self.picture.ids, final)]
+        keep = ~np.isin(self.picture.ids, np.union1d(removed, table.ids))
+        picture = TrackTable.concat([self.picture.take(np.flatnonzero(keep)), table])
+        with self._lock:  # the snapshot is read from another thread
+            self.picture, self._pic_last = picture, self._last
+            self._source = (source_radar, source_seq)
+            self.cycle += 1
+            msg = self._message(FeedKind.DELTA, table, removed, source_radar, source_seq)
+        self._parts, self._batches = [], 0
+        return msg
+
+    def full(self) -> FeedMessage | None:
+        """The full picture now: every published track of the last step, predicted to its
+        time; it replaces the picture (``None`` before the first step)."""
+        out = self._last
+        if out is None:
+            return None
+        table = TrackTable.from_output(out, self._rows(out)).with_geodetic(self.frame, self.ndim)
+        picture = self._checked(table)[0]
+        self._known = (picture.ids, picture.last_update, picture.confirmed)
+        with self._lock:
+            self.picture, self._pic_last = picture, out
+        return self.snapshot()
+
+    def snapshot(self) -> FeedMessage | None:
+        """The current picture as a full message (what a subscriber has rebuilt, after
+        delta ``cycle``); callable from any thread."""
+        with self._lock:
+            if self._pic_last is None:
+                return None
+            return self._message(
+                FeedKind.FULL, self.picture, np.zeros(0, np.int64), *self._source, self._pic_last
+            )
+
+    def _checked(self, table: TrackTable) -> tuple[TrackTable, np.ndarray]:
+        """The publishable rows and the ids of the others (counted)."""
+        ok = table.publishable()
+        if ok.all():
+            return table, np.zeros(0, np.int64)
+        key = "track not publishable (NaN/inf or out of range)"
+        self.rejected[key] = self.rejected.get(key, 0) + int((~ok).sum())
+        return table.take(np.flatnonzero(ok)), table.ids[~ok]
+
+    def _message(self, kind, table, removed, source_radar, source_seq, out=None) -> FeedMessage:
+        out = self._last if out is None else out
+        header = {
+            "fusion_id": self.fusion_id,
+            "kind": kind.value,
+            "cycle": self.cycle,
+            "time": int(out.time_ns),
+            "frame": self.frame.spec().model_dump(mode="json"),
+            "state_labels": self.labels,
+            "source_radar": source_radar,
+            "source_seq": source_seq,
+            "batches": self._batches if kind is FeedKind.DELTA else 0,
+        }
+        return FeedMessage(header, table, removed.astype(np.int64), out.radar_names, self.ndim)
+
+
+def _lookup(keys: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index into ``keys`` of each of ``ids`` and whether it is there (binary search)."""
+    if not len(keys):
+        return np.zeros(len(ids), np.int64), np.zeros(len(ids), bool)
+    order = np.argsort(keys, kind="stable")
+    pos = np.minimum(np.searchsorted(keys[order], ids), len(keys) - 1)
+    idx = order[pos]
+    return idx, keys[idx] == ids

@@ -1,0 +1,59 @@
+"""Status of a fusion service that falls behind and recovers (FusionCore, no network):
+the backlog (batches and plots waiting, oldest wait), the "behind" flag, the point where
+reading stops (back-pressure), plot rates in and out, and the bulk path when several
+batches are ready at once."""
+
+from __future__ import annotations
+
+import numpy as np
+from skyfuse.fusion.sim import Simulator, build_scenario
+from skyfuse.fusion.tracker.config import TrackerConfig
+from skyfuse.schemas import FeedKind, Status, TrackBatch
+from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
+from skyfuse.services.fusion.service import FusionConfig, FusionCore
+
+
+def scenario_batches():
+    sc = build_scenario("regional", seed=6, duration=24.0, targets=6, radars=3)
+    ev = Simulator(sc, seed=6).run(truth=False)
+    batches = sorted((e.message for e in ev if e.kind == "plots"), key=lambda b: b.time_end)
+    return sc.sites, batches
+
+
+def test_backlog_behind_flag_and_recovery():
+    sites, batches = scenario_batches()
+    lat0 = float(np.mean([s.lat for s in sites]))
+    lon0 = float(np.mean([s.lon for s in sites]))
+    cfg = FusionConfig(reorder_wait=0.5, behind_after=1.0, max_backlog=2.0, frame_lat0=lat0,
+                       frame_lon0=lon0, full_interval=1e-6)  # fmt: skip
+    core = FusionCore(cfg, make_pipeline_factory(TrackerConfig(), cfg.fusion_id))
+    for s in sites:
+        core.on_site(s)
+    t0 = 1000.0
+    for i, b in enumerate(batches):  # all arrive within 0.1 s and nothing is applied
+        assert core.on_plots(b, arrival=t0 + 0.1 * i / len(batches))
+    n_plots = sum(len(b) for b in batches)
+    bl = core.backlog(now=t0 + 1.0)
+    assert (bl.batches, bl.plots) == (len(batches), n_plots)
+    assert abs(bl.oldest_wait_s - 1.0) < 1e-9 and not bl.behind  # 1.0 < 0.5 + 1.0
+    bl = core.backlog(now=t0 + 1.6)
+    assert bl.behind and not core.over_backlog(now=t0 + 1.6)
+    assert core.over_backlog(now=t0 + 2.6)  # 2.6 > 0.5 + 2.0: stop reading
+    assert bl.plots_per_s_in > 0 and bl.plots_per_s_out == 0
+    # catching up: several batches ready at once go in groups of at most bulk_max
+    outs = core.poll(now=t0 + 3.0)
+    applied = sum(len(o.time_ends) for o in outs)
+    assert applied == len(batches) and len(outs) == -(-len(batches) // cfg.bulk_max)
+    bl = core.backlog(now=t0 + 3.0)
+    assert (bl.batches, bl.plots, bl.oldest_wait_s, bl.behind) == (0, 0, 0.0, False)
+    assert bl.plots_per_s_out > 0 and not core.over_backlog(now=t0 + 3.0)
+    st = Status.from_json_bytes(core.status().to_json_bytes())
+    assert st.backlog.batches == 0 and st.counters["plots_applied"] == n_plots
+    assert st.counters["groups"] == len(outs) and st.tracks_confirmed >= 3
+    # each group: one valid delta; a full picture is due after it (full_interval ~ 0)
+    for o in outs:
+        d = TrackBatch.from_json_bytes(o.tracks.to_json_bytes())
+        assert d.kind is FeedKind.DELTA and d.batches == len(o.time_ends)
+        assert TrackBatch.from_json_bytes(o.full.to_json_bytes()).kind is FeedKind.FULL
+    snap = TrackBatch.from_json_bytes(core.snapshot_payload())
+    assert snap.cycle == len(outs) and len(snap.tracks) == st.tracks_total
