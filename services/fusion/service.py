@@ -51,7 +51,9 @@ from skyfuse.schemas import (
     TrackStatus,
     keys,
 )
+from skyfuse.schemas.rejection import decode, rejection_detail, rejection_reason
 from skyfuse.services.runtime.lifecycle import RateWindow
+from skyfuse.services.runtime.ratelimit import RateLimitedLog
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +98,22 @@ class FusionConfig(BaseModel):
         le=1_000_000,
         description="Batches waiting in the reorder buffer (and messages in the receive "
         "queue), at most; beyond it the publishers are slowed down",
+    )
+    max_message_bytes: int = Field(
+        8_000_000,
+        ge=1_000,
+        le=1_000_000_000,
+        description="Largest payload decoded, bytes; larger ones are rejected unread",
+    )
+    max_plots_per_batch: int = Field(
+        50_000, ge=1, le=10_000_000, description="Most plots accepted in one PlotBatch"
+    )
+    max_radars: int = Field(
+        1_000,
+        ge=1,
+        le=1_000_000,
+        description="Most radar ids tracked (and reported in Status); input from further "
+        "ids is rejected",
     )
 
     def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
@@ -216,6 +234,7 @@ class FusionCore:
         self.latest: TrackBatch | None = None
         self.started = time.monotonic()
         self._warned: set[str] = set()
+        self._log = RateLimitedLog(log)
         for site in cfg.sites:
             self.on_site(site, configured=True)
 
@@ -226,22 +245,45 @@ class FusionCore:
             r = self.radars[radar_id] = _Radar(radar_id, rate=RateWindow(self.cfg.rate_window))
         return r
 
+    def _admit(self, radar_id: str) -> bool:
+        """Whether input from ``radar_id`` may be tracked: a known id, or room for a new
+        one under ``max_radars`` (else counted as ``too many radars``)."""
+        if radar_id in self.radars or len(self.radars) < self.cfg.max_radars:
+            return True
+        self.reject("too many radars", radar_id)
+        return False
+
     def reject(self, reason: str, detail: str = "") -> None:
+        """Count a rejection; ``reason`` must come from a fixed vocabulary (see
+        :mod:`schemas.rejection`), the free text goes to the rate-limited log only."""
         self.rejected[reason] += 1
-        if self.rejected[reason] <= 3:
-            log.warning("rejected input: %s%s", reason, f" ({detail})" if detail else "")
+        self._log.warning("rejected input: %s%s", reason, f" ({detail})" if detail else "")
+
+    def _decode(self, model, key: str, payload: bytes):
+        """``(message, owner id)`` of a payload on ``key``, or ``None`` (rejection counted)."""
+        if len(payload) > self.cfg.max_message_bytes:
+            self.reject("message too large", f"{len(payload)} bytes on {key[:80]}")
+            return None
+        msg, exc = decode(model, payload)
+        if msg is None:
+            self.reject(rejection_reason(model, exc), rejection_detail(exc))
+            return None
+        try:
+            owner = keys.parse(key).owner
+        except ValueError:
+            owner = None
+        if msg.radar_id != owner:
+            self.reject(
+                f"{'site' if model is RadarSite else 'batch'} radar_id does not match its key",
+                f"{msg.radar_id} on {key[:80]}",
+            )
+            return None
+        return msg if self._admit(msg.radar_id) else None
 
     def on_site_payload(self, key: str, payload: bytes) -> None:
-        try:
-            site = RadarSite.from_json_bytes(payload)
-        except ValidationError as e:
-            self.reject(_reason("RadarSite", e), _detail(e))
-            return
-        owner = keys.parse(key).owner
-        if site.radar_id != owner:
-            self.reject("site radar_id does not match its key", f"{site.radar_id} on {key}")
-            return
-        self.on_site(site)
+        site = self._decode(RadarSite, key, payload)
+        if site is not None:
+            self.on_site(site)
 
     def on_site(self, site: RadarSite, configured: bool = False) -> None:
         r = self._radar(site.radar_id)
@@ -274,7 +316,7 @@ class FusionCore:
             info = keys.parse(key)
         except ValueError:
             return
-        if info.kind != "alive" or info.owner is None:
+        if info.kind != "alive" or info.owner is None or not self._admit(info.owner):
             return
         r = self._radar(info.owner)
         if r.alive != alive:
@@ -286,14 +328,11 @@ class FusionCore:
     ) -> PlotBatch | None:
         """Validate and queue one received batch; ``None`` if rejected (reason counted)."""
         self.counters["batches_received"] += 1
-        try:
-            batch = PlotBatch.from_json_bytes(payload)
-        except ValidationError as e:
-            self.reject(_reason("PlotBatch", e), _detail(e))
+        batch = self._decode(PlotBatch, key, payload)
+        if batch is None:
             return None
-        owner = keys.parse(key).owner
-        if batch.radar_id != owner:
-            self.reject("batch radar_id does not match its key", f"{batch.radar_id} on {key}")
+        if len(batch.time) > self.cfg.max_plots_per_batch:
+            self.reject("too many plots in batch", f"{len(batch.time)} plots, {batch.radar_id}")
             return None
         return batch if self.on_plots(batch, arrival, sent_ns) else None
 
@@ -359,7 +398,7 @@ class FusionCore:
         try:
             tracks, events = self.pipeline.process(r.site, batch)
         except ValidationError as e:  # the pipeline built an invalid output message
-            self.reject("tracker error", f"invalid output: {_detail(e)}")
+            self.reject("tracker error", f"invalid output: {rejection_detail(e)}")
             log.error("tracker output invalid on radar %s seq %s: %s", batch.radar_id, batch.seq, e)
             return None
         except ValueError as e:
@@ -434,20 +473,3 @@ class FusionCore:
 
 
 _NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
-
-
-def _reason(model: str, e: ValidationError) -> str:
-    err = e.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"] if not isinstance(p, int))
-    if err["type"] == "json_invalid":
-        return f"invalid {model}: not JSON"
-    if not loc:  # a model-level check: its message starts with the column name
-        m = re.match(r"(?:Value error, )?(?:column )?'?([A-Za-z_]+)", err["msg"])
-        loc = m.group(1) if m else "value"
-    return f"invalid {model}: {loc}"
-
-
-def _detail(e: ValidationError) -> str:
-    err = e.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"]) or "(payload)"
-    return f"{loc}: {err['msg']}"

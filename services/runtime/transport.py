@@ -109,8 +109,9 @@ def zenoh_config(cfg: TransportConfig) -> zenoh.Config:
         conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(cfg.mode))
     conf.insert_json5("scouting/multicast/enabled", "true" if cfg.multicast else "false")
-    if cfg.listen:
-        conf.insert_json5("listen/endpoints", json.dumps(cfg.listen))
+    listen = cfg.listen or default_listen(cfg)
+    if listen is not None:
+        conf.insert_json5("listen/endpoints", json.dumps(listen))
     if cfg.connect:
         conf.insert_json5("connect/endpoints", json.dumps(cfg.connect))
     if cfg.mode == "client" and not cfg.connect and not cfg.multicast:
@@ -118,6 +119,24 @@ def zenoh_config(cfg: TransportConfig) -> zenoh.Config:
             "mode client needs --connect (the router's endpoint) when multicast scouting is off"
         )
     return conf
+
+
+LOOPBACK_PEER_LISTEN = ["tcp/127.0.0.1:0"]
+"""Where a peer without ``--listen`` listens: loopback, a port chosen by the system. Peers
+on this host still form a mesh (gossip tells them each other's locator), nothing off the
+host can connect. (Zenoh's own default is ``tcp/[::]:0``: every interface.)"""
+LOOPBACK_ROUTER_LISTEN = ["tcp/127.0.0.1:7447"]
+"""Where a router without ``--listen`` listens (Zenoh's own default: ``tcp/[::]:7447``)."""
+
+
+def default_listen(cfg: TransportConfig) -> list[str] | None:
+    """The listen endpoints of a session given no ``--listen``: loopback only (peer,
+    router), none for a client; ``None`` (keep the file's) with ``--zenoh-config``."""
+    if cfg.zenoh_config is not None:
+        return None
+    if cfg.mode == "client":
+        return []
+    return LOOPBACK_ROUTER_LISTEN if cfg.mode == "router" else LOOPBACK_PEER_LISTEN
 
 
 @contextlib.contextmanager
