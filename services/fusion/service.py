@@ -4,15 +4,18 @@ so it is tested directly.
 
 Data flow for one received plot batch::
 
-    payload ─ validate (PlotBatch) ─ duplicate? ─ late? ─ reorder buffer ─(bounded wait)→
+    payload ─ validate (PlotBatch) ─ duplicate? future? late? ─ reorder buffer ─(bounded wait)→
         site known? ─ track pipeline (convert_plots + tracker, shared with `skyfuse track`)
         → TrackBatch + TrackEvents → publish; latency = publish wall time − sweep end
 
-**Reorder buffer.** Batches from several radars arrive with network jitter. Each batch is
-held for ``reorder_wait`` seconds of wall time after its arrival, and batches are applied
-in the order of ``(time_end, arrival)``. A batch whose ``time_end`` is earlier than the
-last applied batch's is *out of sequence*: it is dropped and counted
-(``rejected["out of sequence"]``) because the tracker's state has already moved past it.
+**Reorder buffer** (:mod:`services.fusion.reorder`). Batches from several radars arrive
+with network jitter. Each batch is held for ``reorder_wait`` seconds of wall time after
+its arrival, and batches are applied in the order of ``(time_end, arrival)``. Each radar
+has its own watermark: only a batch earlier than its own radar's last applied one is *out
+of sequence*. A batch further ahead of this host's clock than ``future_tolerance`` is
+refused (``time in the future``) and never moves the service time; a batch up to
+``max_lateness`` behind the service time (a lagging radar) is applied at the tracker's
+current time (``counters["batches_late_applied"]``), an older one refused (``too late``).
 A batch seen twice (same radar, seq and time_end) is counted as a duplicate.
 
 **Sites.** A radar's site comes from its ``RadarSite`` messages or from the
@@ -98,6 +101,20 @@ class FusionConfig(BaseModel):
         description="Batches waiting in the reorder buffer (and messages in the receive "
         "queue), at most; beyond it the publishers are slowed down",
     )
+    future_tolerance: float | None = Field(
+        1.0,
+        ge=0.0,
+        le=3600.0,
+        description="Refuse batches whose times are this far ahead of this host's clock, s "
+        "(unset: no check, for recordings replayed with future times)",
+    )
+    max_lateness: float = Field(
+        2.0,
+        ge=0.0,
+        le=600.0,
+        description="Apply batches up to this far behind the service time (late radars, "
+        "applied at the tracker's current time), refuse older ones, s",
+    )
     max_message_bytes: int = Field(
         8_000_000,
         ge=1_000,
@@ -164,7 +181,9 @@ class FusionCore:
         self._factory = pipeline_factory
         self.pipeline: TrackPipeline | None = None
         self.frame: FrameSpec | None = None
-        self.buffer = ReorderBuffer(cfg.reorder_wait)
+        self.buffer = ReorderBuffer(
+            cfg.reorder_wait, future_tolerance=cfg.future_tolerance, max_lateness=cfg.max_lateness
+        )
         self.radars: dict[str, _Radar] = {}
         self.counters: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
@@ -262,7 +281,13 @@ class FusionCore:
         r.alive = alive
 
     def on_plots_payload(
-        self, key: str, payload: bytes, arrival: float, sent_ns: int | None = None
+        self,
+        key: str,
+        payload: bytes,
+        arrival: float,
+        sent_ns: int | None = None,
+        *,
+        recv_ns: int | None = None,
     ) -> PlotBatch | None:
         """Validate and queue one received batch; ``None`` if rejected (reason counted)."""
         self.counters["batches_received"] += 1
@@ -272,11 +297,19 @@ class FusionCore:
         if len(batch.time) > self.cfg.max_plots_per_batch:
             self.reject("too many plots in batch", f"{len(batch.time)} plots, {batch.radar_id}")
             return None
-        return batch if self.on_plots(batch, arrival, sent_ns) else None
+        return batch if self.on_plots(batch, arrival, sent_ns, recv_ns=recv_ns) else None
 
-    def on_plots(self, batch: PlotBatch, arrival: float, sent_ns: int | None = None) -> bool:
+    def on_plots(
+        self,
+        batch: PlotBatch,
+        arrival: float,
+        sent_ns: int | None = None,
+        *,
+        recv_ns: int | None = None,
+    ) -> bool:
+        """Queue a validated batch received at wall-clock ``recv_ns`` (default: now)."""
         r = self._radar(batch.radar_id)
-        reason = self.buffer.push(batch, arrival, sent_ns)
+        reason = self.buffer.push(batch, arrival, sent_ns, recv_ns)
         if reason is not None:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")
             return False
@@ -347,6 +380,8 @@ class FusionCore:
             log.exception("tracker error on radar %s seq %s", batch.radar_id, batch.seq)
             return None
         self.counters["cycles"] += 1
+        if p.late:  # behind the service time, within max_lateness: applied (reorder.py)
+            self.counters["batches_late_applied"] += 1
         self.counters["plots_applied"] += len(batch.time)
         self.counters["events"] += len(events)
         self.latest = tracks
@@ -400,6 +435,7 @@ class FusionCore:
                     plots=r.plots,
                     plots_per_s=r.rate.rate(now),
                     last_time=r.last_time,
+                    clock_offset_s=self.buffer.clock_offset(r.radar_id),
                 )
                 for r in sorted(self.radars.values(), key=lambda r: r.radar_id)
             ],
