@@ -14,7 +14,9 @@ service's time:
   A radar cannot make another radar's batches out of sequence.
 * **Late but bounded.** The service time ``last_time`` is the latest ``time_end``
   released over all radars. A batch behind it by at most ``max_lateness`` seconds (a
-  lagging radar, a slow link) is queued and released marked ``late``; the tracker applies
+  lagging radar, a slow link) is released marked ``late`` — at once, without the hold,
+  since holding cannot put it back in order and would hold back every other radar's
+  batches queued behind it (a lagging radar never delays the others); the tracker applies
   it at its current time (per-track prediction intervals are clipped at 0: a track never
   goes back in time, so a late plot meets the track's newer state; the displacement is at
   most speed × lateness). A batch further behind is refused (``too late``).
@@ -69,6 +71,7 @@ class ReorderBuffer:
         self.future_tolerance = future_tolerance
         self.max_lateness = max_lateness
         self._heap: list[_Pending] = []
+        self._late: deque[_Pending] = deque()
         self._order = itertools.count()
         self.last_time: int | None = None
         """Service time: the latest ``time_end`` released, ns."""
@@ -80,7 +83,7 @@ class ReorderBuffer:
         self.late_released = 0
 
     def __len__(self) -> int:
-        return len(self._heap)
+        return len(self._heap) + len(self._late)
 
     def push(
         self,
@@ -108,9 +111,12 @@ class ReorderBuffer:
         if self.last_time is not None and self.last_time - batch.time_end > self.max_lateness * 1e9:
             return "too late"
         seen.append(ident)
-        heapq.heappush(
-            self._heap, _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
-        )
+        p = _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
+        if self.last_time is not None and batch.time_end < self.last_time:
+            p.late = True  # holding it cannot put it in order: release it at once
+            self._late.append(p)
+        else:
+            heapq.heappush(self._heap, p)
         return None
 
     def clock_offset(self, radar_id: str) -> float | None:
@@ -120,30 +126,43 @@ class ReorderBuffer:
             return None
         return float(np.median(np.fromiter(samples, dtype=np.float64))) / 1e9
 
-    def pop_ready(self, now: float, limit: int | None = None) -> list[_Pending]:
+    def pop_ready(
+        self, now: float, limit: int | None = None, wall_ns: int | None = None
+    ) -> list[_Pending]:
         """Batches whose hold has expired, in order (a held head holds back the rest),
-        at most ``limit``."""
+        at most ``limit``. With the clock check on, a batch is also held until the
+        receiver's wall clock ``wall_ns`` (default: now) reaches its ``time_end``: the
+        service time never runs ahead of this host's clock, so a radar whose clock is
+        ahead (within the tolerance) waits for the others instead of making them late."""
         out = []
+        while self._late and (limit is None or len(out) < limit):
+            out.append(self._release(self._late.popleft()))
+        if self.future_tolerance is not None:
+            wall_ns = time.time_ns() if wall_ns is None else wall_ns
         while self._heap and now - self._heap[0].arrival >= self.wait:
             if limit is not None and len(out) >= limit:
                 break
-            out.append(self._release())
+            if wall_ns is not None and self._heap[0].time_end > wall_ns:
+                break
+            out.append(self._release(heapq.heappop(self._heap)))
         return out
 
     def next_due(self) -> float | None:
         """Arrival-clock time the head of the buffer is due, or ``None`` if empty."""
+        if self._late:
+            return self._late[0].arrival
         return self._heap[0].arrival + self.wait if self._heap else None
 
     def flush(self) -> list[_Pending]:
-        """Everything queued, in order."""
-        return [self._release() for _ in range(len(self._heap))]
+        """Everything queued: the late batches, then the others in order."""
+        late = [self._release(self._late.popleft()) for _ in range(len(self._late))]
+        return late + [self._release(heapq.heappop(self._heap)) for _ in range(len(self._heap))]
 
-    def _release(self) -> _Pending:
-        p = heapq.heappop(self._heap)
+    def _release(self, p: _Pending) -> _Pending:
         rid = p.batch.radar_id
         if self.last_time is not None and p.time_end < self.last_time:
             p.late = True
-            self.late_released += 1
+        self.late_released += p.late
         self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
         self.radar_time[rid] = max(self.radar_time.get(rid, p.time_end), p.time_end)
         return p

@@ -4,8 +4,11 @@ listening sockets of a process (read from /proc, Linux)."""
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import struct
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -58,6 +61,48 @@ def listening_addresses(pid: int | str = "self") -> list[tuple[str, int]]:
     return out
 
 
+def stop_process(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 8.0):
+    """Send ``sig`` and wait; the exit code (``None`` if it had to be killed)."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        return proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        return None
+
+
 @pytest.fixture
 def listening():
+    """``listening(pid="self")``: the TCP listening addresses of a process."""
     return listening_addresses
+
+
+@pytest.fixture
+def until():
+    """``until(pred, timeout)``: poll until ``pred()`` is true; its final value."""
+    return wait_until
+
+
+@pytest.fixture
+def start_skyfuse(tmp_path):
+    """``start_skyfuse(*args, log="name")``: a ``skyfuse`` command as a process (stderr to
+    ``tmp_path/name.log``), stopped with SIGTERM (then SIGKILL) at teardown."""
+    procs: list[subprocess.Popen] = []
+
+    def start(*args: str, log: str = "proc") -> subprocess.Popen:
+        err = open(tmp_path / f"{log}.log", "wb")
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", *args],
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            env=dict(os.environ),
+        )
+        err.close()
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        stop_process(proc)

@@ -8,7 +8,6 @@ import json
 import time
 
 import pytest
-from conftest import listening_addresses, wait_until
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportConfig,
@@ -29,13 +28,13 @@ def test_default_listen_endpoints_are_loopback():
     assert json.loads(conf.get_json("listen/endpoints")) == []
 
 
-def test_peer_without_listen_opens_no_outside_socket_and_still_meshes():
-    before = set(listening_addresses())
+def test_peer_without_listen_opens_no_outside_socket_and_still_meshes(listening, until):
+    before = set(listening())
     ep = f"tcp/127.0.0.1:{free_port()}"
     hub = TransportConfig(listen=[ep])
     leaf = TransportConfig(connect=[ep])  # like a sensor or the recorder: no --listen
     with open_session(hub), open_session(leaf) as sensor, open_session(leaf) as recorder:
-        new = set(listening_addresses()) - before
+        new = set(listening()) - before
         assert new, "the sessions listen somewhere"
         assert all(host == "127.0.0.1" for host, _ in new), new
         inbox = Inbox(100)
@@ -51,7 +50,7 @@ def test_peer_without_listen_opens_no_outside_socket_and_still_meshes():
             return bool(got)
 
         # sensor -> recorder, both only connected to the hub (gossip: direct link)
-        assert wait_until(arrived, timeout=10.0)
+        assert until(arrived, timeout=10.0)
         assert got[0].payload == b"hello"
         inbox.close()
     time.sleep(0.1)
