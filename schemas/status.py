@@ -21,6 +21,9 @@ class RadarHealth(WireModel):
         description="Estimated radar clock offset: median of batch time_end minus receive "
         "time, s (positive: the radar's clock is ahead; includes the network delay)",
     )
+    site_held: bool = Field(
+        False, description="A site change beyond the fusion's site_tolerance is held, not applied"
+    )
 
 
 class LatencyStats(WireModel):

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+import pymap3d
 from pydantic import BaseModel, Field, ValidationError
 from skyfuse.schemas import (
     FrameKind,
@@ -115,6 +116,12 @@ class FusionConfig(BaseModel):
         description="Apply batches up to this far behind the service time (late radars, "
         "applied at the tracker's current time), refuse older ones, s",
     )
+    site_tolerance: float | None = Field(
+        100.0,
+        ge=0.0,
+        description="A site message moving a known radar further than this (3-D, m) is "
+        "held and reported, not applied (unset: apply every change)",
+    )
     max_message_bytes: int = Field(
         8_000_000,
         ge=1_000,
@@ -160,6 +167,8 @@ class _Radar:
     plots: int = 0
     last_time: int | None = None
     rate: RateWindow = field(default_factory=RateWindow)
+    site_held: RadarSite | None = None
+    """A received site that moves the radar beyond ``site_tolerance``: not applied."""
 
 
 @dataclass
@@ -244,6 +253,14 @@ class FusionCore:
 
     def on_site(self, site: RadarSite, configured: bool = False) -> None:
         r = self._radar(site.radar_id)
+        if r.site is not None and not configured:
+            moved = site_displacement_m(r.site, site)
+            if self.cfg.site_tolerance is not None and moved > self.cfg.site_tolerance:
+                # a moved radar shifts its whole picture: hold it for the operator
+                r.site_held = site
+                self.reject("site change held", f"{site.radar_id} moved {moved:.0f} m")
+                return
+        r.site_held = None
         if r.site != site:
             if r.site is not None:
                 log.info("radar %s: site changed", site.radar_id)
@@ -436,14 +453,31 @@ class FusionCore:
                     plots_per_s=r.rate.rate(now),
                     last_time=r.last_time,
                     clock_offset_s=self.buffer.clock_offset(r.radar_id),
+                    site_held=r.site_held is not None,
                 )
                 for r in sorted(self.radars.values(), key=lambda r: r.radar_id)
             ],
             latency_ms=self.latency_stats(),
             tracks_confirmed=confirmed,
             tracks_total=total,
-            message="" if self.pipeline is not None else "waiting for a radar site",
+            message=self._status_message(),
         )
+
+    def _status_message(self) -> str:
+        if self.pipeline is None:
+            return "waiting for a radar site"
+        held = sorted(r.radar_id for r in self.radars.values() if r.site_held is not None)
+        if held:
+            shown = ", ".join(held[:5]) + (" …" if len(held) > 5 else "")
+            return f"site change held (beyond site_tolerance) for {len(held)} radar(s): {shown}"
+        return ""
+
+
+def site_displacement_m(a: RadarSite, b: RadarSite) -> float:
+    """Distance between two sites' antenna positions, m (WGS-84 ECEF chord, 3-D)."""
+    pa = np.array(pymap3d.geodetic2ecef(a.lat, a.lon, a.alt))
+    pb = np.array(pymap3d.geodetic2ecef(b.lat, b.lon, b.alt))
+    return float(np.linalg.norm(pa - pb))
 
 
 _NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
