@@ -132,7 +132,7 @@ class FusionConfig(BaseModel):
         50_000, ge=1, le=10_000_000, description="Most plots accepted in one PlotBatch"
     )
     max_radars: int = Field(
-        1_000,
+        256,
         ge=1,
         le=1_000_000,
         description="Most radar ids tracked (and reported in Status); input from further "
@@ -213,11 +213,18 @@ class FusionCore:
 
     def _admit(self, radar_id: str) -> bool:
         """Whether input from ``radar_id`` may be tracked: a known id, or room for a new
-        one under ``max_radars`` (else counted as ``too many radars``)."""
+        one under ``max_radars`` — made, if needed, by forgetting the oldest radar that
+        has no site (so ids invented by a hostile peer cannot crowd out real radars);
+        else counted as ``too many radars``."""
         if radar_id in self.radars or len(self.radars) < self.cfg.max_radars:
             return True
-        self.reject("too many radars", radar_id)
-        return False
+        victim = next((rid for rid, r in self.radars.items() if r.site is None), None)
+        if victim is None:
+            self.reject("too many radars", radar_id)
+            return False
+        del self.radars[victim]
+        self.counters["radars_forgotten"] += 1
+        return True
 
     def reject(self, reason: str, detail: str = "") -> None:
         """Count a rejection; ``reason`` must come from a fixed vocabulary (see
@@ -370,9 +377,9 @@ class FusionCore:
 
     def _cycle(self, p: _Pending) -> CycleOutput | None:
         batch = p.batch
-        r = self._radar(batch.radar_id)
-        if r.site is None:
-            if batch.radar_id not in self._warned:
+        r = self.radars.get(batch.radar_id)  # None: forgotten meanwhile (see _admit)
+        if r is None or r.site is None:
+            if batch.radar_id not in self._warned and len(self._warned) < self.cfg.max_radars:
                 self._warned.add(batch.radar_id)
                 log.warning(
                     "radar %s: plots but no site (no RadarSite message or configured site): "

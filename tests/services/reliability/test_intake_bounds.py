@@ -34,6 +34,10 @@ def batch(radar="R1", seq=0, n=2, scan=0, t=T0, **kw) -> dict:
     return d
 
 
+def site(rid: str) -> RadarSite:
+    return RadarSite(radar_id=rid, lat=45.0, lon=20.0, kind="2d")
+
+
 def core(**cfg) -> FusionCore:
     return FusionCore(FusionConfig(**cfg), pipeline_factory=lambda frame: None)
 
@@ -96,19 +100,26 @@ def test_recorder_never_raises_and_counts(tmp_path_factory, payloads):
 
 def test_status_stays_bounded_under_hostile_input():
     c = core(max_radars=20)
+    real = [f"R{k}" for k in range(5)]
+    for rid in real:  # radars with sites are never crowded out
+        c.on_site_payload(keys.radar_site(rid), site(rid).to_json_bytes())
     for i in range(3000):  # random field names, many radar ids, each id on its own key
         rid = f"X{i}"
-        c.on_plots_payload(
-            keys.radar_plots(rid), json.dumps(batch(rid, **{f"f{i}]": 1})).encode(), 0
-        )
+        bad = json.dumps(batch(rid, **{f"f{i}]": 1})).encode()
+        c.on_plots_payload(keys.radar_plots(rid), bad, 0)
         c.on_plots_payload(keys.radar_plots(rid), json.dumps(batch(rid, seq=i)).encode(), 0)
         c.on_alive(keys.radar_alive(f"Y{i}"), True)
     st_json = c.status().to_json_bytes()
-    assert len(c.radars) == 20
+    assert len(c.radars) == 20 and set(real) <= set(c.radars)
     assert len(st_json) < 10_000, len(st_json)
-    assert set(c.rejected) == {"invalid PlotBatch: unknown field", "too many radars"}
+    assert set(c.rejected) == {"invalid PlotBatch: unknown field"}
     assert c.rejected["invalid PlotBatch: unknown field"] == 3000
-    assert c.rejected["too many radars"] == (3000 - 20) + 3000
+    assert c.counters["radars_forgotten"] == 2 * 3000 - (20 - 5)
+    # all 20 places held by radars with sites: a further id is refused and counted
+    for k in range(5, 20):
+        c.on_site_payload(keys.radar_site(f"R{k}"), site(f"R{k}").to_json_bytes())
+    assert c.on_plots_payload(keys.radar_plots("Z"), json.dumps(batch("Z")).encode(), 0) is None
+    assert c.rejected["too many radars"] == 1
 
 
 def test_size_limits_are_configurable_and_counted():
@@ -142,10 +153,6 @@ def test_fusion_log_is_rate_limited(caplog):
             c.on_plots_payload(keys.radar_plots("R1"), b"{" + str(i).encode(), 0)
     assert c.rejected["invalid PlotBatch: not JSON"] == 500
     assert len(caplog.records) <= 12
-
-
-def site(rid: str) -> RadarSite:
-    return RadarSite(radar_id=rid, lat=45.0, lon=20.0, kind="2d")
 
 
 def test_recorder_scan_buffer_is_bounded(tmp_path):
