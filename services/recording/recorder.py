@@ -82,7 +82,7 @@ class RecorderConfig(BaseModel):
     )
     stats: Path | None = Field(None, description="Write a JSON summary here at exit")
     max_scan_plots: int = Field(
-        200_000,
+        50_000,
         ge=1,
         le=100_000_000,
         description="Plots of one radar held for its Foxglove scan message, at most; "

@@ -66,7 +66,7 @@ def mutated_batches(draw) -> bytes:
     return text.encode()
 
 
-@settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated_batches())
 def test_any_plot_batch_payload_is_a_message_or_a_vocabulary_reason(payload):
     msg, exc = decode(PlotBatch, payload)

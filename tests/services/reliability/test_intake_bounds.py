@@ -74,7 +74,7 @@ def hostile(draw) -> bytes:
     return raw[: draw(st.integers(0, len(raw)))].encode() if draw(st.booleans()) else raw.encode()
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(hostile(), min_size=1, max_size=20))
 def test_fusion_intake_counts_every_payload_and_reasons_stay_in_the_vocabulary(payloads):
     c = core()
