@@ -81,6 +81,12 @@ class RecorderConfig(BaseModel):
         2000, ge=10, le=1_000_000, description="Messages received but not yet written, at most"
     )
     stats: Path | None = Field(None, description="Write a JSON summary here at exit")
+    max_message_bytes: int = Field(
+        8_000_000,
+        ge=1_000,
+        le=1_000_000_000,
+        description="Largest payload decoded and recorded, bytes; larger ones are counted",
+    )
     max_scan_plots: int = Field(
         50_000,
         ge=1,
@@ -296,6 +302,9 @@ class Recorder:
             model = schemas.MODELS[kind]
         except (ValueError, KeyError):
             self.rejected["key outside the skyfuse/@v1 key space"] += 1
+            return False
+        if len(item.payload) > self.cfg.max_message_bytes:
+            self.rejected["message too large"] += 1
             return False
         msg, exc = decode(model, item.payload)
         if msg is None:  # any decoding exception is a counted rejection, never a crash

@@ -178,3 +178,13 @@ def test_recorder_scan_buffer_is_bounded(tmp_path):
     assert (
         sum(m.topic.endswith("/plots") for m in plots) == 63
     )  # every batch is in the MCAP whatever the display buffer did
+
+
+def test_recorder_message_size_limit(tmp_path):
+    rec = Recorder(RecorderConfig(out=tmp_path / "r.mcap", max_message_bytes=2_000))
+    small, big = json.dumps(batch(n=10)).encode(), json.dumps(batch(seq=1, n=60)).encode()
+    assert len(small) <= 2_000 < len(big)
+    assert rec.handle(Received("data", keys.radar_plots("R1"), small, True, T0))
+    assert not rec.handle(Received("data", keys.radar_plots("R1"), big, True, T0))
+    rec.close()
+    assert rec.rejected == {"message too large": 1} and rec.messages == 1
