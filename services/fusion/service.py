@@ -39,7 +39,7 @@ from typing import Protocol
 
 import numpy as np
 import pymap3d
-from pydantic import BaseModel, Field, ValidationError
+from pydantic import BaseModel, Field, ValidationError, field_validator
 from skyfuse.schemas import (
     FrameKind,
     FrameSpec,
@@ -107,7 +107,7 @@ class FusionConfig(BaseModel):
         ge=0.0,
         le=3600.0,
         description="Refuse batches whose times are this far ahead of this host's clock, s "
-        "(unset: no check, for recordings replayed with future times)",
+        "('off': no check, for recordings replayed with future times)",
     )
     max_lateness: float = Field(
         2.0,
@@ -120,7 +120,7 @@ class FusionConfig(BaseModel):
         100.0,
         ge=0.0,
         description="A site message moving a known radar further than this (3-D, m) is "
-        "held and reported, not applied (unset: apply every change)",
+        "held and reported, not applied ('off': apply every change)",
     )
     max_message_bytes: int = Field(
         8_000_000,
@@ -138,6 +138,12 @@ class FusionConfig(BaseModel):
         description="Most radar ids tracked (and reported in Status); input from further "
         "ids is rejected",
     )
+
+    @field_validator("future_tolerance", "site_tolerance", mode="before")
+    @classmethod
+    def _off(cls, v):
+        """``off`` (flag, TOML or environment) switches a check off."""
+        return None if isinstance(v, str) and v.strip().lower() in ("off", "none") else v
 
     def frame_spec(self, first_site: RadarSite | None) -> FrameSpec | None:
         """The configured frame, or a stereographic frame at ``first_site``."""

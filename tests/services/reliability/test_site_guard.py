@@ -42,7 +42,9 @@ def test_a_moved_site_is_held_and_reported_a_small_correction_applied():
     # accuracy changes without a move are applied
     core.on_site_payload(key, site(45.0, alt=160.0, sigma_range=80.0).to_json_bytes())
     assert r.site.sigma_range == 80.0 and core.rejected["site change held"] == 1
-    # with no tolerance every change is applied
-    core.cfg.site_tolerance = None
+    # with the check off every change is applied
+    core.cfg = FusionConfig(site_tolerance="off", frame_lat0=45.0, frame_lon0=20.0)
+    assert core.cfg.site_tolerance is None
+    assert FusionConfig(future_tolerance="OFF").future_tolerance is None
     core.on_site_payload(key, site(45.5).to_json_bytes())
     assert r.site == site(45.5)
