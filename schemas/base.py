@@ -3,9 +3,19 @@ unless a field says so, and a ``schema_version`` so consumers can detect drift."
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
 
 SCHEMA_VERSION = 1
+
+INT64_MIN = -(2**63)
+INT64_MAX = 2**63 - 1
+Int64 = Annotated[int, Field(ge=INT64_MIN, le=INT64_MAX)]
+"""A JSON integer that fits a NumPy ``int64`` (columns become int64 arrays; a larger
+integer would raise ``OverflowError`` instead of a validation error)."""
+NonNegInt64 = Annotated[int, Field(ge=0, le=INT64_MAX)]
+"""A non-negative :data:`Int64` (times in ns, counters, sequence numbers)."""
 
 
 class WireModel(BaseModel):

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from . import columns as col
-from .base import WireModel
+from .base import INT64_MAX, Int64, NonNegInt64, WireModel
 from .keys import ID_PATTERN
 
 _FLOAT_COLUMNS = ("range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude")
@@ -29,8 +29,10 @@ class PlotBatch(WireModel):
     site, elevation above the local horizontal."""
 
     radar_id: str = Field(pattern=ID_PATTERN, description="Radar id (matches the RadarSite)")
-    scan: int = Field(ge=0, description="Antenna revolution number, from 0")
-    seq: int = Field(ge=0, description="Batch sequence number from this radar, +1 per batch")
+    scan: int = Field(ge=0, le=INT64_MAX, description="Antenna revolution number, from 0")
+    seq: int = Field(
+        ge=0, le=INT64_MAX, description="Batch sequence number from this radar, +1 per batch"
+    )
     sector_start: float = Field(
         0.0,
         ge=0.0,
@@ -43,10 +45,14 @@ class PlotBatch(WireModel):
         le=2 * math.pi,
         description="Azimuth extent of the sector swept clockwise from sector_start, rad",
     )
-    time_start: int = Field(ge=0, description="Time the beam entered the sector, ns UTC")
-    time_end: int = Field(ge=0, description="Time the beam left the sector, ns UTC")
+    time_start: int = Field(
+        ge=0, le=INT64_MAX, description="Time the beam entered the sector, ns UTC"
+    )
+    time_end: int = Field(ge=0, le=INT64_MAX, description="Time the beam left the sector, ns UTC")
 
-    time: list[int] = Field(default_factory=list, description="Plot times, ns UTC, non-decreasing")
+    time: list[NonNegInt64] = Field(
+        default_factory=list, description="Plot times, ns UTC, non-decreasing"
+    )
     range: list[float] | None = Field(None, description="Slant range, m, >= 0")
     azimuth: list[float] | None = Field(
         None, description="Azimuth, rad, clockwise from true north, in [0, 2π)"
@@ -72,7 +78,7 @@ class PlotBatch(WireModel):
     mode_3a: list[int | None] | None = Field(
         None, description="Mode-3/A code as an integer 0..4095 (octal 0000-7777), null if none"
     )
-    target_id: list[int] | None = Field(
+    target_id: list[Int64] | None = Field(
         None,
         description="Simulation only: originating target id, -1 for clutter "
         "(for evaluation; never used by the tracker)",

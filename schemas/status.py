@@ -16,6 +16,14 @@ class RadarHealth(WireModel):
     plots: int = Field(0, ge=0)
     plots_per_s: float = Field(0.0, ge=0.0, description="Plot rate over the last window, 1/s")
     last_time: int | None = Field(None, description="Last plot batch time_end, ns UTC")
+    clock_offset_s: float | None = Field(
+        None,
+        description="Estimated radar clock offset: median of batch time_end minus receive "
+        "time, s (positive: the radar's clock is ahead; includes the network delay)",
+    )
+    site_held: bool = Field(
+        False, description="A site change beyond the fusion's site_tolerance is held, not applied"
+    )
 
 
 class LatencyStats(WireModel):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 
 from . import columns as col
-from .base import WireModel
+from .base import INT64_MAX, Int64, WireModel
 from .keys import ID_PATTERN
 
 _COLUMNS = ("target_id", "lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "x", "y")
@@ -29,8 +29,8 @@ class Truth(WireModel):
     ``x``/``y`` are given for planar scenarios: metres east/north in the scenario plane,
     the frame the planar (thesis) scenarios are defined in."""
 
-    time: int = Field(ge=0, description="Time, ns UTC")
-    target_id: list[int] = Field(default_factory=list, description="Target ids")
+    time: int = Field(ge=0, le=INT64_MAX, description="Time, ns UTC")
+    target_id: list[Int64] = Field(default_factory=list, description="Target ids")
     lat: list[float] = Field(default_factory=list, description="Latitude, WGS-84, degrees")
     lon: list[float] = Field(default_factory=list, description="Longitude, WGS-84, degrees")
     alt: list[float] = Field(default_factory=list, description="Height above the ellipsoid, m")

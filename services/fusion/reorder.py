@@ -1,17 +1,43 @@
 """The reorder buffer of the fusion service: batches from several radars arrive with
 network jitter; each is held ``wait`` seconds of wall time after its arrival and released
-in ``(time_end, arrival order)`` order. A batch whose ``time_end`` is earlier than the last
-released batch's is refused as *out of sequence*; a batch seen twice (same radar, seq,
-time_end and scan) as a *duplicate*. See ``services.fusion.service`` for how the service
-uses it."""
+in ``(time_end, arrival order)`` order. See ``services.fusion.service`` for how the
+service uses it.
+
+**Time that cannot be hijacked** (issue 14). No single message may stop or drag the
+service's time:
+
+* **Receiver clock check.** A batch whose ``time_end`` (or a plot time) is more than
+  ``future_tolerance`` seconds ahead of the receiver's wall clock is refused
+  (``time in the future``) before it is queued, so it never advances the service time.
+* **One watermark per radar.** ``radar_time[id]`` is the latest ``time_end`` released for
+  that radar; only a batch earlier than *its own radar's* watermark is *out of sequence*.
+  A radar cannot make another radar's batches out of sequence.
+* **Late but bounded.** The service time ``last_time`` is the latest ``time_end``
+  released over all radars. A batch behind it by at most ``max_lateness`` seconds (a
+  lagging radar, a slow link) is released marked ``late`` — at once, without the hold,
+  since holding cannot put it back in order and would hold back every other radar's
+  batches queued behind it (a lagging radar never delays the others); the tracker applies
+  it at its current time (per-track prediction intervals are clipped at 0: a track never
+  goes back in time, so a late plot meets the track's newer state; the displacement is at
+  most speed × lateness). A batch further behind is refused (``too late``).
+* **Clock offset.** Every received batch gives a sample ``time_end − receive time``
+  (radar clock ahead = positive, including the network delay); the per-radar estimate
+  :meth:`clock_offset` is the median of the last ``offset_samples`` samples, in seconds.
+
+A batch seen twice (same radar, seq, time_end and scan) is refused as a *duplicate*.
+Memory is bounded per radar (``seen``: 256 ids, offsets: ``offset_samples``); the number
+of radars is bounded by the service (``max_radars``).
+"""
 
 from __future__ import annotations
 
 import heapq
 import itertools
+import time
 from collections import deque
 from dataclasses import dataclass, field
 
+import numpy as np
 from skyfuse.schemas import PlotBatch
 
 
@@ -22,55 +48,121 @@ class _Pending:
     arrival: float = field(compare=False)
     batch: PlotBatch = field(compare=False)
     sent_ns: int | None = field(compare=False)
+    late: bool = field(default=False, compare=False)
+    """Released behind the service time (see the module docstring)."""
 
 
 class ReorderBuffer:
     """Holds batches ``wait`` seconds (arrival clock) and releases them in
-    ``(time_end, arrival order)`` order; rejects late and duplicate batches."""
+    ``(time_end, arrival order)`` order; refuses duplicates, batches from the future
+    (``future_tolerance`` s ahead of the receiver's clock, ``None``: no check), batches
+    behind their radar's watermark and batches more than ``max_lateness`` s behind the
+    service time."""
 
-    def __init__(self, wait: float) -> None:
+    def __init__(
+        self,
+        wait: float,
+        *,
+        future_tolerance: float | None = 1.0,
+        max_lateness: float = 2.0,
+        offset_samples: int = 32,
+    ) -> None:
         self.wait = wait
+        self.future_tolerance = future_tolerance
+        self.max_lateness = max_lateness
         self._heap: list[_Pending] = []
+        self._late: deque[_Pending] = deque()
         self._order = itertools.count()
         self.last_time: int | None = None
+        """Service time: the latest ``time_end`` released, ns."""
+        self.radar_time: dict[str, int] = {}
+        """Per-radar watermark: the latest ``time_end`` released for each radar, ns."""
         self._seen: dict[str, deque] = {}
+        self._offsets: dict[str, deque] = {}
+        self._offset_samples = offset_samples
+        self.late_released = 0
 
     def __len__(self) -> int:
-        return len(self._heap)
+        return len(self._heap) + len(self._late)
 
-    def push(self, batch: PlotBatch, arrival: float, sent_ns: int | None = None) -> str | None:
-        """Queue ``batch``; return ``None`` or the reason it was refused."""
-        seen = self._seen.setdefault(batch.radar_id, deque(maxlen=256))
+    def push(
+        self,
+        batch: PlotBatch,
+        arrival: float,
+        sent_ns: int | None = None,
+        recv_ns: int | None = None,
+    ) -> str | None:
+        """Queue ``batch`` received at wall-clock ``recv_ns`` (default: now); return
+        ``None`` or the reason it was refused."""
+        rid = batch.radar_id
+        recv_ns = time.time_ns() if recv_ns is None else recv_ns
+        newest = max(batch.time_end, batch.time[-1]) if batch.time else batch.time_end
+        offsets = self._offsets.setdefault(rid, deque(maxlen=self._offset_samples))
+        offsets.append(batch.time_end - recv_ns)
+        seen = self._seen.setdefault(rid, deque(maxlen=256))
         ident = (batch.seq, batch.time_end, batch.scan)
         if ident in seen:
             return "duplicate batch"
-        if self.last_time is not None and batch.time_end < self.last_time:
+        if self.future_tolerance is not None and newest - recv_ns > self.future_tolerance * 1e9:
+            return "time in the future"
+        watermark = self.radar_time.get(rid)
+        if watermark is not None and batch.time_end < watermark:
             return "out of sequence"
+        if self.last_time is not None and self.last_time - batch.time_end > self.max_lateness * 1e9:
+            return "too late"
         seen.append(ident)
-        heapq.heappush(
-            self._heap, _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
-        )
+        p = _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
+        if self.last_time is not None and batch.time_end < self.last_time:
+            p.late = True  # holding it cannot put it in order: release it at once
+            self._late.append(p)
+        else:
+            heapq.heappush(self._heap, p)
         return None
 
-    def pop_ready(self, now: float, limit: int | None = None) -> list[_Pending]:
+    def clock_offset(self, radar_id: str) -> float | None:
+        """Median of the recent ``time_end − receive time`` samples of a radar, s."""
+        samples = self._offsets.get(radar_id)
+        if not samples:
+            return None
+        return float(np.median(np.fromiter(samples, dtype=np.float64))) / 1e9
+
+    def pop_ready(
+        self, now: float, limit: int | None = None, wall_ns: int | None = None
+    ) -> list[_Pending]:
         """Batches whose hold has expired, in order (a held head holds back the rest),
-        at most ``limit``."""
+        at most ``limit``. With the clock check on, a batch is also held until the
+        receiver's wall clock ``wall_ns`` (default: now) reaches its ``time_end``: the
+        service time never runs ahead of this host's clock, so a radar whose clock is
+        ahead (within the tolerance) waits for the others instead of making them late."""
         out = []
+        while self._late and (limit is None or len(out) < limit):
+            out.append(self._release(self._late.popleft()))
+        if self.future_tolerance is not None:
+            wall_ns = time.time_ns() if wall_ns is None else wall_ns
         while self._heap and now - self._heap[0].arrival >= self.wait:
             if limit is not None and len(out) >= limit:
                 break
-            out.append(self._release())
+            if wall_ns is not None and self._heap[0].time_end > wall_ns:
+                break
+            out.append(self._release(heapq.heappop(self._heap)))
         return out
 
     def next_due(self) -> float | None:
         """Arrival-clock time the head of the buffer is due, or ``None`` if empty."""
+        if self._late:
+            return self._late[0].arrival
         return self._heap[0].arrival + self.wait if self._heap else None
 
     def flush(self) -> list[_Pending]:
-        """Everything queued, in order."""
-        return [self._release() for _ in range(len(self._heap))]
+        """Everything queued: the late batches, then the others in order."""
+        late = [self._release(self._late.popleft()) for _ in range(len(self._late))]
+        return late + [self._release(heapq.heappop(self._heap)) for _ in range(len(self._heap))]
 
-    def _release(self) -> _Pending:
-        p = heapq.heappop(self._heap)
+    def _release(self, p: _Pending) -> _Pending:
+        rid = p.batch.radar_id
+        if self.last_time is not None and p.time_end < self.last_time:
+            p.late = True
+        self.late_released += p.late
         self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
+        self.radar_time[rid] = max(self.radar_time.get(rid, p.time_end), p.time_end)
         return p

@@ -4,15 +4,18 @@ so it is tested directly.
 
 Data flow for one received plot batch::
 
-    payload ─ validate (PlotBatch) ─ duplicate? ─ late? ─ reorder buffer ─(bounded wait)→
+    payload ─ validate (PlotBatch) ─ duplicate? future? late? ─ reorder buffer ─(bounded wait)→
         site known? ─ track pipeline (convert_plots + tracker, shared with `skyfuse track`)
         → TrackBatch + TrackEvents → publish; latency = publish wall time − sweep end
 
-**Reorder buffer.** Batches from several radars arrive with network jitter. Each batch is
-held for ``reorder_wait`` seconds of wall time after its arrival, and batches are applied
-in the order of ``(time_end, arrival)``. A batch whose ``time_end`` is earlier than the
-last applied batch's is *out of sequence*: it is dropped and counted
-(``rejected["out of sequence"]``) because the tracker's state has already moved past it.
+**Reorder buffer** (:mod:`services.fusion.reorder`). Batches from several radars arrive
+with network jitter. Each batch is held for ``reorder_wait`` seconds of wall time after
+its arrival, and batches are applied in the order of ``(time_end, arrival)``. Each radar
+has its own watermark: only a batch earlier than its own radar's last applied one is *out
+of sequence*. A batch further ahead of this host's clock than ``future_tolerance`` is
+refused (``time in the future``) and never moves the service time; a batch up to
+``max_lateness`` behind the service time (a lagging radar) is applied at the tracker's
+current time (``counters["batches_late_applied"]``), an older one refused (``too late``).
 A batch seen twice (same radar, seq and time_end) is counted as a duplicate.
 
 **Sites.** A radar's site comes from its ``RadarSite`` messages or from the
@@ -35,7 +38,8 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from pydantic import BaseModel, Field, ValidationError
+import pymap3d
+from pydantic import BaseModel, Field, field_validator
 from skyfuse.schemas import (
     Backlog,
     FrameKind,
@@ -48,10 +52,12 @@ from skyfuse.schemas import (
     TrackEvent,
     keys,
 )
+from skyfuse.schemas.rejection import decode, rejection_detail, rejection_reason
 from skyfuse.services.fusion.feed import FeedMessage
 from skyfuse.services.fusion.reorder import ReorderBuffer, _Pending
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.runtime.lifecycle import RateWindow
+from skyfuse.services.runtime.ratelimit import RateLimitedLog
 
 log = logging.getLogger(__name__)
 
@@ -123,6 +129,48 @@ class FusionConfig(BaseModel):
         description="Batches waiting in the reorder buffer, at most; beyond it the "
         "publishers are slowed down",
     )
+    future_tolerance: float | None = Field(
+        1.0,
+        ge=0.0,
+        le=3600.0,
+        description="Refuse batches whose times are this far ahead of this host's clock, s "
+        "('off': no check, for recordings replayed with future times)",
+    )
+    max_lateness: float = Field(
+        2.0,
+        ge=0.0,
+        le=600.0,
+        description="Apply batches up to this far behind the service time (late radars, "
+        "applied at the tracker's current time), refuse older ones, s",
+    )
+    site_tolerance: float | None = Field(
+        100.0,
+        ge=0.0,
+        description="A site message moving a known radar further than this (3-D, m) is "
+        "held and reported, not applied ('off': apply every change)",
+    )
+    max_message_bytes: int = Field(
+        8_000_000,
+        ge=1_000,
+        le=1_000_000_000,
+        description="Largest payload decoded, bytes; larger ones are rejected unread",
+    )
+    max_plots_per_batch: int = Field(
+        50_000, ge=1, le=10_000_000, description="Most plots accepted in one PlotBatch"
+    )
+    max_radars: int = Field(
+        256,
+        ge=1,
+        le=1_000_000,
+        description="Most radar ids tracked (and reported in Status); input from further "
+        "ids is rejected",
+    )
+
+    @field_validator("future_tolerance", "site_tolerance", mode="before")
+    @classmethod
+    def _off(cls, v):
+        """``off`` (flag, TOML or environment) switches a check off."""
+        return None if isinstance(v, str) and v.strip().lower() in ("off", "none") else v
 
     def frame_spec(self, sites: list[RadarSite]) -> FrameSpec | None:
         """The configured frame, or one centred on ``sites``
@@ -160,6 +208,8 @@ class _Radar:
     plots: int = 0
     last_time: int | None = None
     rate: RateWindow = field(default_factory=RateWindow)
+    site_held: RadarSite | None = None
+    """A received site that moves the radar beyond ``site_tolerance``: not applied."""
 
 
 @dataclass
@@ -186,7 +236,9 @@ class FusionCore:
         self._factory = pipeline_factory
         self.pipeline: CyclePipeline | None = None
         self.frame: FrameSpec | None = None
-        self.buffer = ReorderBuffer(cfg.reorder_wait)
+        self.buffer = ReorderBuffer(
+            cfg.reorder_wait, future_tolerance=cfg.future_tolerance, max_lateness=cfg.max_lateness
+        )
         self.radars: dict[str, _Radar] = {}
         self.counters: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
@@ -198,6 +250,7 @@ class FusionCore:
         self._waiting: dict[int, tuple[float, int]] = {}
         """Batches in the reorder buffer: id(batch) -> (arrival, plots), arrival order."""
         self._warned: set[str] = set()
+        self._log = RateLimitedLog(log)
         for site in cfg.sites:
             self.on_site(site, configured=True)
 
@@ -208,25 +261,63 @@ class FusionCore:
             r = self.radars[radar_id] = _Radar(radar_id, rate=RateWindow(self.cfg.rate_window))
         return r
 
+    def _admit(self, radar_id: str) -> bool:
+        """Whether input from ``radar_id`` may be tracked: a known id, or room for a new
+        one under ``max_radars`` — made, if needed, by forgetting the oldest radar that
+        has no site (so ids invented by a hostile peer cannot crowd out real radars);
+        else counted as ``too many radars``."""
+        if radar_id in self.radars or len(self.radars) < self.cfg.max_radars:
+            return True
+        victim = next((rid for rid, r in self.radars.items() if r.site is None), None)
+        if victim is None:
+            self.reject("too many radars", radar_id)
+            return False
+        del self.radars[victim]
+        self.counters["radars_forgotten"] += 1
+        return True
+
     def reject(self, reason: str, detail: str = "", n: int = 1) -> None:
+        """Count ``n`` rejections; ``reason`` must come from a fixed vocabulary (see
+        :mod:`schemas.rejection`), the free text goes to the rate-limited log only."""
         self.rejected[reason] += n
-        if self.rejected[reason] <= 3:
-            log.warning("rejected input: %s%s", reason, f" ({detail})" if detail else "")
+        self._log.warning("rejected input: %s%s", reason, f" ({detail})" if detail else "")
+
+    def _decode(self, model, key: str, payload: bytes):
+        """``(message, owner id)`` of a payload on ``key``, or ``None`` (rejection counted)."""
+        if len(payload) > self.cfg.max_message_bytes:
+            self.reject("message too large", f"{len(payload)} bytes on {key[:80]}")
+            return None
+        msg, exc = decode(model, payload)
+        if msg is None:
+            self.reject(rejection_reason(model, exc), rejection_detail(exc))
+            return None
+        try:
+            owner = keys.parse(key).owner
+        except ValueError:
+            owner = None
+        if msg.radar_id != owner:
+            self.reject(
+                f"{'site' if model is RadarSite else 'batch'} radar_id does not match its key",
+                f"{msg.radar_id} on {key[:80]}",
+            )
+            return None
+        return msg if self._admit(msg.radar_id) else None
 
     def on_site_payload(self, key: str, payload: bytes) -> None:
-        try:
-            site = RadarSite.from_json_bytes(payload)
-        except ValidationError as e:
-            self.reject(_reason("RadarSite", e), _detail(e))
-            return
-        owner = keys.parse(key).owner
-        if site.radar_id != owner:
-            self.reject("site radar_id does not match its key", f"{site.radar_id} on {key}")
-            return
-        self.on_site(site)
+        site = self._decode(RadarSite, key, payload)
+        if site is not None:
+            self.on_site(site)
 
     def on_site(self, site: RadarSite, configured: bool = False) -> None:
         r = self._radar(site.radar_id)
+        if r.site is not None and not configured:
+            moved = site_displacement_m(r.site, site)
+            if self.cfg.site_tolerance is not None and moved > self.cfg.site_tolerance:
+                # a moved radar shifts its whole picture: hold it for the operator
+                r.site_held = site
+                self.reject("site change held", f"{site.radar_id} moved {moved:.0f} m")
+                return
+        r.site_held = None
         if r.site != site:
             if r.site is not None:
                 log.info("radar %s: site changed", site.radar_id)
@@ -259,7 +350,7 @@ class FusionCore:
             info = keys.parse(key)
         except ValueError:
             return
-        if info.kind != "alive" or info.owner is None:
+        if info.kind != "alive" or info.owner is None or not self._admit(info.owner):
             return
         r = self._radar(info.owner)
         if r.alive != alive:
@@ -267,26 +358,37 @@ class FusionCore:
         r.alive = alive
 
     def on_plots_payload(
-        self, key: str, payload: bytes, arrival: float, sent_ns: int | None = None
+        self,
+        key: str,
+        payload: bytes,
+        arrival: float,
+        sent_ns: int | None = None,
+        *,
+        recv_ns: int | None = None,
     ) -> PlotBatch | None:
         """Validate and queue one received batch; ``None`` if rejected (reason counted)."""
         self.counters["batches_received"] += 1
-        try:
-            batch = PlotBatch.from_json_bytes(payload)
-        except ValidationError as e:
-            self.reject(_reason("PlotBatch", e), _detail(e))
+        batch = self._decode(PlotBatch, key, payload)
+        if batch is None:
             return None
-        owner = keys.parse(key).owner
-        if batch.radar_id != owner:
-            self.reject("batch radar_id does not match its key", f"{batch.radar_id} on {key}")
+        if len(batch.time) > self.cfg.max_plots_per_batch:
+            self.reject("too many plots in batch", f"{len(batch.time)} plots, {batch.radar_id}")
             return None
-        return batch if self.on_plots(batch, arrival, sent_ns) else None
+        return batch if self.on_plots(batch, arrival, sent_ns, recv_ns=recv_ns) else None
 
-    def on_plots(self, batch: PlotBatch, arrival: float, sent_ns: int | None = None) -> bool:
+    def on_plots(
+        self,
+        batch: PlotBatch,
+        arrival: float,
+        sent_ns: int | None = None,
+        *,
+        recv_ns: int | None = None,
+    ) -> bool:
+        """Queue a validated batch received at wall-clock ``recv_ns`` (default: now)."""
         r = self._radar(batch.radar_id)
         if self.pipeline is None and r.site is not None:
             self._start_pipeline()
-        reason = self.buffer.push(batch, arrival, sent_ns)
+        reason = self.buffer.push(batch, arrival, sent_ns, recv_ns)
         if reason is not None:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")
             return False
@@ -342,7 +444,7 @@ class FusionCore:
             return None
         if self.pipeline is None:
             self._start_pipeline()
-        items = [(self._radar(p.batch.radar_id).site, p.batch) for p in ready]
+        items = [(self.radars[p.batch.radar_id].site, p.batch) for p in ready]
         try:
             msg, events, failed = self.pipeline.process_group(items)
         except Exception as e:  # a tracker bug must not kill the service
@@ -364,6 +466,9 @@ class FusionCore:
         self.counters["cycles"] += len(applied)
         self.counters["groups"] += 1
         self.counters["plots_applied"] += n
+        late = sum(p.late for p in applied)
+        if late:  # behind the service time, within max_lateness: applied (reorder.py)
+            self.counters["batches_late_applied"] += late
         self.counters["events"] += len(events)
         self.rate_out.add(n)
         full = None
@@ -402,9 +507,10 @@ class FusionCore:
         return now - oldest[0] > self.cfg.reorder_wait + self.cfg.max_backlog
 
     def _has_site(self, batch: PlotBatch) -> bool:
-        if self._radar(batch.radar_id).site is not None:
+        r = self.radars.get(batch.radar_id)  # None: forgotten meanwhile (see _admit)
+        if r is not None and r.site is not None:
             return True
-        if batch.radar_id not in self._warned:
+        if batch.radar_id not in self._warned and len(self._warned) < self.cfg.max_radars:
             self._warned.add(batch.radar_id)
             log.warning(
                 "radar %s: plots but no site (no RadarSite message or configured site): "
@@ -473,6 +579,8 @@ class FusionCore:
                     plots=r.plots,
                     plots_per_s=r.rate.rate(now),
                     last_time=r.last_time,
+                    clock_offset_s=self.buffer.clock_offset(r.radar_id),
+                    site_held=r.site_held is not None,
                 )
                 for r in sorted(self.radars.values(), key=lambda r: r.radar_id)
             ],
@@ -480,29 +588,26 @@ class FusionCore:
             backlog=self.backlog(now),
             tracks_confirmed=confirmed,
             tracks_total=total,
-            message=""
-            if self.pipeline is not None
-            else "waiting for plots"
-            if any(r.site is not None for r in self.radars.values())
-            else "waiting for a radar site",
+            message=self._status_message(),
         )
+
+    def _status_message(self) -> str:
+        if self.pipeline is None:
+            if any(r.site is not None for r in self.radars.values()):
+                return "waiting for plots"
+            return "waiting for a radar site"
+        held = sorted(r.radar_id for r in self.radars.values() if r.site_held is not None)
+        if held:
+            shown = ", ".join(held[:5]) + (" …" if len(held) > 5 else "")
+            return f"site change held (beyond site_tolerance) for {len(held)} radar(s): {shown}"
+        return ""
+
+
+def site_displacement_m(a: RadarSite, b: RadarSite) -> float:
+    """Distance between two sites' antenna positions, m (WGS-84 ECEF chord, 3-D)."""
+    pa = np.array(pymap3d.geodetic2ecef(a.lat, a.lon, a.alt))
+    pb = np.array(pymap3d.geodetic2ecef(b.lat, b.lon, b.alt))
+    return float(np.linalg.norm(pa - pb))
 
 
 _NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
-
-
-def _reason(model: str, e: ValidationError) -> str:
-    err = e.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"] if not isinstance(p, int))
-    if err["type"] == "json_invalid":
-        return f"invalid {model}: not JSON"
-    if not loc:  # a model-level check: its message starts with the column name
-        m = re.match(r"(?:Value error, )?(?:column )?'?([A-Za-z_]+)", err["msg"])
-        loc = m.group(1) if m else "value"
-    return f"invalid {model}: {loc}"
-
-
-def _detail(e: ValidationError) -> str:
-    err = e.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"]) or "(payload)"
-    return f"{loc}: {err['msg']}"

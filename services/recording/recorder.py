@@ -19,12 +19,23 @@ Rotation: with ``rotate_mb`` / ``rotate_s`` the output is ``NAME-0000.mcap``,
 ``NAME-0001.mcap`` …; each new file starts with the last known ``RadarSite`` of every
 radar so it can be replayed on its own.
 
+**No overwriting**: an existing file is never opened for writing (files are created with
+``O_EXCL``). Without rotation, if ``NAME.mcap`` exists the recording goes to
+``NAME-1.mcap`` (``-2`` … the first free one); with rotation, indices already on disk
+are skipped, so a restarted recorder continues the numbering. The name used is logged
+and listed in the summary (``files``).
+
+**Bounded buffers**: the Foxglove plot channel holds one scan of plots per radar; at
+``max_scan_plots`` plots the scan is written early, and at most ``max_scan_radars``
+radars are held (``limits`` in the summary counts both).
+
 The recorder never crashes on bad input: a payload that does not validate against the
 model of its key, or a key outside the v1 key space, is counted by reason and skipped.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import math
@@ -35,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 from foxglove import messages as fg
-from pydantic import BaseModel, Field, ValidationError
+from pydantic import BaseModel, Field
 from skyfuse import schemas
 from skyfuse.schemas import (
     PlotBatch,
@@ -47,7 +58,9 @@ from skyfuse.schemas import (
     Truth,
     keys,
 )
+from skyfuse.schemas.rejection import decode, rejection_detail
 from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
+from skyfuse.services.runtime.ratelimit import RateLimitedLog
 from skyfuse.services.runtime.transport import Received
 
 log = logging.getLogger(__name__)
@@ -89,6 +102,26 @@ class RecorderConfig(BaseModel):
         2000, ge=10, le=1_000_000, description="Messages received but not yet written, at most"
     )
     stats: Path | None = Field(None, description="Write a JSON summary here at exit")
+    max_message_bytes: int = Field(
+        8_000_000,
+        ge=1_000,
+        le=1_000_000_000,
+        description="Largest payload decoded and recorded, bytes; larger ones are counted",
+    )
+    max_scan_plots: int = Field(
+        50_000,
+        ge=1,
+        le=100_000_000,
+        description="Plots of one radar held for its Foxglove scan message, at most; "
+        "beyond it the scan is written early",
+    )
+    max_scan_radars: int = Field(
+        1_000,
+        ge=1,
+        le=1_000_000,
+        description="Radars with plots held for Foxglove scan messages, at most; plots of "
+        "further radars go to MCAP but not to the Foxglove plots channel",
+    )
 
 
 def _stamp(ns: int) -> fg.Timestamp:
@@ -199,7 +232,11 @@ class Recorder:
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
         self._scan_plots: dict[str, list[PlotBatch]] = {}
+        self._scan_count: dict[str, int] = {}
+        self.limits: Counter[str] = Counter()
+        self._log = RateLimitedLog(log)
         self._writer: RecordingWriter | None = None
+        self._file = None
         self._opened_at = 0.0
         self._last_flush = time.monotonic()
         self._fg_schemas = {name: fg.LocationFixes.get_schema() for name in FOXGLOVE_TOPICS}
@@ -209,17 +246,40 @@ class Recorder:
         self._open()
 
     # --- files ---------------------------------------------------------------------
-    def _path(self, index: int) -> Path:
+    def _candidates(self):
+        """File names to try, in order (see *No overwriting* above)."""
         out = self.cfg.out
+        suffix = out.suffix or ".mcap"
         if self.cfg.rotate_mb is None and self.cfg.rotate_s is None:
-            return out
-        return out.with_name(f"{out.stem}-{index:04d}{out.suffix or '.mcap'}")
+            yield out
+            for k in itertools.count(1):
+                yield out.with_name(f"{out.stem}-{k}{suffix}")
+        start = int(self.files[-1].stem.rsplit("-", 1)[1]) + 1 if self.files else 0
+        for k in itertools.count(start):
+            yield out.with_name(f"{out.stem}-{k:04d}{suffix}")
+
+    def _create(self):
+        """``(path, file)`` of the first candidate that does not exist (``O_EXCL``)."""
+        self.cfg.out.parent.mkdir(parents=True, exist_ok=True)
+        for path in self._candidates():
+            try:
+                return path, open(path, "xb")
+            except FileExistsError:
+                continue
+        raise AssertionError("unreachable: the candidates are endless")
+
+    def _close_writer(self) -> None:
+        self._writer.close()
+        self._file.close()
 
     def _open(self) -> None:
-        path = self._path(len(self.files))
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path, self._file = self._create()
+        if not self.files and path != next(self._candidates()):
+            log.warning("%s exists: not overwritten, recording to %s instead", self.cfg.out, path)
         meta = {**self.metadata, "file_index": str(len(self.files))}
-        self._writer = RecordingWriter(path, metadata=meta, chunk_size=self.cfg.chunk_kb * 1024)
+        self._writer = RecordingWriter(
+            self._file, metadata=meta, chunk_size=self.cfg.chunk_kb * 1024
+        )
         self.files.append(path)
         self._opened_at = time.monotonic()
         log.info("recording to %s", path)
@@ -236,7 +296,7 @@ class Recorder:
             and time.monotonic() - self._opened_at >= self.cfg.rotate_s
         )
         if too_big or too_old:
-            w.close()
+            self._close_writer()
             self._open()
 
     def maybe_flush(self, now: float | None = None) -> None:
@@ -257,7 +317,7 @@ class Recorder:
                 "skyfuse.recorder",
                 {"messages": self.messages, **{f"count:{k}": v for k, v in self.counts.items()}},
             )
-            self._writer.close()
+            self._close_writer()
             self._writer = None
         return self.files
 
@@ -300,14 +360,15 @@ class Recorder:
         except (ValueError, KeyError):
             self.rejected["key outside the skyfuse/@v1 key space"] += 1
             return False
-        try:
-            msg = model.from_json_bytes(item.payload)
-        except ValidationError as e:
+        if len(item.payload) > self.cfg.max_message_bytes:
+            self.rejected["message too large"] += 1
+            return False
+        msg, exc = decode(model, item.payload)
+        if msg is None:  # any decoding exception is a counted rejection, never a crash
             self.rejected[f"invalid {model.__name__}"] += 1
-            if self.rejected[f"invalid {model.__name__}"] <= 5:
-                err = e.errors()[0]
-                loc = ".".join(str(p) for p in err["loc"]) or "(payload)"
-                log.warning("rejected %s on %s: %s: %s", model.__name__, item.key, loc, err["msg"])
+            self._log.warning(
+                "rejected %s on %s: %s", model.__name__, item.key[:80], rejection_detail(exc)
+            )
             return False
         pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
         self._write(item.key, item.payload, item.recv_ns, pub_time, model)
@@ -323,8 +384,28 @@ class Recorder:
         self.maybe_flush()
         return True
 
+    def _buffer_plots(self, msg: PlotBatch, log_time: int) -> None:
+        """Hold ``msg`` for its radar's scan message, within the bounds
+        ``max_scan_plots`` (plots per radar) and ``max_scan_radars``."""
+        rid = msg.radar_id
+        pending = self._scan_plots.get(rid)
+        if pending and pending[0].scan != msg.scan:
+            self._flush_plots(rid, log_time)
+        n = len(msg.time)
+        if not n:
+            return
+        if rid in self._scan_plots and self._scan_count[rid] + n > self.cfg.max_scan_plots:
+            self.limits["scan plots: written early"] += 1
+            self._flush_plots(rid, log_time)
+        if rid not in self._scan_plots and len(self._scan_plots) >= self.cfg.max_scan_radars:
+            self.limits["scan radars: plots not shown"] += 1
+            return
+        self._scan_plots.setdefault(rid, []).append(msg)
+        self._scan_count[rid] = self._scan_count.get(rid, 0) + n
+
     def _flush_plots(self, radar_id: str, log_time: int) -> None:
         batches = self._scan_plots.pop(radar_id, [])
+        self._scan_count.pop(radar_id, None)
         entry = self.sites.get(radar_id)
         if not batches or entry is None:
             return
@@ -345,11 +426,7 @@ class Recorder:
             self._data_time = max(self._data_time or 0, msg.time_end)
             # one LocationFixes per radar revolution (a map shows scans, and it is 16x
             # cheaper than one per sector)
-            pending = self._scan_plots.get(msg.radar_id)
-            if pending and pending[0].scan != msg.scan:
-                self._flush_plots(msg.radar_id, log_time)
-            if len(msg.time):
-                self._scan_plots.setdefault(msg.radar_id, []).append(msg)
+            self._buffer_plots(msg, log_time)
         elif isinstance(msg, TrackBatch):
             picture = self._picture(msg.fusion_id)
             if picture is None or not picture.apply(msg):
@@ -392,4 +469,5 @@ class Recorder:
             "bytes": self.bytes,
             "by_topic": dict(sorted(self.counts.items())),
             "rejected": dict(self.rejected),
+            "limits": dict(self.limits),
         }

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Literal
 
 import zenoh
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 from skyfuse.services.cli.config import ConfigError
 
 log = logging.getLogger(__name__)
@@ -88,11 +88,43 @@ class TransportConfig(BaseModel):
     zenoh_config: Path | None = Field(
         None, description="A Zenoh JSON5 config file applied before the flags"
     )
+    tls_root_ca: Path | None = Field(
+        None, description="TLS: CA certificate (PEM) that signs every peer's certificate"
+    )
+    tls_cert: Path | None = Field(
+        None,
+        description="TLS: this process's certificate (PEM), shown when listening and "
+        "connecting (mutual TLS)",
+    )
+    tls_key: Path | None = Field(None, description="TLS: this process's private key (PEM)")
+    acl: Path | None = Field(
+        None,
+        description="Zenoh access-control policy to enforce (JSON5 object, as written by "
+        "skyfuse certs; normally the router's)",
+    )
 
     @field_validator("listen", "connect")
     @classmethod
     def _endpoints(cls, v: list[str]) -> list[str]:
         return [check_endpoint(e) for e in v]
+
+    @model_validator(mode="after")
+    def _tls_complete(self) -> TransportConfig:
+        given = [self.tls_root_ca, self.tls_cert, self.tls_key]
+        if any(v is not None for v in given) and not all(v is not None for v in given):
+            raise ValueError(
+                "tls_root_ca, tls_cert and tls_key go together (mutual TLS: each process "
+                "shows its certificate and checks the others' against the CA)"
+            )
+        for name in ("tls_root_ca", "tls_cert", "tls_key", "acl"):
+            path = getattr(self, name)
+            if path is not None and not path.is_file():
+                raise ValueError(f"{name}: {str(path)!r} is not a file")
+        return self
+
+    @property
+    def tls(self) -> bool:
+        return self.tls_root_ca is not None
 
 
 TRANSPORT_FIELDS = tuple(TransportConfig.model_fields)
@@ -109,15 +141,82 @@ def zenoh_config(cfg: TransportConfig) -> zenoh.Config:
         conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(cfg.mode))
     conf.insert_json5("scouting/multicast/enabled", "true" if cfg.multicast else "false")
-    if cfg.listen:
-        conf.insert_json5("listen/endpoints", json.dumps(cfg.listen))
+    listen = cfg.listen or default_listen(cfg)
+    if listen is not None:
+        conf.insert_json5("listen/endpoints", json.dumps(listen))
+        warn_exposed(listen, cfg.tls)
     if cfg.connect:
         conf.insert_json5("connect/endpoints", json.dumps(cfg.connect))
+    if cfg.tls:
+        _insert_tls(conf, cfg)
+    if cfg.acl is not None:
+        try:
+            conf.insert_json5("access_control", cfg.acl.read_text())
+        except Exception as e:  # zenoh's own error type for a bad policy
+            raise ConfigError(f"acl {str(cfg.acl)!r}: {e}") from None
     if cfg.mode == "client" and not cfg.connect and not cfg.multicast:
         raise ConfigError(
             "mode client needs --connect (the router's endpoint) when multicast scouting is off"
         )
     return conf
+
+
+def _insert_tls(conf: zenoh.Config, cfg: TransportConfig) -> None:
+    """Mutual TLS: the same certificate when listening and connecting, peers checked
+    against ``tls_root_ca``, a listener refuses peers without a certificate."""
+    tls = {
+        "root_ca_certificate": str(cfg.tls_root_ca),
+        "listen_certificate": str(cfg.tls_cert),
+        "listen_private_key": str(cfg.tls_key),
+        "connect_certificate": str(cfg.tls_cert),
+        "connect_private_key": str(cfg.tls_key),
+        "enable_mtls": True,
+        "verify_name_on_connect": True,
+    }
+    for name, value in tls.items():
+        conf.insert_json5(f"transport/link/tls/{name}", json.dumps(value))
+
+
+_LOOPBACK_HOSTS = ("127.", "[::1]", "localhost")
+
+
+def warn_exposed(endpoints: list[str], tls: bool) -> list[str]:
+    """Log a warning for every endpoint that listens beyond loopback without TLS (or on
+    plain TCP next to a TLS configuration); return them."""
+    exposed = []
+    for ep in endpoints:
+        m = ENDPOINT_RE.match(ep)
+        proto, host = m.group(1), m.group(2)
+        if proto in ("tls", "quic"):
+            continue
+        if tls or not host.startswith(_LOOPBACK_HOSTS):
+            exposed.append(ep)
+            log.warning(
+                "listening on %s without TLS: anyone who can reach it can read and publish "
+                "(see docs/deployment.md, secure deployment)",
+                ep,
+            )
+    return exposed
+
+
+LOOPBACK_PEER_LISTEN = ["tcp/127.0.0.1:0"]
+"""Where a peer without ``--listen`` listens: loopback, a port chosen by the system. Peers
+on this host still form a mesh (gossip tells them each other's locator), nothing off the
+host can connect. (Zenoh's own default is ``tcp/[::]:0``: every interface.)"""
+LOOPBACK_ROUTER_LISTEN = ["tcp/127.0.0.1:7447"]
+"""Where a router without ``--listen`` listens (Zenoh's own default: ``tcp/[::]:7447``)."""
+
+
+def default_listen(cfg: TransportConfig) -> list[str] | None:
+    """The listen endpoints of a session given no ``--listen``: loopback only (peer,
+    router; ``tls/`` with TLS), none for a client; ``None`` (keep the file's) with
+    ``--zenoh-config``."""
+    if cfg.zenoh_config is not None:
+        return None
+    if cfg.mode == "client":
+        return []
+    default = LOOPBACK_ROUTER_LISTEN if cfg.mode == "router" else LOOPBACK_PEER_LISTEN
+    return [ep.replace("tcp/", "tls/", 1) for ep in default] if cfg.tls else default
 
 
 @contextlib.contextmanager
