@@ -70,16 +70,9 @@ def _int_vector(name: str, a: np.ndarray, n: int) -> np.ndarray:
     return a.astype(np.int64)
 
 
-def label_metrics(
-    plot_time: np.ndarray,
-    plot_label: np.ndarray,
-    plot_track: np.ndarray,
-    plot_track_confirmed: np.ndarray,
-    duration_s: float | None = None,
-    min_label_share: float = 0.5,
-    warmup_s: float = 0.0,
-) -> LabelMetrics:
-    """Completeness, id changes, false tracks per hour and time to confirm (module docstring)."""
+def _validated(plot_time, plot_label, plot_track, plot_track_confirmed, duration_s,
+               min_label_share):  # fmt: skip
+    """The inputs of :func:`label_metrics` as checked arrays, and the duration (s)."""
     t = np.asarray(plot_time, dtype=np.float64).reshape(-1)
     n = len(t)
     if not np.all(np.isfinite(t)):
@@ -99,6 +92,23 @@ def label_metrics(
     duration = span if duration_s is None else float(duration_s)
     if duration_s is not None and not duration > 0:
         raise ValueError(f"duration_s = {duration_s}: must be > 0 s")
+    return t, label, track, conf, duration
+
+
+def label_metrics(
+    plot_time: np.ndarray,
+    plot_label: np.ndarray,
+    plot_track: np.ndarray,
+    plot_track_confirmed: np.ndarray,
+    duration_s: float | None = None,
+    min_label_share: float = 0.5,
+    warmup_s: float = 0.0,
+) -> LabelMetrics:
+    """Completeness, id changes, false tracks per hour and time to confirm (module docstring)."""
+    t, label, track, conf, duration = _validated(
+        plot_time, plot_label, plot_track, plot_track_confirmed, duration_s, min_label_share
+    )
+    n = len(t)
 
     order = np.argsort(t, kind="stable")
     t, label, track, conf = t[order], label[order], track[order], conf[order]
