@@ -52,7 +52,7 @@ NS = 10**9
 #: tracker stages: (label, function names whose cumulative time is the stage)
 STAGES = [
     ("validate plots", ("validated",)),
-    ("coverage + predict", ("_select", "predict")),
+    ("coverage + predict", ("select_tracks", "predict")),
     ("gating", ("gate",)),
     ("association", ("_associate",)),
     ("components (update, merge, prune)", ("component_update", "singer_merge", "prune")),
@@ -163,7 +163,7 @@ def profile_case(kind: str, n_targets: int, n_clutter: int, scans: int, warmup: 
     cum: dict[str, float] = {}
     total = 0.0
     for (fname, _line, func), (_cc, _nc, _tt, ct, _callers) in st.items():
-        if "fusion/tracker/" in fname.replace("\\", "/"):
+        if "/fusion/" in fname.replace("\\", "/"):
             if func == "step" and fname.endswith("tracker.py"):
                 total = ct
             cum[func] = cum.get(func, 0.0) + ct
@@ -175,7 +175,7 @@ def profile_case(kind: str, n_targets: int, n_clutter: int, scans: int, warmup: 
     shares["moment match (output)"] = max(
         0.0, shares["moment match (output)"] - cum.get("singer_merge", 0.0)
     )
-    shares["coverage + predict"] = cum.get("_select", 0.0)  # predict also runs in others
+    shares["coverage + predict"] = cum.get("select_tracks", 0.0)  # predict also runs in others
     rest = total - sum(shares.values())
     out = {k: round(100 * v / total, 1) for k, v in shares.items()} if total else {}
     out["other (step body)"] = round(100 * rest / total, 1) if total else 0.0

@@ -1,4 +1,5 @@
-"""Track mixtures in flat arrays: Singer N-scan merge, pruning, moment matching (spec 02 §7).
+"""Track mixtures in flat arrays: Singer N-scan merge and pruning (spec 02 §7); the moment
+matching itself is :mod:`fusion.filters.moment_matching`.
 
 Every track is a Gaussian mixture {ξ^c, x̂^c, P^c, h^c}. All components of all tracks
 live in one :class:`Mixture`: ``track`` (C,) says which track row a component belongs to,
@@ -12,6 +13,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from skyfuse.fusion.filters.moment_matching import moment_match, segment_sum
+
+__all__ = [
+    "Mixture",
+    "components_per_track",
+    "moment_match",
+    "normalise",
+    "prune",
+    "segment_sum",
+    "singer_merge",
+    "track_estimates",
+]
 
 
 @dataclass
@@ -49,50 +62,6 @@ class Mixture:
             np.concatenate([p.P for p in parts]),
             np.concatenate([p.hist for p in parts]),
         )
-
-
-def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
-    """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
-
-    One ``np.add.reduceat`` over the components sorted by group (a stable sort, skipped
-    when ``group`` is already non-decreasing): linear in C, no per-component Python, and
-    the same summation order as a sequential sum."""
-    out = np.zeros((ngroups, *values.shape[1:]))
-    if len(values) == 0:
-        return out
-    group = np.asarray(group)
-    if len(group) > 1 and (group[1:] < group[:-1]).any():
-        order = np.argsort(group, kind="stable")
-        group, values = group[order], values[order]
-    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    out[group[starts]] = np.add.reduceat(values, starts, axis=0)
-    return out
-
-
-def moment_match(
-    w: np.ndarray, x: np.ndarray, P: np.ndarray, group: np.ndarray, ngroups: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Merge components with equal ``group`` (spec 02 §7 step 11 [LIT], 4.66-4.68):
-    ξ^μ = Σξ^n, x̂^μ = Σξ^n x̂^n / ξ^μ, P^μ = Σξ^n [P^n + (x̂^n−x̂^μ)(x̂^n−x̂^μ)ᵀ] / ξ^μ.
-
-    Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean."""
-    if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
-        # one component per group (GNN/IPDA tracks): nothing to merge
-        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + np.swapaxes(P, 1, 2))
-    W = np.bincount(group, weights=w, minlength=ngroups)
-    zero = W <= 0.0
-    ww = w.copy()
-    if zero.any():  # fall back to equal weights inside weightless groups
-        ww[zero[group]] = 1.0
-        Wn = np.bincount(group, weights=ww, minlength=ngroups)
-    else:
-        Wn = W
-    xm = segment_sum(ww[:, None] * x, group, ngroups) / Wn[:, None]
-    dx = x - xm[group]
-    spread = P + dx[:, :, None] * dx[:, None, :]
-    Pm = segment_sum(ww[:, None, None] * spread, group, ngroups) / Wn[:, None, None]
-    Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
-    return W, xm, Pm
 
 
 def singer_merge(mix: Mixture) -> Mixture:

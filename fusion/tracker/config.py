@@ -12,10 +12,14 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-TrackerKind = Literal["gnn", "ipda", "its", "lmipda", "lmits", "jipda", "jits"]
+from .registry import MOTIONS, TRACKERS, motion_help, single_gaussian_kinds, tracker_help
+
+#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry`.
+TrackerKind = Literal[tuple(TRACKERS)]  # type: ignore[valid-type]
+MotionKind = Literal[tuple(MOTIONS)]  # type: ignore[valid-type]
 
 #: Trackers whose Singer memory depth is fixed at 0 (a single Gaussian per track).
-SINGLE_GAUSSIAN_KINDS = ("gnn", "ipda", "lmipda", "jipda")
+SINGLE_GAUSSIAN_KINDS = single_gaussian_kinds()
 
 
 class TrackerConfig(BaseModel):
@@ -25,8 +29,9 @@ class TrackerConfig(BaseModel):
 
     tracker: TrackerKind = Field(
         "lmits",
-        description="Association: gnn, ipda, its, lmipda, lmits, jipda or jits",
+        description="Tracker: " + tracker_help(),
     )
+    motion: MotionKind = Field("cv", description="Motion density: " + motion_help())
     depth: int = Field(
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
     )
@@ -139,13 +144,5 @@ class TrackerConfig(BaseModel):
 
     @property
     def association(self) -> str:
-        """The association family: gnn, single (IPDA/ITS), lm or joint."""
-        return {
-            "gnn": "gnn",
-            "ipda": "single",
-            "its": "single",
-            "lmipda": "lm",
-            "lmits": "lm",
-            "jipda": "joint",
-            "jits": "joint",
-        }[self.tracker]
+        """The association part of the tracker kind (registry): gnn, single, lm or joint."""
+        return TRACKERS[self.tracker].association

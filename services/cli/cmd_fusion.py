@@ -17,6 +17,7 @@ import argparse
 import logging
 import time
 
+from skyfuse.fusion.tracker.registry import tracker_help
 from skyfuse.schemas import keys
 from skyfuse.services.cli.config import (
     ConfigError,
@@ -65,7 +66,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     group.add_argument(
         "--tracker",
         default=argparse.SUPPRESS,
-        help="Tracker: gnn, ipda, its, lmipda, lmits, jipda or jits (default: lmits)",
+        help="Tracker: " + tracker_help() + " (default: lmits)",
     )
     group.add_argument(
         "--tracker-set",
