@@ -119,6 +119,34 @@ class TrackerConfig(BaseModel):
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
     )
 
+    # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
+    # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
+    # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.
+    imm_q_cv: float = Field(1.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
+    ct_sigma_a: float = Field(
+        1.0, ge=0.0, description="IMM: turn-mode tangential acceleration σ, m/s²"
+    )
+    ct_sigma_omega: float = Field(
+        0.03, gt=0.0, description="IMM: turn-mode turn-rate acceleration σ, rad/s²"
+    )
+    singer_tau: float = Field(10.0, gt=0.0, description="IMM: Singer-mode time constant τ, s")
+    singer_sigma_m: float = Field(
+        20.0, ge=0.0, description="IMM: Singer-mode acceleration σ_m, m/s² (≈ 2 g)"
+    )
+    imm_tpm: list[float] = Field(
+        [0.95, 0.05, 0.10, 0.90],
+        description="IMM mode transition matrix per imm_tpm_period, row-major (p11, p12, p21, p22)",
+    )
+    imm_tpm_period: float = Field(
+        4.0, gt=0.0, description="Period the IMM transition matrix refers to, s"
+    )
+    imm_mu0: list[float] = Field(
+        [0.9, 0.1], description="IMM mode probabilities of a new track (CV, manoeuvre)"
+    )
+    imm_init_acceleration: float = Field(
+        5.0, ge=0.0, description="IMM: acceleration σ of a new track, m/s²"
+    )
+
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
         if self.tau_terminate >= self.tau_confirm:
@@ -129,6 +157,12 @@ class TrackerConfig(BaseModel):
         if self.psi_init >= self.tau_confirm:
             raise ValueError(
                 f"psi_init = {self.psi_init} must be below tau_confirm = {self.tau_confirm}"
+            )
+        r = len(self.imm_mu0)
+        if len(self.imm_tpm) != r * r or r < 1 or min(self.imm_mu0) < 0 or sum(self.imm_mu0) <= 0:
+            raise ValueError(
+                f"imm_tpm has {len(self.imm_tpm)} entries and imm_mu0 = {self.imm_mu0}: need "
+                f"{r}x{r} = {r * r} transition probabilities and non-negative mode weights"
             )
         if self.init_min_dt >= self.init_max_dt:
             raise ValueError(

@@ -54,14 +54,20 @@ class MixtureTable(GatedTable):
 
 
 def track_table(
-    loc: np.ndarray, pairs: GatedPairs, weight: np.ndarray, p_pair: np.ndarray, m: int
+    loc: np.ndarray,
+    comp_idx: np.ndarray,
+    plot: np.ndarray,
+    weight: np.ndarray,
+    p_pair: np.ndarray,
+    m: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(tp_track, tp_plot, p^τ_i = Σ_c ξ^c p^c_i (5.10), pair → table row) from gated
-    component pairs; loc (C,) the components' tracks, weight (C,) their ξ."""
-    key = loc[pairs.state] * max(m, 1) + pairs.plot
+    (component ``comp_idx``, ``plot``) pairs; loc (C,) the components' tracks, weight (C,)
+    their ξ, p_pair the pairs' p^c_i."""
+    key = loc[comp_idx] * max(m, 1) + plot
     uniq, row = np.unique(key, return_inverse=True)
     row = row.reshape(-1)
-    p_track = np.bincount(row, weights=weight[pairs.state] * p_pair, minlength=len(uniq))
+    p_track = np.bincount(row, weights=weight[comp_idx] * p_pair, minlength=len(uniq))
     return uniq // max(m, 1), uniq % max(m, 1), p_track, row
 
 
@@ -128,7 +134,9 @@ class GaussianMixtureDensity:
         self._next_uid += m
         pairs = gate(pred.y, pred.HPH, z, R, g)
         p_pair = np.exp(pairs.log_pdf) / gate_probability(g, z.shape[1])
-        tp_track, tp_plot, p_track, row = track_table(pred.loc, pairs, pred.mix.w, p_pair, m)
+        tp_track, tp_plot, p_track, row = track_table(
+            pred.loc, pairs.state, pairs.plot, pred.mix.w, p_pair, m
+        )
         return MixtureTable(tp_track, tp_plot, p_track, pairs, p_pair, row, R, uid)
 
     def update(
