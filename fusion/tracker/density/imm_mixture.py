@@ -412,17 +412,17 @@ def _shift(hist: np.ndarray, new_ids) -> np.ndarray:
 
 def imm_density(cfg, second: str) -> IMMMixtureDensity:
     """The IMM density of a TrackerConfig: CV (q = ``imm_q_cv``) plus ``second`` =
-    ``ct`` (coordinated turn, σ_a = ``ct_sigma_a``, σ_ω = ``ct_sigma_omega``) or
-    ``singer`` (τ = ``singer_tau``, σ_m = ``singer_sigma_m``), 2-D or 3-D."""
+    ``ct`` (coordinated turn, σ_a = ``imm_ct_sigma_a``, σ_ω = ``imm_ct_sigma_omega``) or
+    ``singer`` (τ = ``imm_singer_tau``, σ_m = ``imm_singer_sigma_m``), 2-D or 3-D."""
     ndim = cfg.ndim
     qv = cfg.q_vertical if cfg.q_vertical is not None else cfg.imm_q_cv
     cv = ConstantVelocity(q=cfg.imm_q_cv, ndim=ndim, q_vertical=qv if ndim == 3 else None)
     if second == "ct":
         other = CoordinatedTurn(
-            cfg.ct_sigma_a, cfg.ct_sigma_omega, vertical=ndim == 3, q_vertical=qv
+            cfg.imm_ct_sigma_a, cfg.imm_ct_sigma_omega, vertical=ndim == 3, q_vertical=qv
         )
     elif second == "singer":
-        other = Singer(tau=cfg.singer_tau, sigma_m=cfg.singer_sigma_m, ndim=ndim)
+        other = Singer(tau=cfg.imm_singer_tau, sigma_m=cfg.imm_singer_sigma_m, ndim=ndim)
     else:
         raise ValueError(f"IMM second model {second!r}: must be 'ct' or 'singer'")
     return IMMMixtureDensity(
