@@ -229,6 +229,7 @@ def skyfuse_config(setup: Setup, kind: str) -> TrackerConfig:
     at T = 4 s the same q would give skyfuse 4× Stone Soup's process noise)."""
     return TrackerConfig(
         tracker=kind,
+        motion="cv",
         depth=3,
         q=setup.q / setup.period,
         p_gate=GATE_P,

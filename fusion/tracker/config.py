@@ -31,7 +31,11 @@ class TrackerConfig(BaseModel):
         "lmits",
         description="Tracker: " + tracker_help(),
     )
-    motion: MotionKind = Field("cv", description="Motion density: " + motion_help())
+    motion: MotionKind = Field(
+        "imm-cv-ct",
+        description="Motion density: " + motion_help() + " (imm-cv-ct chosen by measurement, "
+        "docs/tracker.md)",
+    )
     depth: int = Field(
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
     )

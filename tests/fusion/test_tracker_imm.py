@@ -40,7 +40,9 @@ def _scene(ndim, seed, steps=30, n_targets=6, clutter=40, side=20_000.0):
 @pytest.mark.parametrize("ndim", [2, 3])
 def test_single_mode_imm_equals_gaussian_mixture(kind, ndim):
     batches = _scene(ndim, 3 + ndim)
-    cfg = TrackerConfig(tracker=kind, ndim=ndim, clutter="estimated", v_max=300.0, depth=2)
+    cfg = TrackerConfig(
+        tracker=kind, motion="cv", ndim=ndim, clutter="estimated", v_max=300.0, depth=2
+    )
     ref, imm = Tracker(cfg), Tracker(cfg)
     imm.density = IMMMixtureDensity(
         [ConstantVelocity(q=cfg.q, ndim=ndim)], ModeTransition([[1.0]], 4.0), [1.0], ndim,
@@ -76,7 +78,7 @@ def test_two_model_mode_probabilities_match_hand_written_recursion():
     Π per 4 s = [[0.9, 0.1], [0.2, 0.8]]; the loop-by-loop reference below (spec 01 §5
     eq. 15-19, spec 02 5.16-5.18, 2.38) is independent of the tracker's array code."""
     qs, tpm, T, r, pd, rho = (1.0, 400.0), np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0, 100.0, 0.9, 1e-9
-    cfg = TrackerConfig(tracker="ipda", q=1.0, initiation="none", p_gate=0.999999,
+    cfg = TrackerConfig(tracker="ipda", motion="cv", q=1.0, initiation="none", p_gate=0.999999,
                         clutter="known", delta11=1.0)  # fmt: skip
     tr = Tracker(cfg)
     tr.density = IMMMixtureDensity(
