@@ -225,6 +225,22 @@ def plot(res: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def target_point(scans: int, warmup: int, show) -> list[dict]:
+    """lmits at 1,000 targets + 5,000 clutter plots with CV and the two IMM densities
+    (CPU time per scan relative to CV)."""
+    r = run_case("lmits", 1000, 5000, scans, warmup)
+    show(r)
+    rows = [r]
+    for motion in ("imm-cv-ct", "imm-cv-singer"):
+        ri = run_case("lmits", 1000, 5000, scans, warmup, motion)
+        ri["cpu_relative_to_cv"] = round(
+            ri["cpu_ms_per_scan_median"] / r["cpu_ms_per_scan_median"], 2
+        )
+        rows.append(ri)
+        show(ri)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small grid")
@@ -314,17 +330,7 @@ def main(argv: list[str] | None = None) -> int:
                 fit_exponent([a for a, _ in inc], [b for _, b in inc]), 2
             )
     if not args.quick:
-        r = run_case("lmits", 1000, 5000, args.scans, args.warmup)
-        res["target_point"].append(r)
-        show(r)
-        # the IMM densities at the target point: CPU time per scan relative to CV
-        for motion in ("imm-cv-ct", "imm-cv-singer"):
-            ri = run_case("lmits", 1000, 5000, args.scans, args.warmup, motion)
-            ri["cpu_relative_to_cv"] = round(
-                ri["cpu_ms_per_scan_median"] / r["cpu_ms_per_scan_median"], 2
-            )
-            res["target_point"].append(ri)
-            show(ri)
+        res["target_point"] = target_point(args.scans, args.warmup, show)
     for kind in ("lmits", "gnn"):
         for n, m in ((max(targets), args.clutter_fixed), (args.targets_fixed, max(clutter))):
             p = profile_case(kind, n, m, args.scans, args.warmup)
