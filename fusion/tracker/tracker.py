@@ -253,7 +253,7 @@ class Tracker:
         pred = self.density.predict(sel, dt)
         exist_pred = self.chain.predict(self.exist[sel], dt)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
-        stats["gated_pairs"] = len(table)
+        stats["gated_pairs"] = len(table.tp_track)
         res = self._associate(b, pred, table, exist_pred[:, 0])
         self.density.update(pred, table, res.beta0, res.beta)
         stats.update(res.stats)
@@ -275,7 +275,7 @@ class Tracker:
     ) -> AssociationResult:
         """Clutter density per row, then the configured association part."""
         cfg = self.cfg
-        pdpg = np.full(len(pred), float(b.p_detection) * self.P_G)
+        pdpg = np.full(len(pred.rows), float(b.p_detection) * self.P_G)
         rho = clutter_density(
             cfg.clutter,
             b.clutter_density,
@@ -433,7 +433,7 @@ class Tracker:
         but does not take can then start its own track)."""
         used = np.zeros(m, bool)
         if self.cfg.init_free_weight is None:
-            used[table.plots_gated] = True
+            used[table.tp_plot] = True
             return used
         claimed = np.bincount(table.tp_plot, weights=res.beta, minlength=m)
         return claimed >= self.cfg.init_free_weight

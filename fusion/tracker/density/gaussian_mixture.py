@@ -175,7 +175,11 @@ class GaussianMixtureDensity:
         inside[pred.rows] = True
         others = np.flatnonzero(~inside[self.mix.track])
         self.mix = comp.Mixture.concat([self.mix.take(others), kept])
-        self.stats = {"components_merged": len(merged), "components": len(self.mix)}
+        self.stats = {
+            "gated_pairs": len(table.pairs),  # (component, plot) pairs
+            "components_merged": len(merged),
+            "components": len(self.mix),
+        }
         loc = np.searchsorted(pred.rows, kept.track)
         _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(pred.rows))
         self.x[pred.rows] = x

@@ -370,7 +370,11 @@ class IMMMixtureDensity:
         inside[pred.rows] = True
         others = self.comp.take(np.flatnonzero(~inside[self.comp.track]))
         self.comp = IMMComponents.concat([others, kept])
-        self.stats = {"components_merged": len(merged), "components": len(self.comp)}
+        self.stats = {
+            "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
+            "components_merged": len(merged),
+            "components": len(self.comp),
+        }
         x, P = self._track_estimates(kept, np.searchsorted(pred.rows, kept.track), len(pred))
         self.x[pred.rows] = x
         self.P[pred.rows] = P
