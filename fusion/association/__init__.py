@@ -2,8 +2,16 @@
 scipy's Jonker-Volgenant, both with "no assignment" options) and the GNN tracker with
 M-of-N confirmation (spec 01 §6)."""
 
-from .assignment import Assignment, assign_auction, assign_jv, split_clusters, total_cost
-from .gating import GateResult, gate, gate_threshold
+from .assignment import (
+    Assignment,
+    assign_auction,
+    assign_jv,
+    assign_sparse,
+    split_clusters,
+    total_cost,
+    track_clusters,
+)
+from .gating import GatedPairs, gate, gate_threshold
 from .gnn import CONFIRMED, TENTATIVE, GNNConfig, GNNTracker, ScanReport
 
 __all__ = [
@@ -12,12 +20,14 @@ __all__ = [
     "Assignment",
     "GNNConfig",
     "GNNTracker",
-    "GateResult",
+    "GatedPairs",
     "ScanReport",
     "assign_auction",
     "assign_jv",
+    "assign_sparse",
     "gate",
     "gate_threshold",
     "split_clusters",
     "total_cost",
+    "track_clusters",
 ]

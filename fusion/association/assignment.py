@@ -148,6 +148,28 @@ def assign_auction(
     return Assignment(t2p, total_cost(cost, miss, t2p))
 
 
+def track_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: int) -> np.ndarray:
+    """Cluster label of every track (spec 03 §1.1 step 1): tracks sharing a gated plot,
+    directly or through a chain of tracks, get the same label. Labels are in
+    [0, 2 n_tracks); a track that shares no plot is alone in its cluster.
+
+    Only the pairs of plots gated by two or more tracks enter the graph search (scipy's
+    ``connected_components``); when no plot is shared it is skipped entirely."""
+    labels = np.arange(n_tracks, dtype=np.int64)
+    if n_tracks == 0 or len(track) == 0:
+        return labels
+    shared = np.bincount(plot, minlength=n_plots)[plot] > 1
+    if not shared.any():
+        return labels
+    trk, ti = np.unique(track[shared], return_inverse=True)
+    plt, pi = np.unique(plot[shared], return_inverse=True)
+    nt, N = len(trk), len(trk) + len(plt)
+    A = coo_matrix((np.ones(len(ti)), (ti.reshape(-1), nt + pi.reshape(-1))), shape=(N, N))
+    _, sub = connected_components(A.tocsr(), directed=False)
+    labels[trk] = n_tracks + sub[:nt]
+    return labels
+
+
 def split_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: int):
     """Independent clusters of the gating graph (tracks linked through shared plots).
 
@@ -155,10 +177,47 @@ def split_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: 
     no cluster (they are simply unassigned)."""
     if track.size == 0:
         return []
-    g = coo_matrix((np.ones(track.size), (track, n_tracks + plot)), shape=(n_tracks + n_plots,) * 2)
-    _, labels = connected_components(g, directed=False)
-    out = []
-    tl, pl = labels[:n_tracks], labels[n_tracks:]
-    for lab in np.unique(labels[track]):
-        out.append((np.flatnonzero(tl == lab), np.flatnonzero(pl == lab)))
-    return out
+    lab = track_clusters(track, plot, n_tracks, n_plots)[track]
+    return [(np.unique(track[lab == c]), np.unique(plot[lab == c])) for c in np.unique(lab)]
+
+
+def assign_sparse(
+    track: np.ndarray,
+    plot: np.ndarray,
+    cost: np.ndarray,
+    miss_cost: np.ndarray,
+    n_tracks: int,
+    n_plots: int,
+    solve=assign_jv,
+) -> np.ndarray:
+    """Optimal assignment on a sparse table of gated pairs (rows: track, plot, cost):
+    each track takes at most one row or "no assignment" at ``miss_cost`` (n_tracks,).
+    Returns the chosen row per track (−1: none).
+
+    A track whose plots no other track gated takes its cheapest row if it beats the miss
+    cost (no solver call); every other cluster of :func:`track_clusters` is solved by
+    ``solve`` (:func:`assign_jv` or :func:`assign_auction`) on its dense sub-matrix."""
+    chosen = np.full(n_tracks, -1, dtype=np.int64)
+    if len(track) == 0:
+        return chosen
+    miss = np.broadcast_to(np.asarray(miss_cost, dtype=np.float64), (n_tracks,))
+    labels = track_clusters(track, plot, n_tracks, n_plots)
+    single = np.bincount(labels)[labels[track]] == 1
+    rows = np.flatnonzero(single & (cost < miss[track]))
+    if len(rows):
+        order = rows[np.lexsort((cost[rows], track[rows]))]
+        first = np.r_[True, track[order][1:] != track[order][:-1]]
+        chosen[track[order[first]]] = order[first]
+    multi = np.flatnonzero(~single)
+    lab = labels[track[multi]]
+    for c in np.unique(lab):
+        r = multi[lab == c]
+        trk, ti = np.unique(track[r], return_inverse=True)
+        plt, pi = np.unique(plot[r], return_inverse=True)
+        C = np.full((len(trk), len(plt)), np.inf)  # +inf: not gated
+        C[ti, pi] = cost[r]
+        t2p = solve(C, miss[trk]).track_to_plot
+        for a in np.flatnonzero(t2p >= 0):
+            if C[a, t2p[a]] < miss[trk[a]]:
+                chosen[trk[a]] = r[(ti == a) & (pi == t2p[a])][0]
+    return chosen

@@ -1,14 +1,17 @@
-"""Vectorised ellipsoidal gating of all track × plot pairs (spec 01 §6, 003 eq. 16-20).
+"""Gating of all (predicted state, plot) pairs at once — the one gating of skyfuse
+(spec 01 §6, 003 eq. 16-20; spec 02 §7 step 4, eq. 5.7).
 
-For track i with predicted measurement ẑ_i and plot j: ν_ij = z_j − ẑ_i,
-S_ij = S_i + R_j (S_i = H P_i⁻ Hᵀ; R_j the plot's covariance, or already inside S_i when
-plots share one R), d²_ij = ν_ijᵀ S_ij⁻¹ ν_ij, and the pair is valid when d²_ij ≤ G with
-G the chi-square quantile of P_G for the measurement dimension M (M = 2, P_G = 0.9997:
-G = −2 ln(1 − P_G) = 16.2235). The cost of a valid pair is A_ij = d²_ij + ln det S_ij;
-pairs outside the gate are forbidden (the source writes 0; here +inf).
+A predicted state c (a track, or one mixture component / IMM mode of a track) selects
+plot j when d² = νᵀ S⁻¹ ν < g with ν = z_j − ŷ^c and S = H P^c Hᵀ + R_j (per-plot R).
+g is the chi-square quantile of the gate probability P_G for the measurement dimension
+(spec 02 §10 [IMPL]: g = 9.21 ⇔ P_G = 0.99 in 2-D; 003: P_G = 0.9997, g = 16.2235).
+Returned per pair: ν, S, d², ln det S, log N(ν; 0, S) (the IPDA likelihood p = N/P_G,
+4.17) and the GNN cost d² + ln det S (003 eq. 20).
 
-Cheap pre-gate: the ellipsoid {ν : νᵀ S⁻¹ ν ≤ G} lies inside the box |ν_a| ≤ √(G S_aa),
-so only pairs inside that box (an O(n k M) comparison) get the full Mahalanobis distance.
+All pairs are never formed: a spatial pre-gate sorts the plots by their first coordinate
+and takes, per state, the window ``searchsorted(x ± r)`` with the radius
+r = √(g (tr HPHᵀ + max_j tr R_j)), which bounds √(g λ_max(S)); the other coordinates are
+then checked against the same radius, and only the survivors get an exact d².
 """
 
 from __future__ import annotations
@@ -16,68 +19,123 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy.stats import chi2
 
 
-def gate_threshold(p_gate: float, dim: int) -> float:
-    """G = chi-square quantile: P(χ²_dim ≤ G) = p_gate (dim 2: −2 ln(1 − p_gate))."""
+def gate_threshold(p_gate: float, ndim: int) -> float:
+    """g such that a target's measurement falls in the gate with probability ``p_gate``
+    (2-D: g = −2 ln(1 − P_G))."""
     if not 0.0 < p_gate < 1.0:
         raise ValueError(f"p_gate = {p_gate}: must be a probability in (0, 1)")
-    if dim < 1:
-        raise ValueError(f"dim = {dim}: must be >= 1")
-    return float(stats.chi2.ppf(p_gate, dim))
+    if ndim < 1:
+        raise ValueError(f"dim = {ndim}: must be >= 1")
+    return float(chi2.ppf(p_gate, ndim))
+
+
+def gate_probability(g: float, ndim: int) -> float:
+    """P_G = P(χ²_ndim < g); 2-D closed form 1 − e^{−g/2}."""
+    return float(chi2.cdf(g, ndim))
+
+
+def unit_ball_volume(ndim: int) -> float:
+    """Volume of the unit ball: π (2-D), 4π/3 (3-D)."""
+    return {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[ndim]
+
+
+def gate_volume(S: np.ndarray, g: float) -> np.ndarray:
+    """Volume of the gate {νᵀS⁻¹ν < g}: c_n g^{n/2} √det S (spec 02 §4 [LIT]: π g √det S)."""
+    n = S.shape[-1]
+    return unit_ball_volume(n) * g ** (n / 2) * np.sqrt(np.maximum(np.linalg.det(S), 0.0))
+
+
+def window_pairs(
+    centres: np.ndarray, radii: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """All (i, j) with |points[j] − centres[i]| ≤ radii[i] in every coordinate (a box test).
+
+    centres (n, k), radii (n,), points (m, k). Cost O((n + m) log m + pairs in windows)."""
+    n, m = len(centres), len(points)
+    if n == 0 or m == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order = np.argsort(points[:, 0], kind="stable")
+    xs = points[order, 0]
+    lo = np.searchsorted(xs, centres[:, 0] - radii, side="left")
+    hi = np.searchsorted(xs, centres[:, 0] + radii, side="right")
+    counts = hi - lo
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    i = np.repeat(np.arange(n), counts)
+    starts = np.repeat(lo - (np.cumsum(counts) - counts), counts)
+    j = order[starts + np.arange(total)]
+    if points.shape[1] > 1:
+        keep = (np.abs(points[j, 1:] - centres[i, 1:]) <= radii[i, None]).all(axis=1)
+        i, j = i[keep], j[keep]
+    return i, j
 
 
 @dataclass
-class GateResult:
-    """Valid pairs (sparse): track index, plot index, d², ln det S and cost d² + ln det S."""
+class GatedPairs:
+    """Gated (state, plot) pairs with their innovation statistics.
 
-    track: np.ndarray
+    state, plot (p,): indices; nu (p, k) innovations; S (p, k, k) innovation covariances;
+    d2 (p,) squared Mahalanobis distances; logdet (p,) ln det S; n_states, n_plots: the
+    problem size; n_pregated: pairs that survived the pre-gate."""
+
+    state: np.ndarray
     plot: np.ndarray
+    nu: np.ndarray
+    S: np.ndarray
     d2: np.ndarray
     logdet: np.ndarray
-    n_tracks: int
-    n_plots: int
-    n_pregated: int
+    n_states: int = 0
+    n_plots: int = 0
+    n_pregated: int = 0
+
+    def __len__(self) -> int:
+        return len(self.state)
+
+    @property
+    def log_pdf(self) -> np.ndarray:
+        """log N(ν; 0, S) = −(d² + ln det S + k ln 2π)/2."""
+        k = self.nu.shape[1]
+        return -0.5 * (self.d2 + self.logdet + k * np.log(2.0 * np.pi))
 
     @property
     def cost(self) -> np.ndarray:
+        """GNN cost d² + ln det S (003 eq. 20)."""
         return self.d2 + self.logdet
 
     def cost_matrix(self) -> np.ndarray:
-        """Dense (n_tracks, n_plots) cost with +inf for forbidden pairs."""
-        C = np.full((self.n_tracks, self.n_plots), np.inf)
-        C[self.track, self.plot] = self.cost
+        """Dense (n_states, n_plots) cost with +inf for pairs outside the gate."""
+        C = np.full((self.n_states, self.n_plots), np.inf)
+        C[self.state, self.plot] = self.cost
         return C
 
 
 def gate(
-    zhat: np.ndarray,
-    S_track: np.ndarray,
-    z: np.ndarray,
-    threshold: float,
-    R: np.ndarray | None = None,
-) -> GateResult:
-    """Gate n tracks (ẑ (n, m), S_track (n, m, m)) against k plots z (k, m) with optional
-    per-plot covariances R (k, m, m) added to S (S_ij = S_track_i + R_j)."""
-    zhat = np.atleast_2d(np.asarray(zhat, float))
-    z = np.asarray(z, float).reshape(-1, zhat.shape[1])
-    n, k = zhat.shape[0], z.shape[0]
-    empty = np.zeros(0, int)
-    if n == 0 or k == 0:
-        return GateResult(empty, empty, np.zeros(0), np.zeros(0), n, k, 0)
-    diag_t = np.diagonal(S_track, axis1=-2, axis2=-1)  # (n, m)
-    diag_r = np.zeros((1, z.shape[1])) if R is None else np.diagonal(R, axis1=-2, axis2=-1)
-    nu_abs = np.abs(z[None, :, :] - zhat[:, None, :])  # (n, k, m)
-    box = (nu_abs * nu_abs <= threshold * (diag_t[:, None, :] + diag_r[None, :, :])).all(-1)
-    ti, pj = np.nonzero(box)
-    if ti.size == 0:
-        return GateResult(empty, empty, np.zeros(0), np.zeros(0), n, k, 0)
-    S = S_track[ti] if R is None else S_track[ti] + R[pj]
-    nu = z[pj] - zhat[ti]
+    y_pred: np.ndarray, HPHt: np.ndarray, z: np.ndarray, R: np.ndarray | None, g: float
+) -> GatedPairs:
+    """Gate states (predicted measurements ``y_pred`` (n, k), ``HPHt`` (n, k, k)) against
+    plots ``z`` (m, k) with covariances ``R`` (m, k, k) (None: already inside HPHt)."""
+    y_pred = np.atleast_2d(np.asarray(y_pred, dtype=np.float64))
+    k = y_pred.shape[1]
+    z = np.asarray(z, dtype=np.float64).reshape(-1, k)
+    n, m = len(y_pred), len(z)
+    if n == 0 or m == 0:
+        e = np.zeros(0, np.int64)
+        f = np.zeros(0)
+        return GatedPairs(e, e, np.zeros((0, k)), np.zeros((0, k, k)), f, f, n, m, 0)
+    trR = 0.0 if R is None else np.trace(R, axis1=1, axis2=2).max()
+    radius = np.sqrt(g * (np.trace(HPHt, axis1=1, axis2=2) + trR))
+    ci, pj = window_pairs(y_pred, radius, z)
+    S = HPHt[ci] if R is None else HPHt[ci] + R[pj]
+    nu = z[pj] - y_pred[ci]
     L = np.linalg.cholesky(S)
-    y = np.linalg.solve(L, nu[..., None])[..., 0]
-    d2 = np.einsum("ci,ci->c", y, y)
-    logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(-1)
-    ok = d2 <= threshold
-    return GateResult(ti[ok], pj[ok], d2[ok], logdet[ok], n, k, int(ti.size))
+    w = np.linalg.solve(L, nu[..., None])[..., 0]
+    d2 = np.einsum("pi,pi->p", w, w)
+    keep = d2 < g
+    npre = len(ci)
+    ci, pj, S, nu, d2, L = ci[keep], pj[keep], S[keep], nu[keep], d2[keep], L[keep]
+    logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+    return GatedPairs(ci, pj, nu, S, d2, logdet, n, m, npre)

@@ -28,11 +28,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..filters import IMM, GaussianState, IMMState
-from .assignment import assign_auction, assign_jv, split_clusters
-from .gating import GateResult, gate, gate_threshold
+from .assignment import assign_auction, assign_jv, assign_sparse
+from .gating import GatedPairs, gate, gate_threshold
 
 TENTATIVE, CONFIRMED = 0, 1
-_SMALL_PROBLEM = 64  # n·k below which one assignment problem beats splitting clusters
 
 
 @dataclass(frozen=True)
@@ -118,10 +117,10 @@ class GNNTracker:
         """IMM with one association matrix per mode (spec 01 §6 [S], 003): a pair is valid
         if it is inside any mode's gate; its cost is the smallest mode cost
         d²_j + ln det S_j; the miss cost is the largest mode's gate-edge cost."""
-        results = [gate(zj, Sj, z, G, R) for zj, Sj in per_mode]
-        n = results[0].n_tracks
+        results = [gate(zj, Sj, z, R, G) for zj, Sj in per_mode]
+        n = results[0].n_states
         k = results[0].n_plots
-        track = np.concatenate([r.track for r in results])
+        track = np.concatenate([r.state for r in results])
         plot = np.concatenate([r.plot for r in results])
         d2 = np.concatenate([r.d2 for r in results])
         logdet = np.concatenate([r.logdet for r in results])
@@ -130,10 +129,10 @@ class GNNTracker:
         first = np.ones(order.size, bool)
         first[1:] = key[1:] != key[:-1]
         keep = order[first]
-        g = GateResult(
-            track[keep], plot[keep], d2[keep], logdet[keep], n, k,
-            sum(r.n_pregated for r in results),
-        )  # fmt: skip
+        nu = np.concatenate([r.nu for r in results])[keep]
+        S = np.concatenate([r.S for r in results])[keep]
+        npre = sum(r.n_pregated for r in results)
+        g = GatedPairs(track[keep], plot[keep], nu, S, d2[keep], logdet[keep], n, k, npre)
         miss = G + np.max([np.linalg.slogdet(Sj + Rbar)[1] for _, Sj in per_mode], axis=0)
         return g, miss
 
@@ -158,23 +157,11 @@ class GNNTracker:
             if isinstance(self.filt, IMM) and self.cfg.imm_gating == "per-mode":
                 g, miss = self._gate_per_mode(pred[2], z, R, G, Rbar)
             else:
-                g = gate(pred[0], pred[1], z, G, R)
+                g = gate(pred[0], pred[1], z, R, G)
                 miss = G + np.linalg.slogdet(pred[1] + Rbar)[1]
-            n_gated = g.track.size
-            clusters = (
-                split_clusters(g.track, g.plot, n, k)
-                if n * k > _SMALL_PROBLEM
-                else [(np.unique(g.track), np.unique(g.plot))]
-                if g.track.size
-                else []
-            )
-            for tr, pl in clusters:
-                sel = np.isin(g.track, tr) & np.isin(g.plot, pl)
-                C = np.full((tr.size, pl.size), np.inf)
-                C[np.searchsorted(tr, g.track[sel]), np.searchsorted(pl, g.plot[sel])] = g.cost[sel]
-                a = self._solve(C, miss[tr])
-                ok = a.track_to_plot >= 0
-                assigned_plot[tr[ok]] = pl[a.track_to_plot[ok]]
+            n_gated = len(g)
+            rows = assign_sparse(g.state, g.plot, g.cost, miss, n, k, self._solve)
+            assigned_plot[rows >= 0] = g.plot[rows[rows >= 0]]
             upd = np.flatnonzero(assigned_plot >= 0)
             if upd.size:
                 sub = self.state.take(upd)

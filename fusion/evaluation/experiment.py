@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from skyfuse.fusion.tracker.config import SINGLE_GAUSSIAN_KINDS, TrackerConfig
+from skyfuse.fusion.tracker.registry import TRACKERS
 
 #: Scenarios with the planar cartesian sensor the fast Monte Carlo path supports.
 PLANAR_SCENARIOS = (
@@ -43,7 +44,7 @@ SOURCE_RUNS = 500
 FALSE_TRACK_TARGET_STT = 20.0
 FALSE_TRACK_TARGET_MTT = 15.0
 
-TRACKER_KINDS = ("gnn", "ipda", "its", "lmipda", "lmits", "jipda", "jits")
+TRACKER_KINDS = tuple(TRACKERS)  # from the registry of fusion.tracker
 
 
 def run_seed(seed: int, run: int) -> int:
@@ -162,6 +163,7 @@ class Experiment(BaseModel):
         base: dict[str, object] = {
             "tracker": variant.tracker,
             "depth": variant.depth,
+            "motion": "cv",  # the source's constant-velocity model
             "q": 0.75,
             "p_gate": 0.99,
             "clutter": "estimated",

@@ -32,6 +32,7 @@ from .model_filter import (
     common_one_point,
     common_two_point,
 )
+from .moment_matching import moment_match_rows
 
 G0 = 9.80665
 
@@ -68,14 +69,6 @@ class IMMState:
 
     def copy(self) -> IMMState:
         return IMMState([a.copy() for a in self.x], [a.copy() for a in self.P], self.mu.copy())
-
-
-def _moment_match(w: np.ndarray, xs: np.ndarray, Ps: np.ndarray):
-    """Σ_i w_i N(x_i, P_i) → (x, P); w (n, r), xs (n, r, d), Ps (n, r, d, d)."""
-    x = np.einsum("nr,nrd->nd", w, xs)
-    d = xs - x[:, None, :]
-    P = np.einsum("nr,nrij->nij", w, Ps + d[..., :, None] * d[..., None, :])
-    return x, 0.5 * (P + np.swapaxes(P, -1, -2))
 
 
 class IMM:
@@ -154,7 +147,7 @@ class IMM:
         Ps = np.stack([cP for _, cP in common], axis=1)
         x0, P0 = [], []
         for j in range(self.r):
-            xm, Pm = _moment_match(w[:, :, j], xs, Ps)
+            xm, Pm = moment_match_rows(w[:, :, j], xs, Ps)
             xj, Pj = self._from_common(j, xm, Pm)
             x0.append(xj)
             P0.append(Pj)
@@ -181,7 +174,7 @@ class IMM:
         if any(isinstance(f.measurement, PolarMeasurement) for f in self.filters):
             # polar: average the azimuths around the first mode's (no 2π jumps)
             zs[..., 1] = zs[:, :1, 1] + wrap_angle(zs[..., 1] - zs[:, :1, 1])
-        zhat, S = _moment_match(state.mu, zs, Ss)
+        zhat, S = moment_match_rows(state.mu, zs, Ss)
         return zhat, S, per
 
     def update(self, state: IMMState, z, R):
@@ -203,7 +196,7 @@ class IMM:
         common = [self._to_common(j, state.x[j], state.P[j]) for j in range(self.r)]
         xs = np.stack([cx for cx, _ in common], axis=1)
         Ps = np.stack([cP for _, cP in common], axis=1)
-        return GaussianState(*_moment_match(state.mu, xs, Ps))
+        return GaussianState(*moment_match_rows(state.mu, xs, Ps))
 
     def position(self, state: IMMState) -> np.ndarray:
         return self.estimate(state).x[:, list(self.position_index)]

@@ -16,6 +16,7 @@ import numpy as np
 from ..models import CoordinatedTurn, from_common, to_common
 from . import ekf
 from .gaussian_state import GaussianState
+from .initiation import embed_common, one_point, two_point
 from .kalman import gaussian_log_likelihood
 from .measurement_models import PolarMeasurement, PositionMeasurement
 
@@ -98,53 +99,15 @@ def PolarEKF(model, sensor_position, ndim: int = 2, name: str | None = None) -> 
     return ModelFilter(model, PolarMeasurement(model, sensor_position, ndim), name)
 
 
-def _common_layout(ndim: int, m: int):
-    pos = [3 * a for a in range(m)]
-    vel = [3 * a + 1 for a in range(m)]
-    acc = [3 * a + 2 for a in range(ndim)]
-    return pos, vel, acc
-
-
 def common_one_point(z, R, velocity_sigma, acceleration_sigma, ndim):
-    """Common-format (Singer layout, ``ndim`` axes) state from one position measurement."""
-    z = np.atleast_2d(np.asarray(z, float))
-    n, m = z.shape
-    R = np.broadcast_to(R, (n, m, m))
-    dc = 3 * ndim
-    pos, _vel, acc = _common_layout(ndim, m)
-    x = np.zeros((n, dc))
-    P = np.zeros((n, dc, dc))
-    x[:, pos] = z
-    P[np.ix_(np.arange(n), pos, pos)] = R
-    for a in range(ndim):
-        P[:, 3 * a + 1, 3 * a + 1] = velocity_sigma**2
-        if a >= m:  # an axis without measurement (e.g. z of a 2-D plot)
-            P[:, 3 * a, 3 * a] = 1e8
-    P[:, acc, acc] = acceleration_sigma**2
-    return x, P
+    """Common-format (Singer layout, ``ndim`` axes) state from one position measurement
+    (:func:`fusion.filters.initiation.one_point` embedded by ``embed_common``)."""
+    x, P = one_point(z, R, velocity_sigma**2)
+    return embed_common(x, P, ndim, acceleration_sigma, (1e8, velocity_sigma**2))
 
 
 def common_two_point(z1, R1, z2, R2, dt, acceleration_sigma, ndim):
     """Two-point differencing in the common format: p = z2, v = (z2 − z1)/dt,
     Cov = [[R2, R2/dt], [R2/dt, (R1 + R2)/dt²]] (acceleration 0 ± acceleration_sigma)."""
-    z1, z2 = np.atleast_2d(z1), np.atleast_2d(z2)
-    n, m = z2.shape
-    R1 = np.broadcast_to(R1, (n, m, m))
-    R2 = np.broadcast_to(R2, (n, m, m))
-    dt = np.broadcast_to(np.asarray(dt, float), (n,))[:, None, None]
-    pos, vel, acc = _common_layout(ndim, m)
-    dc = 3 * ndim
-    x = np.zeros((n, dc))
-    P = np.zeros((n, dc, dc))
-    x[:, pos] = z2
-    x[:, vel] = (z2 - z1) / dt[:, :, 0]
-    ii = np.arange(n)
-    P[np.ix_(ii, pos, pos)] = R2
-    P[np.ix_(ii, pos, vel)] = R2 / dt
-    P[np.ix_(ii, vel, pos)] = R2 / dt
-    P[np.ix_(ii, vel, vel)] = (R1 + R2) / dt**2
-    P[:, acc, acc] = acceleration_sigma**2
-    for a in range(m, ndim):
-        P[:, 3 * a, 3 * a] = 1e8
-        P[:, 3 * a + 1, 3 * a + 1] = 1e4
-    return x, P
+    x, P = two_point(z1, R1, z2, R2, dt)
+    return embed_common(x, P, ndim, acceleration_sigma, (1e8, 1e4))

@@ -5,11 +5,16 @@ memory, LM-IPDA/LM-ITS, JIPDA/JITS and GNN in one array-based framework.
 >>> tracker = Tracker(TrackerConfig(tracker="lmits", depth=3))
 >>> out = tracker.step(batch)          # one radar sector/scan in the system frame
 
-Modules: ``config`` (TrackerConfig), ``measurements`` (MeasurementBatch, SectorCoverage),
-``existence`` (Markov chains), ``gating``, ``ipda`` (Λ, ψ, β), ``lm_its`` (modified
-clutter), ``jits`` (clusters, joint events), ``gnn``, ``its`` (component update),
-``components`` (mixture store, Singer merge, pruning), ``initiation``, ``management``,
-``tracker`` (the step). The wire adapter (PlotBatch → MeasurementBatch) lives in
+Parts (swappable, named in ``registry``): ``density`` (the TrackDensity interface;
+Gaussian mixture with Singer memory, IMM mixture), ``associators`` (single, lm, joint,
+gnn over ``ipda`` (Λ, ψ, β), ``lm_its`` (modified clutter), ``jits`` (joint events),
+``gnn``), ``existence`` (Markov chains), ``clutter`` (known / estimated), ``coverage``,
+``initiation``, ``management``; ``its`` (component update) and ``components`` (mixture
+store, Singer merge, pruning) serve the Gaussian-mixture density; ``config``
+(TrackerConfig), ``measurements`` (MeasurementBatch, SectorCoverage), ``tracker`` (the
+step). Gating is :mod:`fusion.association.gating`, moment matching
+:mod:`fusion.filters.moment_matching`, initial states :mod:`fusion.filters.initiation`.
+The wire adapter (PlotBatch → MeasurementBatch) lives in
 ``skyfuse.services.fusion.adapter``.
 """
 

@@ -1,4 +1,5 @@
-"""Track mixtures in flat arrays: Singer N-scan merge, pruning, moment matching (spec 02 §7).
+"""Track mixtures in flat arrays: Singer N-scan merge and pruning (spec 02 §7); the moment
+matching itself is :mod:`fusion.filters.moment_matching`.
 
 Every track is a Gaussian mixture {ξ^c, x̂^c, P^c, h^c}. All components of all tracks
 live in one :class:`Mixture`: ``track`` (C,) says which track row a component belongs to,
@@ -12,6 +13,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from skyfuse.fusion.filters.moment_matching import moment_match, segment_sum
+
+__all__ = [
+    "Mixture",
+    "components_per_track",
+    "history_groups",
+    "moment_match",
+    "normalise",
+    "prune",
+    "prune_indices",
+    "segment_sum",
+    "singer_merge",
+    "track_estimates",
+]
 
 
 @dataclass
@@ -51,50 +66,6 @@ class Mixture:
         )
 
 
-def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
-    """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
-
-    One ``np.add.reduceat`` over the components sorted by group (a stable sort, skipped
-    when ``group`` is already non-decreasing): linear in C, no per-component Python, and
-    the same summation order as a sequential sum."""
-    out = np.zeros((ngroups, *values.shape[1:]))
-    if len(values) == 0:
-        return out
-    group = np.asarray(group)
-    if len(group) > 1 and (group[1:] < group[:-1]).any():
-        order = np.argsort(group, kind="stable")
-        group, values = group[order], values[order]
-    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    out[group[starts]] = np.add.reduceat(values, starts, axis=0)
-    return out
-
-
-def moment_match(
-    w: np.ndarray, x: np.ndarray, P: np.ndarray, group: np.ndarray, ngroups: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Merge components with equal ``group`` (spec 02 §7 step 11 [LIT], 4.66-4.68):
-    ξ^μ = Σξ^n, x̂^μ = Σξ^n x̂^n / ξ^μ, P^μ = Σξ^n [P^n + (x̂^n−x̂^μ)(x̂^n−x̂^μ)ᵀ] / ξ^μ.
-
-    Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean."""
-    if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
-        # one component per group (GNN/IPDA tracks): nothing to merge
-        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + np.swapaxes(P, 1, 2))
-    W = np.bincount(group, weights=w, minlength=ngroups)
-    zero = W <= 0.0
-    ww = w.copy()
-    if zero.any():  # fall back to equal weights inside weightless groups
-        ww[zero[group]] = 1.0
-        Wn = np.bincount(group, weights=ww, minlength=ngroups)
-    else:
-        Wn = W
-    xm = segment_sum(ww[:, None] * x, group, ngroups) / Wn[:, None]
-    dx = x - xm[group]
-    spread = P + dx[:, :, None] * dx[:, None, :]
-    Pm = segment_sum(ww[:, None, None] * spread, group, ngroups) / Wn[:, None, None]
-    Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
-    return W, xm, Pm
-
-
 def singer_merge(mix: Mixture) -> Mixture:
     """Singer N-scan memory (spec 02 §7 step 11): merge, per track, all components whose
     last-N-scan plot histories are equal. Depth 0 (no history columns) merges every track
@@ -102,14 +73,7 @@ def singer_merge(mix: Mixture) -> Mixture:
     (1+m_k)(1+m_{k−1}) (N=2) when every component selects every plot (5.26, 5.1a)."""
     if len(mix) == 0:
         return mix
-    keys = np.column_stack([mix.track, mix.hist])
-    # rows grouped as np.unique(keys, axis=0) would (lexicographic), by one lexsort
-    order = np.lexsort(keys.T[::-1])
-    ks = keys[order]
-    new = np.r_[True, (ks[1:] != ks[:-1]).any(axis=1)]
-    uniq = ks[new]
-    inv = np.empty(len(order), np.int64)
-    inv[order] = np.cumsum(new) - 1
+    inv, uniq = history_groups(mix.track, mix.hist)
     W, xm, Pm = moment_match(mix.w, mix.x, mix.P, inv, len(uniq))
     return Mixture(uniq[:, 0].copy(), W, xm, Pm, uniq[:, 1:].copy())
 
@@ -123,19 +87,47 @@ def normalise(mix: Mixture, ntracks: int) -> Mixture:
     return mix
 
 
-def prune(mix: Mixture, threshold: float, max_per_track: int, ntracks: int) -> Mixture:
-    """Delete components with ξ < ``threshold`` (keeping each track's strongest), keep at
-    most ``max_per_track`` per track by weight, renormalise (spec 02 §7 step 11 [IMPL])."""
-    if len(mix) == 0:
-        return mix
-    mix = normalise(mix, ntracks)
-    order = np.lexsort((-mix.w, mix.track))
-    t_sorted = mix.track[order]
+def prune_indices(
+    track: np.ndarray, w: np.ndarray, threshold: float, max_per_track: int, ntracks: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which components survive pruning, and their renormalised weights: delete ξ <
+    ``threshold`` (keeping each track's strongest), keep at most ``max_per_track`` per
+    track by weight (spec 02 §7 step 11 [IMPL]). Returns (kept indices, weights)."""
+    if len(w) == 0:
+        return np.zeros(0, np.int64), w
+    tot = np.bincount(track, weights=w, minlength=ntracks)
+    w = w / np.where(tot[track] > 0, tot[track], 1.0)
+    order = np.lexsort((-w, track))
+    t_sorted = track[order]
     first = np.searchsorted(t_sorted, t_sorted, side="left")
     rank = np.arange(len(order)) - first
-    keep_sorted = (rank < max_per_track) & ((mix.w[order] >= threshold) | (rank == 0))
+    keep_sorted = (rank < max_per_track) & ((w[order] >= threshold) | (rank == 0))
     keep = np.sort(order[keep_sorted])
-    return normalise(mix.take(keep), ntracks)
+    wk, tk = w[keep], track[keep]
+    tot = np.bincount(tk, weights=wk, minlength=ntracks)
+    return keep, wk / np.where(tot[tk] > 0, tot[tk], 1.0)
+
+
+def prune(mix: Mixture, threshold: float, max_per_track: int, ntracks: int) -> Mixture:
+    """:func:`prune_indices` applied to a :class:`Mixture`."""
+    if len(mix) == 0:
+        return mix
+    keep, w = prune_indices(mix.track, mix.w, threshold, max_per_track, ntracks)
+    out = mix.take(keep)
+    out.w = w
+    return out
+
+
+def history_groups(track: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singer N-scan groups: (group label per component, unique (track, hist) rows),
+    grouped as ``np.unique(keys, axis=0)`` would (lexicographic), by one lexsort."""
+    keys = np.column_stack([track, hist])
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    new = np.r_[True, (ks[1:] != ks[:-1]).any(axis=1)]
+    inv = np.empty(len(order), np.int64)
+    inv[order] = np.cumsum(new) - 1
+    return inv, ks[new]
 
 
 def track_estimates(mix: Mixture, ntracks: int) -> tuple[np.ndarray, np.ndarray]:

@@ -12,10 +12,14 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-TrackerKind = Literal["gnn", "ipda", "its", "lmipda", "lmits", "jipda", "jits"]
+from .registry import MOTIONS, TRACKERS, motion_help, single_gaussian_kinds, tracker_help
+
+#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry`.
+TrackerKind = Literal[tuple(TRACKERS)]  # type: ignore[valid-type]
+MotionKind = Literal[tuple(MOTIONS)]  # type: ignore[valid-type]
 
 #: Trackers whose Singer memory depth is fixed at 0 (a single Gaussian per track).
-SINGLE_GAUSSIAN_KINDS = ("gnn", "ipda", "lmipda", "jipda")
+SINGLE_GAUSSIAN_KINDS = single_gaussian_kinds()
 
 
 class TrackerConfig(BaseModel):
@@ -25,7 +29,12 @@ class TrackerConfig(BaseModel):
 
     tracker: TrackerKind = Field(
         "lmits",
-        description="Association: gnn, ipda, its, lmipda, lmits, jipda or jits",
+        description="Tracker: " + tracker_help(),
+    )
+    motion: MotionKind = Field(
+        "imm-cv-ct",
+        description="Motion density: " + motion_help() + " (imm-cv-ct chosen by measurement, "
+        "docs/tracker.md)",
     )
     depth: int = Field(
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
@@ -63,6 +72,13 @@ class TrackerConfig(BaseModel):
     )
     initiation: Literal["two_point", "one_point", "none"] = Field(
         "two_point", description="Track initiation: two_point (3.25-3.27), one_point, none"
+    )
+    init_free_weight: float | None = Field(
+        None,
+        gt=0.0,
+        le=1.0,
+        description="A plot may start a track when the tracks' association weights Σβ on it "
+        "are below this (None: only plots no track gated)",
     )
     v_max: float = Field(
         350.0, gt=0.0, description="Maximum target speed for two-point pairing, m/s"
@@ -114,6 +130,34 @@ class TrackerConfig(BaseModel):
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
     )
 
+    # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
+    # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
+    # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.
+    imm_q_cv: float = Field(4.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
+    imm_ct_sigma_a: float = Field(
+        1.0, ge=0.0, description="IMM: turn-mode tangential acceleration σ, m/s²"
+    )
+    imm_ct_sigma_omega: float = Field(
+        0.03, gt=0.0, description="IMM: turn-mode turn-rate acceleration σ, rad/s²"
+    )
+    imm_singer_tau: float = Field(10.0, gt=0.0, description="IMM: Singer-mode time constant τ, s")
+    imm_singer_sigma_m: float = Field(
+        30.0, ge=0.0, description="IMM: Singer-mode acceleration σ_m, m/s² (≈ 3 g)"
+    )
+    imm_tpm: list[float] = Field(
+        [0.95, 0.05, 0.10, 0.90],
+        description="IMM mode transition matrix per imm_tpm_period, row-major (p11, p12, p21, p22)",
+    )
+    imm_tpm_period: float = Field(
+        4.0, gt=0.0, description="Period the IMM transition matrix refers to, s"
+    )
+    imm_mu0: list[float] = Field(
+        [0.9, 0.1], description="IMM mode probabilities of a new track (CV, manoeuvre)"
+    )
+    imm_init_acceleration: float = Field(
+        5.0, ge=0.0, description="IMM: acceleration σ of a new track, m/s²"
+    )
+
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
         if self.tau_terminate >= self.tau_confirm:
@@ -124,6 +168,12 @@ class TrackerConfig(BaseModel):
         if self.psi_init >= self.tau_confirm:
             raise ValueError(
                 f"psi_init = {self.psi_init} must be below tau_confirm = {self.tau_confirm}"
+            )
+        r = len(self.imm_mu0)
+        if len(self.imm_tpm) != r * r or r < 1 or min(self.imm_mu0) < 0 or sum(self.imm_mu0) <= 0:
+            raise ValueError(
+                f"imm_tpm has {len(self.imm_tpm)} entries and imm_mu0 = {self.imm_mu0}: need "
+                f"{r}x{r} = {r * r} transition probabilities and non-negative mode weights"
             )
         if self.init_min_dt >= self.init_max_dt:
             raise ValueError(
@@ -139,13 +189,5 @@ class TrackerConfig(BaseModel):
 
     @property
     def association(self) -> str:
-        """The association family: gnn, single (IPDA/ITS), lm or joint."""
-        return {
-            "gnn": "gnn",
-            "ipda": "single",
-            "its": "single",
-            "lmipda": "lm",
-            "lmits": "lm",
-            "jipda": "joint",
-            "jits": "joint",
-        }[self.tracker]
+        """The association part of the tracker kind (registry): gnn, single, lm or joint."""
+        return TRACKERS[self.tracker].association

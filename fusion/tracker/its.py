@@ -10,10 +10,10 @@ LM-IPDA β it is the multi-target update. The child's plot history is the new pl
 from __future__ import annotations
 
 import numpy as np
+from skyfuse.fusion.association.gating import GatedPairs
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
 
 from .components import Mixture
-from .gating import GatedPairs
 
 
 def shift_history(hist: np.ndarray, new_ids: np.ndarray) -> np.ndarray:
@@ -53,7 +53,7 @@ def component_update(
     if len(pairs) == 0:
         children = null
     else:
-        c = pairs.comp
+        c = pairs.state
         wi = pred.w[c] * beta[row] * p_pair / p_track[row]
         P = pred.P[c]
         K = gain(P, H, pairs.S)

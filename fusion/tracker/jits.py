@@ -14,32 +14,11 @@ the cluster falls back to the LM approximation (counted in ``stats['lm_fallback'
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from skyfuse.fusion.association.assignment import track_clusters as clusters
 
 from .ipda import AssociationResult, single_target
 
-
-def clusters(tp_track: np.ndarray, tp_plot: np.ndarray, ntracks: int, nplots: int) -> np.ndarray:
-    """Cluster label of every track: tracks sharing a gated plot, directly or through a
-    chain of tracks, get the same label (spec 03 §1.1 step 1). Labels are in
-    [0, 2 ntracks); a track that shares no plot is alone in its cluster.
-
-    Only the rows of plots gated by two or more tracks enter the graph search (scipy's
-    ``connected_components``); when no plot is shared it is skipped entirely."""
-    labels = np.arange(ntracks, dtype=np.int64)
-    if ntracks == 0 or len(tp_track) == 0:
-        return labels
-    shared = np.bincount(tp_plot, minlength=nplots)[tp_plot] > 1
-    if not shared.any():
-        return labels
-    trk, ti = np.unique(tp_track[shared], return_inverse=True)
-    plt, pi = np.unique(tp_plot[shared], return_inverse=True)
-    nt, N = len(trk), len(trk) + len(plt)
-    A = sp.csr_matrix((np.ones(len(ti)), (ti.reshape(-1), nt + pi.reshape(-1))), shape=(N, N))
-    _, sub = connected_components(A, directed=False)
-    labels[trk] = ntracks + sub[:nt]
-    return labels
+__all__ = ["clusters", "event_count", "feasible_events", "joint_association"]
 
 
 def feasible_events(

@@ -44,7 +44,7 @@ def test_gate_equals_brute_force_mahalanobis(seed, n, k, m):
     R = B @ np.swapaxes(B, -1, -2) + 10 * np.eye(m)
     z = rng.uniform(0, 1000, (k, m))
     G = gate_threshold(0.99, m)
-    g = gate(zhat, S, z, G, R)
+    g = gate(zhat, S, z, R, G)
     expected = {}
     for i in range(n):
         for j in range(k):
@@ -53,7 +53,7 @@ def test_gate_equals_brute_force_mahalanobis(seed, n, k, m):
             d2 = nu @ np.linalg.inv(Sij) @ nu
             if d2 <= G:
                 expected[(i, j)] = d2 + np.log(np.linalg.det(Sij))
-    got = {(int(i), int(j)): c for i, j, c in zip(g.track, g.plot, g.cost)}
+    got = {(int(i), int(j)): c for i, j, c in zip(g.state, g.plot, g.cost)}
     assert got.keys() == expected.keys()
     for key, c in expected.items():
         assert got[key] == pytest.approx(c, rel=1e-9, abs=1e-9)

@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from skyfuse.fusion.association.gating import gate, window_pairs
 from skyfuse.fusion.tracker import MeasurementBatch, SectorCoverage, Tracker, TrackerConfig
 from skyfuse.fusion.tracker.existence import markov_chain_one, markov_chain_two
-from skyfuse.fusion.tracker.gating import gate, window_pairs
 
 R = 25.0 * np.eye(2)
 NS = 10**9
 
 
 def cfg(**kw):
-    base = dict(q=0.75, v_max=50.0, init_max_dt=1.5, clutter="known", psi_init=0.02)
+    base = dict(q=0.75, v_max=50.0, init_max_dt=1.5, clutter="known", psi_init=0.02, motion="cv")
     base.update(kw)
     return TrackerConfig(**base)
 
@@ -160,7 +160,7 @@ def test_window_pairs_and_gate_match_brute_force():
     S = HPH[:, None] + Rp[None]
     nu = p[None] - c[:, None]
     d2 = np.einsum("cpi,cpij,cpj->cp", nu, np.linalg.inv(S), nu)
-    assert set(zip(gp.comp.tolist(), gp.plot.tolist())) == set(zip(*np.nonzero(d2 < 9.21)))
+    assert set(zip(gp.state.tolist(), gp.plot.tolist())) == set(zip(*np.nonzero(d2 < 9.21)))
 
 
 def test_markov_chains_match_matrix_powers():

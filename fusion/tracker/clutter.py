@@ -1,0 +1,44 @@
+"""Clutter density per track × plot row for the existence trackers (spec 02 §4).
+
+* ``known``: the sensor's (or clutter map's) density at each plot, floored;
+* ``estimated``: the non-parametric per-track estimate (2.35 corrected,
+  :func:`fusion.tracker.ipda.estimated_clutter_density`) over the gate volume
+  V = c_k g^{k/2} √det S̄ of the track-level innovation covariance S̄ = H P Hᵀ + R̄ (the
+  predicted density's ``S0`` plus the batch's mean plot covariance).
+
+Units: plots per m² (2-D) or per m³ (3-D).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from skyfuse.fusion.association.gating import gate_volume
+
+from .ipda import estimated_clutter_density
+
+
+def clutter_density(
+    kind: str,
+    plot_density: np.ndarray,
+    floor: float,
+    tp_track: np.ndarray,
+    tp_plot: np.ndarray,
+    S0: np.ndarray,
+    R: np.ndarray,
+    pdpg: np.ndarray,
+    psi_det: np.ndarray,
+    g: float,
+) -> np.ndarray:
+    """ρ per table row. plot_density (m,) the sensor density at each plot; S0 (s, k, k) the
+    tracks' H P Hᵀ; R (m, k, k) plot covariances; pdpg, psi_det (s,) per track."""
+    rho_plot = np.maximum(np.asarray(plot_density, dtype=np.float64), floor)
+    if kind == "known":
+        return rho_plot[tp_plot]
+    if kind != "estimated":
+        raise ValueError(f"clutter = {kind!r}: must be 'known' or 'estimated'")
+    ns, k = len(S0), R.shape[-1]
+    m_trk = np.bincount(tp_track, minlength=ns)
+    R_nom = R.mean(axis=0) if len(R) else np.eye(k)
+    vol = gate_volume(S0 + R_nom, g) if ns else np.zeros(0)
+    rho_trk = estimated_clutter_density(m_trk, pdpg, psi_det, vol, floor)
+    return rho_trk[tp_track]

@@ -1,0 +1,445 @@
+"""IMM mixture track density: every ITS component is an IMM (IMM-IPDA, IMM-ITS,
+IMM-LM-ITS, IMM-JITS). Spec 01 §5 (004 eq. 15-21) inside spec 02 §7 / spec 03 §1.
+
+Each component c of a track carries a weight ξ^c, a plot history h^c (Singer N-scan
+memory, depth 0 = one IMM per track) and, per mode j, a mode probability μ^c_j and a
+mode-matched Gaussian (x̂^c_j, P^c_j) in that mode's own state (CV [x, vx, y, vy(, z, vz)],
+coordinated turn (x, y, ψ, ω, v(, z, vz)) or Singer [x, vx, ax, …]). The existence
+recursion and the association are unchanged: they only see the track likelihoods p^τ_i.
+
+Per batch, for the components of the tracks in coverage over their dt:
+
+1. **Interaction** (eq. 15-17): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
+   Π_T per period T, fractional power by eigendecomposition); c_j = Σ_i Π_ij μ_i,
+   μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
+   common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
+2. **Mode-matched prediction** of every mode (KF or EKF, :func:`fusion.filters.ekf.predict`).
+3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
+   per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
+   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10).
+4. **Update**: the "no plot" child keeps the predicted modes with μ = c; the child of plot
+   i has every mode Kalman-updated (Joseph form) and μ_j ∝ c_j N_j(z_i) (eq. 19), weight
+   ξ^{c,i} = β_i ξ^c p^c_i / p^τ_i (5.15). The Singer merge moment-matches each mode of the
+   components with equal history with weights ξ μ_j (their mode probabilities become
+   Σ ξ μ_j / Σ ξ); pruning as for the Gaussian mixture.
+5. **Estimate** (eq. 20-21, 4.66-4.68): all modes of all components of a track
+   moment-matched in the common layout, returned in the CV layout (m, m/s).
+
+With one CV mode and Π = [[1]] every step reduces to the Gaussian-mixture density (IPDA /
+ITS); the tests check that equivalence and the mode probabilities of a two-model case.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from skyfuse.fusion.association.gating import gate, gate_probability
+from skyfuse.fusion.filters.ekf import predict as ekf_predict
+from skyfuse.fusion.filters.initiation import embed_common
+from skyfuse.fusion.filters.kalman import gain, joseph_covariance
+from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
+from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
+from skyfuse.fusion.models.conversions import from_common, to_common
+
+from ..components import history_groups, prune_indices
+from .base import GatedTable
+from .gaussian_mixture import MixturePrediction, track_table
+
+
+class ModeTransition:
+    """Mode transition probabilities over any dt: Π(dt) = Π_T^{dt/T} (rows: from, columns:
+    to), from a row-stochastic ``tpm`` per ``period`` s with real non-negative eigenvalues."""
+
+    def __init__(self, tpm, period: float) -> None:
+        tpm = np.asarray(tpm, dtype=np.float64)
+        r = len(tpm)
+        if tpm.shape != (r, r) or (tpm < 0).any() or not np.allclose(tpm.sum(axis=1), 1.0):
+            raise ValueError(f"mode transition matrix {tpm.tolist()}: must be row-stochastic")
+        lam, V = np.linalg.eig(tpm)
+        if np.abs(lam.imag).max() > 1e-12 or (lam.real < -1e-12).any():
+            raise ValueError(
+                f"mode transition matrix eigenvalues {lam}: must be real and non-negative "
+                "so that fractional periods are defined"
+            )
+        self.tpm, self.period = tpm, float(period)
+        self._lam = np.clip(lam.real, 0.0, None)
+        self._V = V.real
+        self._Vinv = np.linalg.inv(self._V)
+
+    @property
+    def r(self) -> int:
+        return len(self.tpm)
+
+    def __call__(self, dt: np.ndarray) -> np.ndarray:
+        """Π(dt) for dt (n,) seconds, shape (n, r, r)."""
+        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
+        M = (self._V[None] * self._lam[None, None, :] ** t[:, None, None]) @ self._Vinv
+        M = np.clip(M, 0.0, None)
+        return M / M.sum(axis=2, keepdims=True)
+
+
+@dataclass
+class IMMComponents:
+    """Flat store of IMM components: track (C,), w (C,), hist (C, N), mu (C, r), and per
+    mode j: x[j] (C, d_j), P[j] (C, d_j, d_j)."""
+
+    track: np.ndarray
+    w: np.ndarray
+    hist: np.ndarray
+    mu: np.ndarray
+    x: list[np.ndarray]
+    P: list[np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.w)
+
+    def take(self, idx: np.ndarray) -> IMMComponents:
+        return IMMComponents(
+            self.track[idx],
+            self.w[idx],
+            self.hist[idx],
+            self.mu[idx],
+            [a[idx] for a in self.x],
+            [a[idx] for a in self.P],
+        )
+
+    @staticmethod
+    def concat(parts: list[IMMComponents]) -> IMMComponents:
+        r = len(parts[0].x)
+        return IMMComponents(
+            np.concatenate([p.track for p in parts]),
+            np.concatenate([p.w for p in parts]),
+            np.concatenate([p.hist for p in parts]),
+            np.concatenate([p.mu for p in parts]),
+            [np.concatenate([p.x[j] for p in parts]) for j in range(r)],
+            [np.concatenate([p.P[j] for p in parts]) for j in range(r)],
+        )
+
+
+class IMMPrediction(MixturePrediction):
+    """Predicted IMM components of ``rows``: comp (mu = c, the predicted mode
+    probabilities), loc (C,) index into rows, per-mode predicted measurements
+    y (C, r, k) and H P Hᵀ (C, r, k, k); z_mean, S0 from the mode-mixed (eq. 20-21)
+    component predictions, on first use."""
+
+    def __init__(self, rows, comp: IMMComponents, loc, y, HPH) -> None:
+        super().__init__(rows, comp.w, loc, y, HPH)
+        self.comp = comp
+
+    def _track_moments(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._moments is None:
+            yc, Sc = moment_match_rows(self.comp.mu, self.y, self.HPH)
+            _, z, S = moment_match(self.w, yc, Sc, self.loc, len(self.rows))
+            self._moments = (z, S)
+        return self._moments
+
+
+@dataclass
+class IMMTable(GatedTable):
+    """Track × plot table plus the (component, plot) pairs behind it: pair_comp, pair_plot
+    (P,), per-mode innovations nu (P, r, k), S (P, r, k, k), log N (P, r); p_pair (P,)
+    p^c_i; pair_row (P,) table row; R (m, k, k); uid (m,) plot history ids."""
+
+    pair_comp: np.ndarray | None = None
+    pair_plot: np.ndarray | None = None
+    nu: np.ndarray | None = None
+    S: np.ndarray | None = None
+    log_n: np.ndarray | None = None
+    p_pair: np.ndarray | None = None
+    pair_row: np.ndarray | None = None
+    R: np.ndarray | None = None
+    uid: np.ndarray | None = None
+
+
+def _log_gauss(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """log N(ν; 0, S) over leading axes."""
+    L = np.linalg.cholesky(S)
+    w = np.linalg.solve(L, nu[..., None])[..., 0]
+    d2 = np.einsum("...i,...i->...", w, w)
+    logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+    return -0.5 * (d2 + logdet + nu.shape[-1] * np.log(2.0 * np.pi))
+
+
+class IMMMixtureDensity:
+    """IMM components of all tracks (see the module docstring).
+
+    models: the r mode models (CV, CoordinatedTurn, Singer; position-measured);
+    transition: :class:`ModeTransition`; mu0 (r,): mode probabilities of new tracks;
+    init_acceleration: σ (m/s²) of the zero acceleration of new tracks in the common
+    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture."""
+
+    def __init__(
+        self,
+        models: list,
+        transition: ModeTransition,
+        mu0,
+        ndim: int,
+        depth: int = 0,
+        prune_threshold: float = 1e-3,
+        max_components: int = 30,
+        init_acceleration: float = 5.0,
+    ) -> None:
+        if transition.r != len(models):
+            raise ValueError(f"{len(models)} modes but a {transition.r}-mode transition matrix")
+        self.models = list(models)
+        self.transition = transition
+        self.mu0 = np.asarray(mu0, dtype=np.float64) / np.sum(mu0)
+        self.ndim = ndim
+        self.dim = 2 * ndim
+        self.depth = depth
+        self.prune_threshold = prune_threshold
+        self.max_components = max_components
+        self.init_acceleration = init_acceleration
+        self.H = [m.H() for m in self.models]
+        self.pos = [list(m.position_index) for m in self.models]
+        self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
+        self.cv_index = [3 * a + b for a in range(ndim) for b in (0, 1)]
+        r = len(self.models)
+        self.comp = IMMComponents(
+            np.zeros(0, np.int64),
+            np.zeros(0),
+            np.zeros((0, depth), np.int64),
+            np.zeros((0, r)),
+            [np.zeros((0, m.dim)) for m in self.models],
+            [np.zeros((0, m.dim, m.dim)) for m in self.models],
+        )
+        self.x = np.zeros((0, self.dim))
+        self.P = np.zeros((0, self.dim, self.dim))
+        self.stats: dict[str, int] = {}
+        self._next_uid = 1
+
+    @property
+    def r(self) -> int:
+        return len(self.models)
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    # ------------------------------------------------------------------ layouts
+    def _common(self, j: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (x, P) if self.same_layout else to_common(self.models[j], x, P)
+
+    def _native(self, j: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (x, P) if self.same_layout else from_common(self.models[j], x, P)
+
+    def _stack_common(self, comp: IMMComponents) -> tuple[np.ndarray, np.ndarray]:
+        """All modes in the common layout: (C, r, dc), (C, r, dc, dc)."""
+        pairs = [self._common(j, comp.x[j], comp.P[j]) for j in range(self.r)]
+        return np.stack([a for a, _ in pairs], axis=1), np.stack([b for _, b in pairs], axis=1)
+
+    # ------------------------------------------------------------------ tracks
+    def add(self, x: np.ndarray, P: np.ndarray) -> None:
+        """New tracks from CV-layout Gaussians: each mode gets the state converted from the
+        common layout (accelerations 0 ± init_acceleration)."""
+        nn, n = len(x), len(self)
+        if nn == 0:
+            return
+        if self.same_layout and isinstance(self.models[0], ConstantVelocity):
+            xs, Ps = [x.copy()] * self.r, [P.copy()] * self.r
+        else:
+            xc, Pc = embed_common(x, P, self.ndim, self.init_acceleration, (1e8, 1e4))
+            conv = [from_common(m, xc, Pc) for m in self.models]
+            xs, Ps = [a for a, _ in conv], [b for _, b in conv]
+        new = IMMComponents(
+            n + np.arange(nn),
+            np.ones(nn),
+            np.zeros((nn, self.depth), np.int64),
+            np.broadcast_to(self.mu0, (nn, self.r)).copy(),
+            xs,
+            Ps,
+        )
+        self.comp = IMMComponents.concat([self.comp, new])
+        self.x = np.concatenate([self.x, x])
+        self.P = np.concatenate([self.P, P])
+
+    def keep(self, mask: np.ndarray) -> None:
+        new_row = np.cumsum(mask) - 1
+        self.comp = self.comp.take(np.flatnonzero(mask[self.comp.track]))
+        self.comp.track = new_row[self.comp.track]
+        self.x, self.P = self.x[mask], self.P[mask]
+
+    # ------------------------------------------------------------------ predict
+    def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
+        """Mixing (eq. 15-17) and mode-matched prediction; returns mu = c."""
+        Pi = self.transition(dt)  # (C, r, r)
+        c = np.einsum("ci,cij->cj", comp.mu, Pi)
+        xs, Ps = [], []
+        if self.r == 1:
+            mixed = [(comp.x[0], comp.P[0])]
+        else:
+            wmix = comp.mu[:, :, None] * Pi / np.maximum(c[:, None, :], 1e-300)
+            xc, Pc = self._stack_common(comp)
+            mixed = [
+                self._native(j, *moment_match_rows(wmix[:, :, j], xc, Pc)) for j in range(self.r)
+            ]
+        for j, model in enumerate(self.models):
+            xj, Pj = ekf_predict(model, mixed[j][0], mixed[j][1], dt)
+            xs.append(xj)
+            Ps.append(Pj)
+        return IMMComponents(comp.track, comp.w, comp.hist, c, xs, Ps)
+
+    def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
+        inside = np.zeros(len(self), bool)
+        inside[rows] = True
+        comp = self.comp.take(np.flatnonzero(inside[self.comp.track]))
+        loc = np.searchsorted(rows, comp.track)
+        pred = self._interact(comp, np.asarray(dt, dtype=np.float64)[loc])
+        y = np.stack([pred.x[j][:, self.pos[j]] for j in range(self.r)], axis=1)
+        HPH = np.stack(
+            [pred.P[j][:, self.pos[j]][:, :, self.pos[j]] for j in range(self.r)], axis=1
+        )
+        return IMMPrediction(rows, pred, loc, y, HPH)
+
+    # ------------------------------------------------------------------ likelihoods
+    def likelihoods(self, pred: IMMPrediction, z: np.ndarray, R: np.ndarray, g: float) -> IMMTable:
+        """Union of the modes' gates per component; p^c_i = Σ_j c_j N_j / P_G."""
+        m, k = z.shape
+        uid = self._next_uid + np.arange(m, dtype=np.int64)
+        self._next_uid += m
+        C, r = pred.y.shape[:2]
+        g_pairs = gate(pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), z, R, g)
+        key = np.unique((g_pairs.state // r) * max(m, 1) + g_pairs.plot)
+        pc, pp = key // max(m, 1), key % max(m, 1)
+        nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
+        S = pred.HPH[pc] + R[pp][:, None]
+        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
+        mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
+        p_pair = mix / gate_probability(g, k)
+        tp_track, tp_plot, p_track, row = track_table(pred.loc, pc, pp, pred.comp.w, p_pair, m)
+        return IMMTable(tp_track, tp_plot, p_track, pc, pp, nu, S, log_n, p_pair, row, R, uid)
+
+    # ------------------------------------------------------------------ update
+    def _children(
+        self, pred: IMMPrediction, t: IMMTable, beta0: np.ndarray, beta: np.ndarray
+    ) -> IMMComponents:
+        """Null child (μ = c) and one child per gated plot with every mode updated."""
+        comp = pred.comp
+        null = IMMComponents(
+            comp.track, comp.w * beta0[pred.loc], _shift(comp.hist, 0), comp.mu, comp.x, comp.P
+        )
+        if len(t.pair_comp) == 0:
+            return null
+        c, p = t.pair_comp, t.pair_plot
+        w = comp.w[c] * beta[t.pair_row] * t.p_pair / t.p[t.pair_row]
+        lw = t.log_n + np.log(np.maximum(comp.mu[c], 1e-300))
+        mu = np.exp(lw - lw.max(axis=1, keepdims=True))
+        mu /= mu.sum(axis=1, keepdims=True)  # eq. 19
+        xs, Ps = [], []
+        for j in range(self.r):
+            Pj = comp.P[j][c]
+            K = gain(Pj, self.H[j], t.S[:, j])
+            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, t.nu[:, j]))
+            Ps.append(joseph_covariance(Pj, K, self.H[j], t.R[p]))
+        upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
+        return IMMComponents.concat([null, upd])
+
+    def _merge(self, comp: IMMComponents) -> IMMComponents:
+        """Singer N-scan merge of IMM components: per mode, moment matching with weights
+        ξ μ_j; merged μ_j = Σ ξ μ_j / Σ ξ."""
+        if len(comp) == 0:
+            return comp
+        inv, uniq = history_groups(comp.track, comp.hist)
+        G = len(uniq)
+        W = np.bincount(inv, weights=comp.w, minlength=G)
+        xs, Ps, mass = [], [], []
+        for j in range(self.r):
+            wj = comp.w * comp.mu[:, j]
+            Wj, xj, Pj = moment_match(wj, comp.x[j], comp.P[j], inv, G)
+            xs.append(xj)
+            Ps.append(Pj)
+            mass.append(Wj)
+        mu = np.column_stack(mass)
+        tot = mu.sum(axis=1, keepdims=True)
+        mu = np.where(tot > 0, mu / np.where(tot > 0, tot, 1.0), 1.0 / self.r)
+        return IMMComponents(uniq[:, 0].copy(), W, uniq[:, 1:].copy(), mu, xs, Ps)
+
+    def update(
+        self, pred: IMMPrediction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
+    ) -> None:
+        children = self._children(pred, table, beta0, beta)
+        children = children.take(np.flatnonzero(children.w > 0.0))
+        merged = self._merge(children)
+        keep, w = prune_indices(
+            merged.track, merged.w, self.prune_threshold, self.max_components, len(self)
+        )
+        kept = merged.take(keep)
+        kept.w = w
+        inside = np.zeros(len(self), bool)
+        inside[pred.rows] = True
+        others = self.comp.take(np.flatnonzero(~inside[self.comp.track]))
+        self.comp = IMMComponents.concat([others, kept])
+        self.stats = {
+            "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
+            "components_merged": len(merged),
+            "components": len(self.comp),
+        }
+        x, P = self._track_estimates(kept, np.searchsorted(pred.rows, kept.track), len(pred))
+        self.x[pred.rows] = x
+        self.P[pred.rows] = P
+
+    def _track_estimates(
+        self, comp: IMMComponents, loc: np.ndarray, ngroups: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """eq. 20-21 over modes and components at once, in the CV layout."""
+        if self.same_layout and isinstance(self.models[0], ConstantVelocity):
+            xc = np.stack(comp.x, axis=1)
+            Pc = np.stack(comp.P, axis=1)
+            idx = list(range(self.dim))
+        else:
+            xc, Pc = self._stack_common(comp)
+            idx = self.cv_index
+        C, r, dc = xc.shape
+        w = (comp.w[:, None] * comp.mu).reshape(-1)
+        _, x, P = moment_match(
+            w, xc.reshape(C * r, dc), Pc.reshape(C * r, dc, dc), np.repeat(loc, r), ngroups
+        )
+        return x[:, idx], P[:, idx][:, :, idx]
+
+    def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.x[rows].copy(), self.P[rows].copy()
+
+    def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
+        """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
+        out = np.zeros((len(self), self.r))
+        np.add.at(out, self.comp.track, self.comp.w[:, None] * self.comp.mu)
+        return out[rows]
+
+    def component_counts(self) -> np.ndarray:
+        return np.bincount(self.comp.track, minlength=len(self))
+
+
+def _shift(hist: np.ndarray, new_ids) -> np.ndarray:
+    """h' = (new id, h[0], …, h[N−2]) (spec 02 §7 step 11); N = 0 stays empty."""
+    if hist.shape[1] == 0:
+        return hist
+    ids = np.broadcast_to(np.asarray(new_ids, dtype=np.int64), (len(hist),))
+    return np.column_stack([ids, hist[:, :-1]])
+
+
+def imm_density(cfg, second: str) -> IMMMixtureDensity:
+    """The IMM density of a TrackerConfig: CV (q = ``imm_q_cv``) plus ``second`` =
+    ``ct`` (coordinated turn, σ_a = ``imm_ct_sigma_a``, σ_ω = ``imm_ct_sigma_omega``) or
+    ``singer`` (τ = ``imm_singer_tau``, σ_m = ``imm_singer_sigma_m``), 2-D or 3-D."""
+    ndim = cfg.ndim
+    qv = cfg.q_vertical if cfg.q_vertical is not None else cfg.imm_q_cv
+    cv = ConstantVelocity(q=cfg.imm_q_cv, ndim=ndim, q_vertical=qv if ndim == 3 else None)
+    if second == "ct":
+        other = CoordinatedTurn(
+            cfg.imm_ct_sigma_a, cfg.imm_ct_sigma_omega, vertical=ndim == 3, q_vertical=qv
+        )
+    elif second == "singer":
+        other = Singer(tau=cfg.imm_singer_tau, sigma_m=cfg.imm_singer_sigma_m, ndim=ndim)
+    else:
+        raise ValueError(f"IMM second model {second!r}: must be 'ct' or 'singer'")
+    return IMMMixtureDensity(
+        [cv, other],
+        ModeTransition(np.reshape(cfg.imm_tpm, (2, 2)), cfg.imm_tpm_period),
+        cfg.imm_mu0,
+        ndim,
+        cfg.memory_depth,
+        cfg.prune_threshold,
+        cfg.max_components,
+        cfg.imm_init_acceleration,
+    )
