@@ -11,7 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from service_support import peer, skyfuse, stop
-from skyfuse.schemas import FeedKind, PlotBatch, RadarSite, TrackBatch, TrackPicture, keys
+from skyfuse.schemas import (
+    FeedKind,
+    PlotBatch,
+    RadarSite,
+    Status,
+    TrackBatch,
+    TrackPicture,
+    keys,
+)
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
@@ -20,6 +28,7 @@ from skyfuse.services.runtime.transport import (
     free_port,
     loopback_endpoint,
     open_session,
+    query,
     service_alive_key,
     wait_for_tokens,
 )
@@ -30,6 +39,20 @@ pytestmark = pytest.mark.service
 
 def confirmed_ids(b: TrackBatch) -> list[int]:
     return sorted(t.track_id for t in b.tracks if t.status == "confirmed")
+
+
+def wait_for_sites(session, sites: list[RadarSite], timeout: float = 20.0) -> None:
+    """Publish ``sites`` and wait until the fusion's Status reports every one known."""
+    for site in sites:
+        session.put(keys.radar_site(site.radar_id), site.to_json_bytes())
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for _, payload in query(session, keys.fusion_status("main"), 1.0):
+            known = {r.radar_id for r in Status.from_json_bytes(payload).radars if r.site_known}
+            if known >= {site.radar_id for site in sites}:
+                return
+        time.sleep(0.2)
+    raise AssertionError("the fusion never reported every site known")
 
 
 def pictures(feed: list[TrackBatch]) -> list[tuple[int, TrackBatch]]:
@@ -66,6 +89,10 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulat
             inbox = Inbox()
             inbox.subscribe(s, keys.fusion_tracks("main"), "tracks")
             assert wait_for_tokens(s, [service_alive_key("fusion")], 20.0) == []
+            # the frame is fixed at the first plot from the sites known then: let the fusion
+            # know every site first, so that the race of sites and plots published back to
+            # back on a loaded machine cannot change it (the rule, not the race, is tested)
+            wait_for_sites(s, sites)
             result = replay(s, rec, fast=True)
             assert result.plot_batches == n_batches
             deadline = time.monotonic() + 40
