@@ -74,9 +74,13 @@ class ParticleGatedTable:
 
 
 def _noise_factor(Q: np.ndarray) -> np.ndarray:
-    """G (s, d, d) with G Gᵀ = Q for PSD (possibly singular, e.g. CV) Q, by eigh."""
+    """G (s, d, r) with G Gᵀ = Q for PSD (possibly singular) Q, by eigh; directions of zero
+    variance in every row are dropped (CV: r = number of axes), so that sampling draws
+    only r normals per particle."""
     lam, V = np.linalg.eigh(Q)
-    return V * np.sqrt(np.maximum(lam, 0.0))[:, None, :]
+    lam = np.maximum(lam, 0.0)
+    live = (lam > 1e-12 * lam.max(axis=-1, keepdims=True)).any(axis=0)
+    return (V * np.sqrt(lam)[:, None, :])[:, :, live]
 
 
 class ParticleDensity:
@@ -115,7 +119,8 @@ class ParticleDensity:
         x, P = np.atleast_2d(x), np.asarray(P).reshape(-1, self.dim, self.dim)
         n, N = len(x), self.n_particles
         G = _noise_factor(P)
-        cloud = x[:, None, :] + self.rng.standard_normal((n, N, self.dim)) @ np.swapaxes(G, 1, 2)
+        e = self.rng.standard_normal((n, N, G.shape[2]))
+        cloud = x[:, None, :] + e @ np.swapaxes(G, 1, 2)
         self.x = np.concatenate([self.x, cloud])
         self.w = np.concatenate([self.w, np.full((n, N), 1.0 / N)])
         self.mean = np.concatenate([self.mean, x])
@@ -132,8 +137,9 @@ class ParticleDensity:
         rows = np.asarray(rows, np.int64)
         dt = np.broadcast_to(np.asarray(dt, float), rows.shape)
         F, Q = self.model.F(dt), self.model.Q(dt)
-        noise = self.rng.standard_normal((len(rows), self.n_particles, self.dim))
-        x = self.x[rows] @ np.swapaxes(F, 1, 2) + noise @ np.swapaxes(_noise_factor(Q), 1, 2)
+        G = _noise_factor(Q)
+        noise = self.rng.standard_normal((len(rows), self.n_particles, G.shape[2]))
+        x = self.x[rows] @ np.swapaxes(F, 1, 2) + noise @ np.swapaxes(G, 1, 2)
         w = self.w[rows]
         mean, P = weighted_moments(x, w)
         pos = self.pos
@@ -179,6 +185,9 @@ class ParticleDensity:
             due = np.ones(len(w), bool)
         else:
             due = effective_sample_size(w) < self.neff_threshold * self.n_particles
+        if due.all():  # the default: every row, no copies of the clouds
+            xr = take(x, resample(w, self.rng, "systematic"))
+            return roughen(xr, self.rng, self.roughening), np.full_like(w, 1.0 / w.shape[1])
         if due.any():
             x, w = x.copy(), w.copy()
             xr = take(x[due], resample(w[due], self.rng, "systematic"))

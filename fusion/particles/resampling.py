@@ -124,4 +124,6 @@ def resample(w: np.ndarray, rng: np.random.Generator, scheme: str = "systematic"
 
 def take(x: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """Particles (n, N, d) gathered by ancestor indices (n, N) cloud by cloud."""
-    return np.take_along_axis(x, idx[..., None], axis=1)
+    n, N, d = x.shape
+    flat = (idx + N * np.arange(n)[:, None]).ravel()
+    return x.reshape(n * N, d)[flat].reshape(n, idx.shape[1], d)
