@@ -37,7 +37,7 @@ from skyfuse.fusion.models import ConstantVelocity
 from skyfuse.fusion.tracker.gating import gate, gate_probability
 
 from .likelihood import pair_likelihoods
-from .resampling import resample, take
+from .resampling import SCHEMES, resample, take
 from .roughening import roughen
 from .weights import effective_sample_size, normalise, weighted_moments
 
@@ -88,20 +88,30 @@ class ParticleDensity:
 
     model: ConstantVelocity (2 or 3 position axes); n_particles: N (source: 1000);
     neff_threshold: None = resample every scan (A15), else resample a row only when
-    N_eff < neff_threshold · N; roughening: Gordon's K (0 = off); seed: RNG seed."""
+    N_eff < neff_threshold · N; scheme: resampling scheme (source: systematic; any of
+    ``fusion.particles.resampling.SCHEMES``); roughening: Gordon's K (0 = off); seed: RNG
+    seed."""
 
     def __init__(
         self,
         model: ConstantVelocity,
         n_particles: int = 1000,
         neff_threshold: float | None = None,
+        scheme: str = "systematic",
         roughening: float = 0.0,
         seed: int | None = 0,
     ) -> None:
+        if scheme not in SCHEMES:
+            raise ValueError(f"scheme = {scheme!r}: must be one of {sorted(SCHEMES)}")
+        if neff_threshold is not None and not 0.0 < neff_threshold <= 1.0:
+            raise ValueError(f"neff_threshold = {neff_threshold}: must be in (0, 1] or None")
+        if n_particles < 1:
+            raise ValueError(f"n_particles = {n_particles}: must be >= 1")
         self.model = model
         self.dim = model.dim
         self.n_particles = int(n_particles)
         self.neff_threshold = neff_threshold
+        self.scheme = scheme
         self.roughening = roughening
         self.rng = np.random.default_rng(seed)
         self.pos = np.asarray(model.position_index)
@@ -180,17 +190,18 @@ class ParticleDensity:
         self.x[pred.rows], self.w[pred.rows] = x, w
 
     def _resample(self, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Systematic resampling of the rows due (all, or N_eff < threshold · N) at once."""
+        """Resampling (systematic by default) of the rows due — all, or those with
+        N_eff < threshold · N — in one call, then roughening if configured."""
         if self.neff_threshold is None:
             due = np.ones(len(w), bool)
         else:
             due = effective_sample_size(w) < self.neff_threshold * self.n_particles
         if due.all():  # the default: every row, no copies of the clouds
-            xr = take(x, resample(w, self.rng, "systematic"))
+            xr = take(x, resample(w, self.rng, self.scheme))
             return roughen(xr, self.rng, self.roughening), np.full_like(w, 1.0 / w.shape[1])
         if due.any():
             x, w = x.copy(), w.copy()
-            xr = take(x[due], resample(w[due], self.rng, "systematic"))
+            xr = take(x[due], resample(w[due], self.rng, self.scheme))
             x[due] = roughen(xr, self.rng, self.roughening)
             w[due] = 1.0 / self.n_particles
         return x, w

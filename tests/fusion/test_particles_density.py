@@ -173,3 +173,51 @@ def test_add_keep_and_three_dimensional_positions():
     assert table.tp_track.tolist() == [0] and table.lik.shape == (1, 300)
     dens.update(pred, table, np.array([0.5, 1.0]), np.array([0.5]))
     assert np.allclose(dens.w.sum(axis=1), 1.0)
+
+
+def test_update_weights_follow_a14_before_resampling():
+    """Stored MMSE = Σ w_j x_j with w_j ∝ w_j (β_0 + Σ_i β_i p_i(x_j)/p_i) (A14, A16),
+    evaluated here with explicit loops over plots and particles."""
+    rng = np.random.default_rng(9)
+    dens = ParticleDensity(CV, 60, seed=5)
+    dens.add(np.array([X0, X0 + 30.0]), np.tile(P0, (2, 1, 1)))
+    pred = dens.predict(np.array([1, 0]), np.array([1.0, 0.5]))
+    z = np.vstack([X0[[0, 2]] + rng.normal(size=(3, 2)) * 5, X0[[0, 2]] + 45.0])
+    table = dens.likelihoods(pred, z, np.tile(R, (4, 1, 1)), G99)
+    beta0 = np.array([0.2, 0.35])
+    beta = rng.uniform(0.05, 0.3, len(table))
+    dens.update(pred, table, beta0, beta)
+    for t in range(2):
+        w = pred.w[t].copy()
+        for j in range(60):
+            factor = beta0[t]
+            for r in range(len(table)):
+                if table.tp_track[r] == t:
+                    factor += beta[r] * table.lik[r, j] / table.p[r]
+            w[j] *= factor
+        w /= w.sum()
+        mean, cov = dens.estimate([pred.rows[t]])
+        assert np.allclose(mean[0], w @ pred.x[t], rtol=1e-12)
+        dx = pred.x[t] - w @ pred.x[t]
+        assert np.allclose(cov[0], (w[:, None] * dx).T @ dx, rtol=1e-9)
+    assert np.allclose(dens.w, 1.0 / 60)  # resampled every scan by default
+
+
+def test_neff_threshold_resamples_only_degenerate_rows_and_edge_cases():
+    dens = ParticleDensity(CV, 200, neff_threshold=0.5, seed=1)
+    dens.add(np.array([X0, X0 + 5e3]), np.tile(P0, (2, 1, 1)))
+    pred = dens.predict(np.arange(2), np.ones(2))
+    table = dens.likelihoods(pred, (X0[[0, 2]] + [20.0, 0.0])[None], R[None], G99)
+    assert table.tp_track.tolist() == [0]
+    dens.update(pred, table, np.array([0.0, 1.0]), np.array([1.0]))
+    assert np.allclose(dens.w[0], 1 / 200)  # informative plot: N_eff < N/2, resampled
+    assert np.array_equal(dens.x[1], pred.x[1])  # β_0 = 1: prior cloud kept as predicted
+    empty = dens.predict(np.zeros(0, np.int64), np.zeros(0))
+    t0 = dens.likelihoods(empty, np.zeros((0, 2)), np.zeros((0, 2, 2)), G99)
+    assert len(t0) == 0 and empty.z_mean.shape == (0, 2)
+    still = dens.predict(np.arange(2), np.zeros(2))  # dt = 0: no motion, no noise
+    assert np.array_equal(still.x, dens.x)
+    with pytest.raises(ValueError, match="scheme"):
+        ParticleDensity(CV, 10, scheme="nope")
+    with pytest.raises(ValueError, match="neff_threshold"):
+        ParticleDensity(CV, 10, neff_threshold=1.5)
