@@ -34,15 +34,27 @@ def plot_whitening(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Linv, half_logdet
 
 
+#: particle-pair evaluations per block: bounds the temporaries to ~50 MB whatever the
+#: number of gated pairs (2-D: 2^20 × (2 + 2 + 1) doubles)
+BLOCK = 1 << 20
+
+
 def pair_likelihoods(
     zp: np.ndarray, z: np.ndarray, R: np.ndarray, tp_track: np.ndarray, tp_plot: np.ndarray
 ) -> np.ndarray:
     """p^i_j (pairs, N) for predicted measurements of the particles zp (s, N, k), plots
-    z (m, k) with covariances R (m, k, k) and gated pairs (tp_track into zp, tp_plot)."""
-    if len(tp_track) == 0:
-        return np.zeros((0, zp.shape[1]))
+    z (m, k) with covariances R (m, k, k) and gated pairs (tp_track into zp, tp_plot).
+    Pairs are processed in blocks of ``BLOCK`` particle evaluations (bounded memory)."""
+    P, N = len(tp_track), zp.shape[1]
+    out = np.empty((P, N))
+    if P == 0:
+        return out
     Linv, half_logdet = plot_whitening(R)
-    nu = z[tp_plot][:, None, :] - zp[tp_track]  # (P, N, k)
-    white = nu @ np.swapaxes(Linv[tp_plot], -1, -2)
-    d2 = np.einsum("pnk,pnk->pn", white, white)
-    return np.exp(-0.5 * d2 - half_logdet[tp_plot][:, None])
+    step = max(1, BLOCK // max(N, 1))
+    for a in range(0, P, step):
+        t, j = tp_track[a : a + step], tp_plot[a : a + step]
+        nu = z[j][:, None, :] - zp[t]  # (p, N, k)
+        white = nu @ np.swapaxes(Linv[j], -1, -2)
+        d2 = np.einsum("pnk,pnk->pn", white, white)
+        np.exp(-0.5 * d2 - half_logdet[j][:, None], out=out[a : a + step])
+    return out

@@ -221,3 +221,40 @@ def test_neff_threshold_resamples_only_degenerate_rows_and_edge_cases():
         ParticleDensity(CV, 10, scheme="nope")
     with pytest.raises(ValueError, match="neff_threshold"):
         ParticleDensity(CV, 10, neff_threshold=1.5)
+
+
+def test_pair_likelihoods_blocks_give_the_same_table(monkeypatch):
+    from skyfuse.fusion.particles import likelihood
+
+    rng = np.random.default_rng(1)
+    zp, z = rng.normal(size=(4, 50, 2)), rng.normal(size=(6, 2))
+    Rs = np.tile(np.eye(2), (6, 1, 1))
+    t, j = np.repeat(np.arange(4), 6), np.tile(np.arange(6), 4)
+    whole = likelihood.pair_likelihoods(zp, z, Rs, t, j)
+    monkeypatch.setattr(likelihood, "BLOCK", 120)  # 2 pairs per block, last one short
+    assert np.array_equal(likelihood.pair_likelihoods(zp, z, Rs, t, j), whole)
+
+
+@pytest.mark.parametrize("ndim", [2, 3])
+def test_prediction_spread_is_q(ndim):
+    """A point-mass cloud predicted over dt has sample covariance Q(dt) (Bartlett bound:
+    each entry within 5 √((Q_ii Q_jj + Q_ij²)/N)) and mean F x."""
+    cv = ConstantVelocity(q=2.0, ndim=ndim, q_vertical=0.1 if ndim == 3 else None)
+    N, dt = 20000, 3.0
+    dens = ParticleDensity(cv, N, seed=6)
+    x = np.arange(1.0, cv.dim + 1)
+    dens.add(x[None], np.zeros((1, cv.dim, cv.dim)))
+    pred = dens.predict(np.array([0]), np.array([dt]))
+    Q = cv.Q(dt)
+    tol = 5 * np.sqrt((np.outer(np.diag(Q), np.diag(Q)) + Q**2) / N)
+    assert np.all(np.abs(pred.P[0] - Q) <= tol)
+    assert np.all(np.abs(pred.x_mean[0] - cv.F(dt) @ x) <= 5 * np.sqrt(np.diag(Q) / N))
+
+
+def test_roughening_in_the_density_spreads_duplicates():
+    dens = ParticleDensity(CV, 400, roughening=0.2, seed=3)
+    dens.add(X0[None], P0[None])
+    pred = dens.predict(np.array([0]), np.array([1.0]))
+    table = dens.likelihoods(pred, (CV.F(1.0) @ X0)[[0, 2]][None], R[None], G99)
+    dens.update(pred, table, np.zeros(1), np.ones(1))
+    assert len(np.unique(dens.x[0][:, 0])) == 400  # no duplicated ancestors left
