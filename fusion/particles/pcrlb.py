@@ -14,6 +14,13 @@ The Tichavský form needs Q⁻¹. The CV model's Q = Γ q Γᵀ is singular (ran
 axes), so :func:`linear_gaussian` uses the equivalent information-filter form
 J_{k+1} = (F J_k⁻¹ Fᵀ + Q)⁻¹ + HᵀR⁻¹H (matrix inversion lemma applied to the above),
 which holds for any Q ⪰ 0. J_0 = P_0⁻¹. Units: J in inverse state units squared.
+
+Missed detections [LIT] (information reduction factor, Niu et al.; Hernandez et al.):
+with detection probability P_D and no clutter, the measurement term becomes
+q HᵀR⁻¹H with q = P_D (the expected information of a scan). This is a bound on the
+error averaged over detection sequences, lower than the bound obtained by enumerating them.
+Clutter lowers q further (q < P_D, a numerical integral that is not implemented here), so
+q = P_D is a valid, looser floor with clutter too.
 """
 
 from __future__ import annotations
@@ -27,22 +34,29 @@ def tichavsky_step(J: np.ndarray, D11: np.ndarray, D12: np.ndarray, D22: np.ndar
     return 0.5 * (Jn + np.swapaxes(Jn, -1, -2))
 
 
-def linear_gaussian_terms(F, Q, H, R) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def linear_gaussian_terms(
+    F, Q, H, R, information_factor: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(D11, D12, D22) of the linear-Gaussian model (3.81); Q must be invertible."""
     Qi = np.linalg.inv(Q)
-    return F.T @ Qi @ F, -F.T @ Qi, Qi + H.T @ np.linalg.solve(R, H)
+    return F.T @ Qi @ F, -F.T @ Qi, Qi + information_factor * H.T @ np.linalg.solve(R, H)
 
 
-def linear_gaussian(P0, F, Q, H, R, steps: int, form: str = "auto") -> np.ndarray:
+def linear_gaussian(
+    P0, F, Q, H, R, steps: int, form: str = "auto", information_factor: float = 1.0
+) -> np.ndarray:
     """Bounds P_k = J_k⁻¹ for k = 1..steps, shape (steps, d, d).
 
     form: "tichavsky" (needs Q⁻¹), "information" (any Q ⪰ 0), or "auto" (Tichavský when Q
-    is well conditioned, the information form otherwise)."""
+    is well conditioned, the information form otherwise). information_factor: q in
+    (0, 1], e.g. P_D for missed detections (module docstring)."""
+    if not 0.0 < information_factor <= 1.0:
+        raise ValueError(f"information_factor = {information_factor}: must be in (0, 1]")
     if form == "auto":
         form = "tichavsky" if np.linalg.cond(Q) < 1e12 else "information"
     J = np.linalg.inv(P0)
-    HtRiH = H.T @ np.linalg.solve(R, H)
-    terms = linear_gaussian_terms(F, Q, H, R) if form == "tichavsky" else None
+    HtRiH = information_factor * H.T @ np.linalg.solve(R, H)
+    terms = linear_gaussian_terms(F, Q, H, R, information_factor) if form == "tichavsky" else None
     out = np.empty((steps, *P0.shape))
     for k in range(steps):
         if terms is not None:

@@ -57,3 +57,30 @@ def test_unknown_form_is_rejected():
     F, Q, H, R = _white_noise_cv()
     with pytest.raises(ValueError, match="form"):
         pcrlb.linear_gaussian(np.eye(2), F, Q, H, R, 2, form="x")
+
+
+def test_missed_detection_bound_lies_below_the_kalman_average():
+    """With P_D = 0.7 the Kalman P_{k|k} averaged over 2000 random detection sequences
+    (exact covariances, no sampling error in P itself) must dominate the q = P_D bound
+    (Jensen: E[J⁻¹] ⪰ (E J)⁻¹), and the bound must lie above the P_D = 1 bound."""
+    cv = ConstantVelocity(q=0.75, ndim=1)
+    F, Q, H, R = cv.F(1.0), cv.Q(1.0), cv.H(), np.array([[25.0]])
+    P0, steps, pd = np.diag([25.0, 100.0]), 20, 0.7
+    rng = np.random.default_rng(0)
+    det = rng.random((2000, steps)) < pd
+    P = np.tile(P0, (2000, 1, 1))
+    x = np.zeros((2000, 2))
+    avg = []
+    for k in range(steps):
+        x, P = kalman.predict(x, P, F, Q)
+        _, Pu, _, _ = kalman.update(x, P, x @ H.T, H, R)
+        P = np.where(det[:, k, None, None], Pu, P)
+        avg.append(P.mean(axis=0))
+    bound = pcrlb.linear_gaussian(P0, F, Q, H, R, steps, information_factor=pd)
+    full = pcrlb.linear_gaussian(P0, F, Q, H, R, steps)
+    for A, B, C in zip(avg, bound, full):
+        assert np.linalg.eigvalsh(A - B).min() >= -1e-9
+        assert np.linalg.eigvalsh(B - C).min() >= -1e-9
+    assert bound[-1, 0, 0] > 1.05 * full[-1, 0, 0]
+    with pytest.raises(ValueError, match="information_factor"):
+        pcrlb.linear_gaussian(P0, F, Q, H, R, 2, information_factor=0.0)
