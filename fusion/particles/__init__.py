@@ -10,8 +10,9 @@ Modules, one concept each:
 * :mod:`.resampling` — systematic (A15, 3.51–3.55), stratified, multinomial by ordered
   uniforms (Tab 3.2), residual; all return ancestor indices ``(n_clouds, n_particles)``.
 * :mod:`.roughening` — Gordon's roughening jitter after resampling.
+* :mod:`.model` — the state-space model protocol the generic filter steps use.
 * :mod:`.sir` / :mod:`.sis` / :mod:`.auxiliary` — filter steps of Tab 3.1, 3.3, 3.4.
-* :mod:`.pcrlb` — Tichavský posterior Cramér–Rao lower bound (3.74–3.81).
+* :mod:`.pcrlb` — Tichavský posterior Cramér–Rao lower bound (3.74–3.81), with P_D.
 * :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark of spec 04 B.3.
 * :mod:`.likelihood` — per-particle Gaussian plot likelihoods (A6) for gated pairs.
 * :mod:`.density` — :class:`ParticleDensity`, the particle track density (A4–A8, A14–A16).
