@@ -46,13 +46,13 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from scipy import stats  # noqa: E402
+from skyfuse.fusion.association.gating import gate, gate_probability  # noqa: E402
 from skyfuse.fusion.filters import kalman  # noqa: E402
 from skyfuse.fusion.models import ConstantVelocity  # noqa: E402
 from skyfuse.fusion.particles.association import lm_ipf_association  # noqa: E402
 from skyfuse.fusion.particles.density import ParticleDensity, ParticleGatedTable  # noqa: E402
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig  # noqa: E402
 from skyfuse.fusion.tracker.components import moment_match  # noqa: E402
-from skyfuse.fusion.tracker.gating import gate, gate_probability  # noqa: E402
 
 SIGMA, PD, P11, Q_ACC, SPEED, NS = 5.0, 0.8, 0.98, 0.75, 22.5, 10**9
 RHO_NOMINAL = 1e-6
@@ -118,13 +118,13 @@ class GaussianLoop:
         xp, Pp = kalman.predict(self.x, self.P, self.cv.F(1.0), self.cv.Q(1.0))
         pairs = gate(xp @ H.T, H @ Pp @ H.T, z, R, self.g)
         p = np.exp(pairs.log_pdf) / self.pg
-        table = ParticleGatedTable(pairs.comp, pairs.plot, p, np.zeros((len(p), 0)), pairs.d2, 1)
+        table = ParticleGatedTable(pairs.state, pairs.plot, p, np.zeros((len(p), 0)), pairs.d2, 1)
         res = lm_ipf_association(table, len(z), P11 * self.psi, self.pdpg, np.full(len(p), rho))
         xu, Pu, _, _ = kalman.update(
-            xp[pairs.comp], Pp[pairs.comp], z[pairs.plot], H, R[pairs.plot]
+            xp[pairs.state], Pp[pairs.state], z[pairs.plot], H, R[pairs.plot]
         )
         w = np.concatenate([res.beta0, res.beta])
-        group = np.concatenate([np.arange(n), pairs.comp])
+        group = np.concatenate([np.arange(n), pairs.state])
         _, self.x, self.P = moment_match(w, np.vstack([xp, xu]), np.vstack([Pp, Pu]), group, n)
         self.psi = res.psi_post
 

@@ -13,7 +13,7 @@ state):
   A16), z_mean = H x̄ and S0 = H P̄ Hᵀ for gating boxes and clutter volumes. Pure: the
   stored state advances only in :meth:`update`.
 * :meth:`likelihoods` (A5 [IMPL], A6, A7): gate on the moment-matched Gaussian,
-  d² = (z − ŷ)ᵀ (S0 + R_j)⁻¹ (z − ŷ) < g (``fusion.tracker.gating.gate``: box pre-gate,
+  d² = (z − ŷ)ᵀ (S0 + R_j)⁻¹ (z − ŷ) < g (``fusion.association.gating.gate``: box pre-gate,
   then exact d²); for gated pairs the per-particle p^i_j (A6) against the plot's own R_j
   and the track likelihood p_j = Σ_i w^i p^i_j (A7). Both are divided by P_G = P(χ²_k < g)
   like the Gaussian trackers' p_j, so the tracker uses P_D P_G in (A11).
@@ -33,8 +33,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from skyfuse.fusion.association.gating import gate, gate_probability
 from skyfuse.fusion.models import ConstantVelocity
-from skyfuse.fusion.tracker.gating import gate, gate_probability
+from skyfuse.fusion.tracker.density.base import GatedTable, Prediction
 
 from .likelihood import pair_likelihoods
 from .resampling import SCHEMES, resample, take
@@ -43,34 +44,26 @@ from .weights import effective_sample_size, normalise, weighted_moments
 
 
 @dataclass
-class ParticlePrediction:
-    """Predicted clouds of ``rows``: x (s, N, d), prior weights w (s, N), moment-matched
-    x_mean (s, d), P (s, d, d), z_mean = H x̄ (s, k), S0 = H P̄ Hᵀ (s, k, k)."""
+class ParticlePrediction(Prediction):
+    """Predicted clouds of ``rows`` (the tracker's :class:`Prediction`, with z_mean = H x̄
+    (s, k) and S0 = H P̄ Hᵀ (s, k, k) of the moment-matched cloud): x (s, N, d), prior
+    weights w (s, N), moment-matched x_mean (s, d), P (s, d, d)."""
 
-    rows: np.ndarray
     x: np.ndarray
     w: np.ndarray
     x_mean: np.ndarray
     P: np.ndarray
-    z_mean: np.ndarray
-    S0: np.ndarray
 
 
 @dataclass
-class ParticleGatedTable:
-    """Gated (track, plot) pairs: tp_track indexes the prediction's rows, tp_plot the plots;
-    p (pairs,) = p_j / P_G (A7); lik (pairs, N) = p^i_j / P_G (A6); d2 (pairs,) the gate
-    distance; p_gate = P_G."""
+class ParticleGatedTable(GatedTable):
+    """Gated (track, plot) pairs (the tracker's :class:`GatedTable`): tp_track indexes the
+    prediction's rows, tp_plot the plots; p (pairs,) = p_j / P_G (A7); lik (pairs, N) =
+    p^i_j / P_G (A6); d2 (pairs,) the gate distance; p_gate = P_G."""
 
-    tp_track: np.ndarray
-    tp_plot: np.ndarray
-    p: np.ndarray
     lik: np.ndarray
     d2: np.ndarray
     p_gate: float
-
-    def __len__(self) -> int:
-        return len(self.tp_track)
 
 
 def _noise_factor(Q: np.ndarray) -> np.ndarray:
@@ -154,7 +147,7 @@ class ParticleDensity:
         mean, P = weighted_moments(x, w)
         pos = self.pos
         return ParticlePrediction(
-            rows, x, w, mean, P, mean[:, pos], P[:, pos[:, None], pos[None, :]]
+            rows, mean[:, pos], P[:, pos[:, None], pos[None, :]], x, w, mean, P
         )
 
     def likelihoods(
@@ -166,9 +159,9 @@ class ParticleDensity:
         pairs = gate(pred.z_mean, pred.S0, z, R, g)
         p_gate = gate_probability(g, k)
         zp = pred.x[..., self.pos]
-        lik = pair_likelihoods(zp, z, R, pairs.comp, pairs.plot) / p_gate
-        p = np.einsum("pn,pn->p", pred.w[pairs.comp], lik)
-        return ParticleGatedTable(pairs.comp, pairs.plot, p, lik, pairs.d2, p_gate)
+        lik = pair_likelihoods(zp, z, R, pairs.state, pairs.plot) / p_gate
+        p = np.einsum("pn,pn->p", pred.w[pairs.state], lik)
+        return ParticleGatedTable(pairs.state, pairs.plot, p, lik, pairs.d2, p_gate)
 
     def update(
         self,
