@@ -114,6 +114,20 @@ class ParticleDensity:
         self.mean = np.zeros((0, d))
         self.cov = np.zeros((0, d, d))
 
+    @classmethod
+    def from_config(cls, cfg) -> ParticleDensity:
+        """The density of the ``ipf`` / ``lmipf`` trackers from a ``TrackerConfig``: CV with
+        the configured q, ndim, q_vertical; ``particles``, ``resample_threshold``,
+        ``resampling``, ``particle_seed``."""
+        model = ConstantVelocity(q=cfg.q, ndim=cfg.ndim, q_vertical=cfg.q_vertical)
+        return cls(
+            model,
+            n_particles=cfg.particles,
+            neff_threshold=cfg.resample_threshold,
+            scheme=cfg.resampling,
+            seed=cfg.particle_seed,
+        )
+
     def __len__(self) -> int:
         return len(self.x)
 
@@ -171,6 +185,8 @@ class ParticleDensity:
         beta: np.ndarray,
     ) -> None:
         """Weights by (A14), MMSE (A16) before resampling, then resampling (A15)."""
+        if len(pred.rows) == 0:
+            return
         factor = np.repeat(np.asarray(beta0, float)[:, None], self.n_particles, axis=1)
         if len(table):
             contrib = (np.asarray(beta) / np.maximum(table.p, 1e-300))[:, None] * table.lik

@@ -39,7 +39,7 @@ def _cumulative(w: np.ndarray) -> np.ndarray:
 def counts_to_indices(counts: np.ndarray) -> np.ndarray:
     """Ancestor indices (n, N) from offspring counts (n, N) whose rows sum to N."""
     n, N = counts.shape
-    return np.repeat(np.tile(np.arange(N), n), counts.ravel()).reshape(n, -1)
+    return np.repeat(np.tile(np.arange(N), n), counts.ravel()).reshape(n, N)
 
 
 def _search_counts(c: np.ndarray, u: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
