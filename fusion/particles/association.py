@@ -15,19 +15,26 @@ state-independent P_D, [LIT] P_G).
   ρ → Ω (A11–A13). A plot no other track selected gets Ω = ρ exactly, so far-apart
   tracks reduce to the IPF bit for bit.
 
-The arithmetic is that of the Gaussian LM-IPDA/LM-ITS (spec 03 §1.2, 6.12–6.14,
-"canonical" prior) and of IPDA (5.16–5.18): the functions of
-``fusion.tracker.lm_its`` and ``fusion.tracker.ipda`` are reused, so the particle and
-Gaussian trackers share one implementation of the existence and LM formulas.
+The arithmetic is that of the Gaussian IPDA and LM-IPDA/LM-ITS (5.16–5.18; spec 03 §1.2,
+6.12–6.14, "canonical" prior), so these functions are the tracker's association parts
+``single`` and ``lm`` (:mod:`fusion.tracker.associators`) applied to the particle table:
+one implementation of the existence and LM formulas, which the ``ipf`` / ``lmipf``
+trackers use directly through the registry.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from skyfuse.fusion.tracker.ipda import AssociationResult, single_target
+from skyfuse.fusion.tracker.associators import AssociationProblem, associate_lm, associate_single
+from skyfuse.fusion.tracker.ipda import AssociationResult
 from skyfuse.fusion.tracker.lm_its import modified_clutter_density
 
 from .density import ParticleGatedTable
+
+
+def _problem(table, n_plots, psi_pred, pdpg, rho) -> AssociationProblem:
+    psi, pdpg = np.asarray(psi_pred, float), np.asarray(pdpg, float)
+    return AssociationProblem(psi, pdpg, table.tp_track, table.tp_plot, n_plots, table.p, rho)
 
 
 def lm_clutter_density(
@@ -48,10 +55,7 @@ def ipf_association(
 ) -> AssociationResult:
     """ψ_{k|k}, β_0 (per track) and β_j (per row) by (A11–A13); ``clutter`` per row is ρ_j
     (IPF) or Ω^τ_j (LM-IPF)."""
-    ratio = table.p / clutter
-    return single_target(
-        np.asarray(psi_pred, float), np.asarray(pdpg, float), table.tp_track, ratio
-    )
+    return associate_single(_problem(table, 0, psi_pred, pdpg, np.asarray(clutter, float)))
 
 
 def lm_ipf_association(
@@ -62,5 +66,4 @@ def lm_ipf_association(
     rho: np.ndarray,
 ) -> AssociationResult:
     """LM-IPF: Ω for all tracks from the predictions first (A9–A10), then (A11–A13)."""
-    omega = lm_clutter_density(table, n_plots, psi_pred, pdpg, rho)
-    return ipf_association(table, psi_pred, pdpg, omega)
+    return associate_lm(_problem(table, n_plots, psi_pred, pdpg, np.asarray(rho, float)))
