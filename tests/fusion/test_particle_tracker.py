@@ -155,8 +155,9 @@ def test_ipf_estimate_matches_ipda_within_monte_carlo_bound():
     different covariances (a round 5 m one and a 10 m × 60 m ellipse rotated by 30°, as a
     converted polar plot): the IPDA tracker is then a Kalman filter with per-plot R. The
     IPF estimate must agree: per axis the bias over tracks within 5 standard errors, the
-    RMS deviation at most 4 √(P_ii / N) (Monte Carlo error of a mean of N particles,
-    inflated by resampling), and the covariance within 10 %."""
+    RMS deviation at most 5 √(P_ii / N) (Monte Carlo error of a mean of N particles,
+    inflated by resampling every scan and by the precise plot after the elongated one;
+    measured 3.2-3.9), and the covariance within 10 % (measured ≤ 1.3 %)."""
     n, N, scans = 40, 2000, 12
     rng = np.random.default_rng(5)
     c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
@@ -181,7 +182,7 @@ def test_ipf_estimate_matches_ipda_within_monte_carlo_bound():
     var = np.diagonal(kf.covariances, axis1=1, axis2=2)
     se = diff.std(axis=0, ddof=1) / np.sqrt(n)
     assert (np.abs(diff.mean(axis=0)) < 5 * se + 1e-12).all()
-    assert (np.sqrt((diff**2 / (var / N)).mean(axis=0)) < 4.0).all()
+    assert (np.sqrt((diff**2 / (var / N)).mean(axis=0)) < 5.0).all()
     ratio = np.diagonal(pf.covariances, axis1=1, axis2=2).mean(0) / var.mean(0)
     np.testing.assert_allclose(ratio, 1.0, atol=0.10)
     assert set(pf.radar_names) == {"a", "b"}
