@@ -15,8 +15,12 @@ machine load affects all trackers alike. Figures per tracker:
 * for the particle trackers, particles·plots per second: Σ_scans (gated track × plot
   pairs) × N / CPU time of the whole step; the tracks and gated pairs per scan.
 
-    python benchmarks/particle_trackers.py                     # 3 scenarios, 5 runs each
-    python benchmarks/particle_trackers.py --runs 2 --scenarios thesis-mtt-5
+    python benchmarks/particle_trackers.py                     # 3 scenarios × 2 clutter, 5 runs
+    python benchmarks/particle_trackers.py --runs 2 --scenarios thesis-mtt-5 --clutter 0
+
+Clutter: the source scenarios have none (0); 2e-5 plots per m² per scan is 20 false plots
+per scan over the 1000 × 1000 m area, which starts many tentative tracks (each with N
+particles).
 
 Writes ``benchmarks/results/particle_trackers.json``. Single-threaded BLAS (set before
 NumPy is imported) so that the comparison does not depend on free cores.
@@ -50,10 +54,14 @@ VARIANTS = (Variant("lmits", 3), Variant("ipf", 0), Variant("lmipf", 0))
 REFERENCE = "lmits"
 
 
-def time_scenario(scenario: str, runs: int, particles: int, seed: int) -> dict:
-    """Run ``runs`` consecutive Monte Carlo runs of ``scenario`` through all trackers."""
+def time_scenario(scenario: str, runs: int, particles: int, seed: int, clutter: float) -> dict:
+    """Run ``runs`` consecutive Monte Carlo runs of ``scenario`` (with uniform Poisson
+    clutter of ``clutter`` plots per m² per scan) through all trackers."""
     settings = {"particles": particles}
-    exp = Experiment(scenario=scenario, seed=seed, runs=runs, tracker_settings=settings)
+    params = {"clutter_density": clutter} if clutter > 0 else {}
+    exp = Experiment(
+        scenario=scenario, seed=seed, runs=runs, tracker_settings=settings, scenario_params=params
+    )
     trackers = {v.tracker: Tracker(exp.tracker_config(v)) for v in VARIANTS}
     names = list(trackers)
     cpu = {n: [] for n in names}
@@ -111,26 +119,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=5, help="consecutive Monte Carlo runs")
     ap.add_argument("--particles", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument(
+        "--clutter", default="0,2e-5", help="clutter densities, plots per m² per scan (A,B,...)"
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/particle_trackers.json")
     a = ap.parse_args(argv)
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     results = {}
-    for sc in a.scenarios.split(","):
-        results[sc] = time_scenario(sc, a.runs, a.particles, a.seed)
-        print(f"\n{sc}: {a.runs} runs, N = {a.particles}")
+    cases = [(sc, float(c)) for sc in a.scenarios.split(",") for c in a.clutter.split(",")]
+    for sc, clutter in cases:
+        key = sc if clutter == 0 else f"{sc}@clutter={clutter:g}"
+        results[key] = r = time_scenario(sc, a.runs, a.particles, a.seed, clutter)
+        print(f"\n{key}: {a.runs} runs, N = {a.particles}")
         print(
             "| tracker | ms/scan | × lmits3 (total) | × lmits3 (median scan) | tracks | pairs "
             "| particles·plots/s |"
         )
         print("|---|---:|---:|---:|---:|---:|---:|")
-        for n, r in results[sc].items():
-            pp = r.get("particles_plots_per_s")
+        for n, row in r.items():
+            pp = row.get("particles_plots_per_s")
             pps = f"{pp:.3g}" if pp else "–"
             print(
-                f"| {n} | {r['ms_per_scan']:.2f} | {r['ratio_total']:.2f} | "
-                f"{r['ratio_median_per_scan']:.2f} | {r['tracks_per_scan']:.1f} | "
-                f"{r['gated_pairs_per_scan']:.1f} | {pps} |"
+                f"| {n} | {row['ms_per_scan']:.2f} | {row['ratio_total']:.2f} | "
+                f"{row['ratio_median_per_scan']:.2f} | {row['tracks_per_scan']:.1f} | "
+                f"{row['gated_pairs_per_scan']:.1f} | {pps} |"
             )
     load1 = os.getloadavg()
     print(f"\nload average {load0[0]:.2f} before, {load1[0]:.2f} after; "
@@ -140,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
         "runs": a.runs,
         "particles": a.particles,
         "seed": a.seed,
+        "clutter": a.clutter,
         "load_average_before_after": [load0[0], load1[0]],
         "python": platform.python_version(),
         "numpy": np.__version__,

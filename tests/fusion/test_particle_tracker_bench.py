@@ -18,7 +18,8 @@ def test_particle_trackers_benchmark_writes_json(tmp_path):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     out = tmp_path / "pt.json"
-    args = ["--runs", "1", "--scenarios", "thesis-mtt-5", "--particles", "100", "--out", str(out)]
+    args = ["--runs", "1", "--scenarios", "thesis-mtt-5", "--clutter", "0", "--particles", "100"]
+    args += ["--out", str(out)]
     assert mod.main(args) == 0
     res = json.loads(out.read_text())["results"]["thesis-mtt-5"]
     assert set(res) == {"lmits", "ipf", "lmipf"}
