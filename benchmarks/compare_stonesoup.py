@@ -6,6 +6,10 @@ Both trackers consume the SAME plots, generated once by skyfuse's simulator
 * ``cartesian``: N targets flying straight (50-250 m/s, random headings) in a 200 km ×
   200 km plane, one cartesian sensor (σ = 25 m per axis, P_D = 0.9, T = 1 s) with uniform
   Poisson clutter (``--clutter`` plots per scan);
+* ``crossing``: association matters. Pairs of targets (100-200 m/s) whose straight paths
+  cross at mid-run at 20-60°, passing within 0-150 m of each other, in a 20 km × 20 km
+  plane seen by the cartesian sensor. The same ``--clutter`` plots per scan fall on an
+  area 100× smaller, i.e. 100× the clutter density of ``cartesian``;
 * ``polar``: the same kind of traffic seen by one rotating 2d radar at the plane origin
   (σ_r = 30 m, σ_θ = 1.5 mrad, P_D = 0.9, T = 4 s, 150 km) with uniform clutter over its
   disc; every plot carries its own beam-crossing time.
@@ -85,7 +89,7 @@ EPOCH = dt.datetime(2026, 1, 1, tzinfo=dt.UTC)
 class Setup:
     """One benchmark scenario: the skyfuse scenario plus the constants both sides use."""
 
-    kind: str  # cartesian | polar
+    kind: str  # plots: cartesian | polar
     n_targets: int
     clutter: float  # mean false plots per scan
     scans: int
@@ -95,6 +99,10 @@ class Setup:
     q: float
     gospa_c: float
     scenario: Scenario = field(repr=False)
+    case: str = ""  # the benchmark case: cartesian | crossing | polar
+
+    def __post_init__(self) -> None:
+        self.case = self.case or self.kind
 
 
 def _traffic(rng: np.random.Generator, n: int, centre: float, half: float, duration: float):
@@ -111,15 +119,42 @@ def _traffic(rng: np.random.Generator, n: int, centre: float, half: float, durat
     return TargetSet.from_builders(builders)
 
 
+def _crossing_traffic(rng: np.random.Generator, n: int, side: float, duration: float):
+    """n targets in pairs whose straight paths cross at t = duration/2 at 20-60°, with a
+    miss distance of 0-150 m, crossing points in the central half of the square."""
+    builders = []
+    t_mid = duration / 2
+    for i in range(n):
+        if i % 2 == 0:
+            centre = rng.uniform(0.25 * side, 0.75 * side, 2)
+            head = rng.uniform(0.0, 2.0 * np.pi)
+            offset = rng.uniform(0.0, 150.0) * np.array([np.cos(head), -np.sin(head)])
+        else:
+            head += rng.uniform(np.radians(20), np.radians(60)) * rng.choice([-1, 1])
+            centre = centre + offset
+        v = rng.uniform(100.0, 200.0) * np.array([np.sin(head), np.cos(head)])
+        p = centre - v * t_mid
+        b = TrajectoryBuilder(0.0, (p[0], p[1], 0.0), (v[0], v[1], 0.0))
+        b.straight(duration + 1.0)
+        builders.append(b)
+    return TargetSet.from_builders(builders)
+
+
 def build_setup(kind: str, n_targets: int, clutter: float, scans: int, seed: int) -> Setup:
-    """The cartesian or polar benchmark scenario (see the module docstring)."""
+    """The cartesian, crossing or polar benchmark scenario (see the module docstring)."""
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7, n_targets)))
     frame = FrameSpec(kind=FrameKind.PLANAR, lat0=LAT0, lon0=LON0)
     plane = Stereographic(LAT0, LON0)
-    if kind == "cartesian":
-        period, side, sigma, q, c = 1.0, 200_000.0, 25.0, 1.0, 250.0
+    case = kind
+    if kind in ("cartesian", "crossing"):
+        period, sigma, q, c = 1.0, 25.0, 1.0, 250.0
+        side = 200_000.0 if kind == "cartesian" else 20_000.0
         duration = scans * period
-        targets = _traffic(rng, n_targets, side / 2, 0.35 * side, duration)
+        if kind == "cartesian":
+            targets = _traffic(rng, n_targets, side / 2, 0.35 * side, duration)
+        else:
+            targets = _crossing_traffic(rng, n_targets, side, duration)
+        kind = "cartesian"
         site = RadarSite(
             radar_id="sensor", name="cartesian sensor", lat=LAT0, lon=LON0, alt=0.0,
             kind="cartesian", sigma_cartesian=sigma, scan_period=period, p_detection=0.9,
@@ -152,14 +187,14 @@ def build_setup(kind: str, n_targets: int, clutter: float, scans: int, seed: int
         sensors = [SensorConfig(site=site, phase=0.0, clutter_max_altitude=0.0)]
         sig = (sr, sa)
     else:
-        raise ValueError(f"kind = {kind!r}: must be 'cartesian' or 'polar'")
+        raise ValueError(f"kind = {kind!r}: must be 'cartesian', 'crossing' or 'polar'")
     scenario = Scenario(
         name=f"bench-{kind}", description=f"{n_targets} straight targets, {kind} plots",
         sites=[site], frame=frame, duration=duration, start_time=DEFAULT_START_TIME,
         n_targets=n_targets, params={"targets": n_targets, "clutter": clutter},
         targets=targets, sensors=sensors, plane=plane, truth_period=period, seed=seed,
     )  # fmt: skip
-    return Setup(kind, n_targets, clutter, scans, period, sig, 0.9, q, c, scenario)
+    return Setup(kind, n_targets, clutter, scans, period, sig, 0.9, q, c, scenario, case)
 
 
 # ------------------------------------------------------------------------ shared plots
@@ -229,6 +264,7 @@ def skyfuse_config(setup: Setup, kind: str) -> TrackerConfig:
     at T = 4 s the same q would give skyfuse 4× Stone Soup's process noise)."""
     return TrackerConfig(
         tracker=kind,
+        motion="cv",
         depth=3,
         q=setup.q / setup.period,
         p_gate=GATE_P,
@@ -410,6 +446,8 @@ PAIRINGS = {
     # (scenario kind, skyfuse tracker, Stone Soup tracker, label)
     "cartesian": [("gnn", "gnn", "GNN + KF"), ("jipda", "jpda", "JIPDA vs JPDA + KF"),
                   ("lmits", "jpda", "LM-ITS N=3 vs JPDA + KF")],
+    "crossing": [("gnn", "gnn", "GNN + KF"), ("jipda", "jpda", "JIPDA vs JPDA + KF"),
+                 ("lmits", "jpda", "LM-ITS N=3 vs JPDA + KF")],
     "polar": [("gnn", "gnn", "GNN + EKF (polar)"), ("jipda", "gnn", "JIPDA vs GNN + EKF"),
               ("lmits", "gnn", "LM-ITS N=3 vs GNN + EKF")],
 }  # fmt: skip
@@ -423,12 +461,12 @@ def bench_case(
     scans = prepare(setup, ss, time_bin if setup.kind == "polar" else 0.0)
     plots = float(np.mean([len(s.detections) for s in scans]))
     log(
-        f"  {setup.kind} {setup.n_targets} targets, {setup.clutter:g} clutter/scan: "
+        f"  {setup.case} {setup.n_targets} targets, {setup.clutter:g} clutter/scan: "
         f"{len(scans)} scans, {plots:.0f} plots/scan (prepared in {time.perf_counter() - t0:.1f} s)"
     )
     ss_cache: dict[str, tuple[list[float], list]] = {}
     rows = []
-    for sf_kind, ss_kind, label in PAIRINGS[setup.kind]:
+    for sf_kind, ss_kind, label in PAIRINGS[setup.case]:
         sf_ms, ss_ms = [], []
         sf_est = ss_est = None
         n_ss = 0 if ss_kind in ss_cache and ss_repeats <= len(ss_cache[ss_kind][0]) else ss_repeats
@@ -452,7 +490,7 @@ def bench_case(
         sf_med = statistics.median(sf_ms)
         ss_med = statistics.median(ss_ms)
         row = {
-            "scenario": setup.kind,
+            "scenario": setup.case,
             "targets": setup.n_targets,
             "clutter_per_scan": setup.clutter,
             "plots_per_scan": round(plots, 1),
@@ -545,7 +583,10 @@ def main(argv: list[str] | None = None) -> int:
         "skyfuse always uses exact times)",
     )
     ap.add_argument(
-        "--scenarios", nargs="+", default=["cartesian", "polar"], choices=["cartesian", "polar"]
+        "--scenarios",
+        nargs="+",
+        default=["cartesian", "polar"],
+        choices=["cartesian", "crossing", "polar"],
     )
     ap.add_argument("--repeats", type=int, default=3, help="skyfuse repetitions (median)")
     ap.add_argument(
@@ -617,7 +658,7 @@ def main(argv: list[str] | None = None) -> int:
                 # Stone Soup costs ≈20 ms per target per scan on cartesian plots and
                 # ≈180 ms with the EKF on polar plots (this machine, loaded): repeat it
                 # only while the repetitions stay under ~2 minutes
-                per = 0.02 if kind == "cartesian" else 0.18
+                per = 0.18 if kind == "polar" else 0.02
                 ss_rep = args.repeats if per * n * args.scans * args.repeats <= 120 else 1
             rows += bench_case(setup, args.repeats, ss_rep, log, args.ss_time_bin)
             write(rows, done=False)  # after every case: a long run keeps what it measured

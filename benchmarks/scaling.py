@@ -83,10 +83,10 @@ def make_scans(n_targets: int, n_clutter: int, scans: int, seed: int = 0):
     return x0, batches
 
 
-def new_tracker(kind: str, x0: np.ndarray) -> Tracker:
+def new_tracker(kind: str, x0: np.ndarray, motion: str = "cv") -> Tracker:
     cfg = TrackerConfig(
         tracker=kind, depth=3, q=1.0, v_max=250.0, init_max_dt=1.5, psi_init=0.01,
-        clutter="known",
+        clutter="known", motion=motion,
     )  # fmt: skip
     tr = Tracker(cfg)
     P0 = np.diag([SIGMA**2, 100.0, SIGMA**2, 100.0])
@@ -95,21 +95,24 @@ def new_tracker(kind: str, x0: np.ndarray) -> Tracker:
     return tr
 
 
-def run_case(kind: str, n_targets: int, n_clutter: int, scans: int, warmup: int) -> dict:
+def run_case(
+    kind: str, n_targets: int, n_clutter: int, scans: int, warmup: int, motion: str = "cv"
+) -> dict:
     x0, batches = make_scans(n_targets, n_clutter, warmup + scans)
-    tr = new_tracker(kind, x0)
-    times, tracks, comps, pairs = [], [], [], []
+    tr = new_tracker(kind, x0, motion)
+    times, cpu, tracks, comps, pairs = [], [], [], [], []
     for k, b in enumerate(batches):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = tr.step(b)
-        dt = time.perf_counter() - t0
+        dt, dc = time.perf_counter() - t0, time.process_time() - c0
         if k >= warmup:
             times.append(dt * 1e3)
+            cpu.append(dc * 1e3)
             tracks.append(len(out))
             comps.append(out.stats["components"])
             pairs.append(out.stats["gated_pairs"])
     # peak memory: a separate pass over the same scans (steady state after warm-up)
-    tr = new_tracker(kind, x0)
+    tr = new_tracker(kind, x0, motion)
     for b in batches[:warmup]:
         tr.step(b)
     tracemalloc.start()
@@ -135,9 +138,11 @@ def run_case(kind: str, n_targets: int, n_clutter: int, scans: int, warmup: int)
                 held += 1
     return {
         "tracker": kind,
+        "motion": motion,
         "targets": n_targets,
         "clutter_per_scan": n_clutter,
         "ms_per_scan_median": round(float(np.median(times)), 2),
+        "cpu_ms_per_scan_median": round(float(np.median(cpu)), 2),
         "ms_per_scan_mean": round(float(np.mean(times)), 2),
         "ms_per_scan_max": round(float(np.max(times)), 2),
         "peak_memory_mb": round(peak / 2**20, 2),
@@ -220,6 +225,22 @@ def plot(res: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def target_point(scans: int, warmup: int, show) -> list[dict]:
+    """lmits at 1,000 targets + 5,000 clutter plots with CV and the two IMM densities
+    (CPU time per scan relative to CV)."""
+    r = run_case("lmits", 1000, 5000, scans, warmup)
+    show(r)
+    rows = [r]
+    for motion in ("imm-cv-ct", "imm-cv-singer"):
+        ri = run_case("lmits", 1000, 5000, scans, warmup, motion)
+        ri["cpu_relative_to_cv"] = round(
+            ri["cpu_ms_per_scan_median"] / r["cpu_ms_per_scan_median"], 2
+        )
+        rows.append(ri)
+        show(ri)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small grid")
@@ -269,7 +290,8 @@ def main(argv: list[str] | None = None) -> int:
 
     def show(r: dict) -> None:
         print(
-            f"{r['tracker']:>7} {r['targets']:>7} {r['clutter_per_scan']:>7} "
+            f"{r['tracker'] + ('' if r['motion'] == 'cv' else '/' + r['motion']):>7} "
+            f"{r['targets']:>7} {r['clutter_per_scan']:>7} "
             f"{r['ms_per_scan_median']:>8.1f} {r['ms_per_scan_max']:>7.1f} "
             f"{r['peak_memory_mb']:>7.1f} {r['live_tracks_mean']:>7.0f} "
             f"{r['components_mean']:>7.0f} {r['gated_pairs_mean']:>7.0f} {r['targets_held']:>5}",
@@ -308,9 +330,7 @@ def main(argv: list[str] | None = None) -> int:
                 fit_exponent([a for a, _ in inc], [b for _, b in inc]), 2
             )
     if not args.quick:
-        r = run_case("lmits", 1000, 5000, args.scans, args.warmup)
-        res["target_point"].append(r)
-        show(r)
+        res["target_point"] = target_point(args.scans, args.warmup, show)
     for kind in ("lmits", "gnn"):
         for n, m in ((max(targets), args.clutter_fixed), (args.targets_fixed, max(clutter))):
             p = profile_case(kind, n, m, args.scans, args.warmup)

@@ -71,3 +71,21 @@ def test_eval_is_deterministic_for_a_seed():
 def test_eval_rejects_bad_usage_with_a_clear_message(argv, needle, capsys):
     assert main(argv) == 2
     assert needle in capsys.readouterr().err
+
+
+def test_eval_runs_existence_trackers_with_imm(tmp_path):
+    """KIND:MOTION filters run the existence tracker; with the IMM it keeps both targets
+    through the 4 g turn in these runs and tracks within a few hundred metres before it."""
+    toml = tmp_path / "t.toml"
+    toml.write_text("[tracker]\nimm_singer_sigma_m = 49.0\ninit_free_weight = 0.5\n")
+    cfg = CrossingEvalConfig(
+        scenario="crossing-4g", filters=["gnn:imm-cv-singer"], runs=3, tracker_config=toml
+    )
+    summary, _ = evaluate_crossing(cfg)
+    f = summary["filters"]["gnn:imm-cv-singer"]
+    assert f["lost"] == 0
+    assert 20 < f["mean_rmse_nearest_track"]["before_turn"] < 200
+    assert f["mean_rmse_nearest_track"]["turn"] < 300
+    assert "IMM of CV and Singer" in f["description"]
+    with pytest.raises(ValueError, match="KIND:MOTION"):
+        CrossingEvalConfig(scenario="crossing-4g", filters=["gnn:ukf"])

@@ -60,6 +60,7 @@ def ipda_reference(x, P, psi, plots):
 
 def make_tracker(kind="ipda", depth=0, **kw):
     cfg = TrackerConfig(
+        motion="cv",
         tracker=kind,
         depth=depth,
         q=Q_ACC,

@@ -18,6 +18,7 @@ def run_counts(depth, sizes, seed=0):
     selects every plot; returns the merged (pre-pruning) component count per scan."""
     rng = np.random.default_rng(seed)
     cfg = TrackerConfig(
+        motion="cv",
         tracker="its",
         depth=depth,
         q=0.75,

@@ -78,7 +78,7 @@ PLOTS = np.array([[12.0, 1.0], [22.0, 4.0], [30.0, 6.0], [17.0, -3.0], [45.0, 2.
 
 def run_tracker(kind, cap=5000):
     cfg = TrackerConfig(
-        tracker=kind, q=0.75, initiation="none", clutter="known", jipda_max_events=cap
+        motion="cv", tracker=kind, q=0.75, initiation="none", clutter="known", jipda_max_events=cap
     )
     tr = Tracker(cfg)
     ids = [tr.add_track(x, P, 0, existence=psi) for x, P, psi in TRACKS]

@@ -15,7 +15,13 @@ P0 = np.diag([50.0, 50.0, 50.0, 50.0])
 def run(kind, starts, scans=10, seed=5, spread=60.0):
     rng = np.random.default_rng(seed)
     cfg = TrackerConfig(
-        tracker=kind, depth=2, q=0.75, initiation="none", clutter="known", prune_threshold=1e-4
+        motion="cv",
+        tracker=kind,
+        depth=2,
+        q=0.75,
+        initiation="none",
+        clutter="known",
+        prune_threshold=1e-4,
     )
     tr = Tracker(cfg)
     for x in starts:

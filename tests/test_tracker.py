@@ -14,7 +14,7 @@ NS = 10**9
 
 
 def cfg(**kw):
-    base = dict(q=0.75, v_max=50.0, init_max_dt=1.5, clutter="known", psi_init=0.02)
+    base = dict(q=0.75, v_max=50.0, init_max_dt=1.5, clutter="known", psi_init=0.02, motion="cv")
     base.update(kw)
     return TrackerConfig(**base)
 

@@ -163,6 +163,7 @@ class Experiment(BaseModel):
         base: dict[str, object] = {
             "tracker": variant.tracker,
             "depth": variant.depth,
+            "motion": "cv",  # the source's constant-velocity model
             "q": 0.75,
             "p_gate": 0.99,
             "clutter": "estimated",

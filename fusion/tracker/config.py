@@ -38,7 +38,11 @@ class TrackerConfig(BaseModel):
         "lmits",
         description="Tracker: " + tracker_help(),
     )
-    motion: MotionKind = Field("cv", description="Motion density: " + motion_help())
+    motion: MotionKind = Field(
+        "imm-cv-ct",
+        description="Motion density: " + motion_help() + " (imm-cv-ct chosen by measurement, "
+        "docs/tracker.md)",
+    )
     depth: int = Field(
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
     )
@@ -75,6 +79,13 @@ class TrackerConfig(BaseModel):
     )
     initiation: Literal["two_point", "one_point", "none"] = Field(
         "two_point", description="Track initiation: two_point (3.25-3.27), one_point, none"
+    )
+    init_free_weight: float | None = Field(
+        None,
+        gt=0.0,
+        le=1.0,
+        description="A plot may start a track when the tracks' association weights Σβ on it "
+        "are below this (None: only plots no track gated)",
     )
     v_max: float = Field(
         350.0, gt=0.0, description="Maximum target speed for two-point pairing, m/s"
@@ -129,16 +140,16 @@ class TrackerConfig(BaseModel):
     # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
     # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.
-    imm_q_cv: float = Field(1.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
-    ct_sigma_a: float = Field(
+    imm_q_cv: float = Field(4.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
+    imm_ct_sigma_a: float = Field(
         1.0, ge=0.0, description="IMM: turn-mode tangential acceleration σ, m/s²"
     )
-    ct_sigma_omega: float = Field(
+    imm_ct_sigma_omega: float = Field(
         0.03, gt=0.0, description="IMM: turn-mode turn-rate acceleration σ, rad/s²"
     )
-    singer_tau: float = Field(10.0, gt=0.0, description="IMM: Singer-mode time constant τ, s")
-    singer_sigma_m: float = Field(
-        20.0, ge=0.0, description="IMM: Singer-mode acceleration σ_m, m/s² (≈ 2 g)"
+    imm_singer_tau: float = Field(10.0, gt=0.0, description="IMM: Singer-mode time constant τ, s")
+    imm_singer_sigma_m: float = Field(
+        30.0, ge=0.0, description="IMM: Singer-mode acceleration σ_m, m/s² (≈ 3 g)"
     )
     imm_tpm: list[float] = Field(
         [0.95, 0.05, 0.10, 0.90],

@@ -254,7 +254,7 @@ class Tracker:
         pred = self.density.predict(sel, dt)
         exist_pred = self.chain.predict(self.exist[sel], dt)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
-        stats["gated_pairs"] = len(table)
+        stats["gated_pairs"] = len(table.tp_track)
         res = self._associate(b, pred, table, exist_pred[:, 0])
         self.density.update(pred, table, res.beta0, res.beta)
         stats.update(res.stats)
@@ -264,7 +264,7 @@ class Tracker:
         assigned = self._record_hits(sel, t_pred, res, table, bit)
         events: list[TrackEventRecord] = []
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
-        new = self._initiate(b, table.plots_gated)
+        new = self._initiate(b, self._used_plots(m, table, res))
         assigned = np.concatenate([assigned, np.full(new, -1, dtype=np.int64)])
         stats["initiated"] = new
         for k_, v in stats.items():
@@ -276,7 +276,7 @@ class Tracker:
     ) -> AssociationResult:
         """Clutter density per row, then the configured association part."""
         cfg = self.cfg
-        pdpg = np.full(len(pred), float(b.p_detection) * self.P_G)
+        pdpg = np.full(len(pred.rows), float(b.p_detection) * self.P_G)
         rho = clutter_density(
             cfg.clutter,
             b.clutter_density,
@@ -427,14 +427,25 @@ class Tracker:
         stats["terminated"] = int(term.sum())
         return term
 
-    def _initiate(self, b: MeasurementBatch, gated_plots: np.ndarray) -> int:
-        """New tracks from the plots no track gated (two-point or one-point, spec 02 §5)."""
+    def _used_plots(self, m: int, table: GatedTable, res: AssociationResult) -> np.ndarray:
+        """Plots that may not start tracks: gated by any track (``init_free_weight`` None),
+        or claimed by the tracks with a total association weight Σ_τ β^τ_i of at least
+        ``init_free_weight`` (a plot of a second, closely spaced target that a track gates
+        but does not take can then start its own track)."""
+        used = np.zeros(m, bool)
+        if self.cfg.init_free_weight is None:
+            used[table.tp_plot] = True
+            return used
+        claimed = np.bincount(table.tp_plot, weights=res.beta, minlength=m)
+        return claimed >= self.cfg.init_free_weight
+
+    def _initiate(self, b: MeasurementBatch, used: np.ndarray) -> int:
+        """New tracks from the plots not ``used`` by tracks (two-point or one-point,
+        spec 02 §5)."""
         cfg = self.cfg
         m = len(b)
         uid = self._next_uid + np.arange(m, dtype=np.int64)
         self._next_uid += m
-        used = np.zeros(m, bool)
-        used[gated_plots] = True
         free = np.flatnonzero(~used)
         if cfg.initiation == "none" or len(free) == 0:
             return 0

@@ -1,8 +1,10 @@
 """crossing-4g (spec 01 §7, source 003): two targets crossing with opposite 4 g turns, one
 2-D radar, σ_r = 20 m, σ_θ 2.5 or 6 mrad, GNN association with the filters compared in the
 source (PCWPA KF, Singer KF, two-model IMM), plus the IMM with p22 = 0.9 and the three-model
-CV/Singer/CT IMM. Position RMSE per scan per filter, runs in which the two tracks swap.
-Every filter sees the same simulated plots in a run (seed + run index).
+CV/Singer/CT IMM; and any existence tracker of :mod:`fusion.tracker` with any motion
+density, named ``KIND:MOTION`` (e.g. ``jipda:imm-cv-ct``, ``ipda:cv``; spec 02-03 with the
+IMM of spec 01 §5 inside). Position RMSE per scan per filter, runs in which the two tracks
+swap or are lost. Every filter sees the same simulated plots in a run (seed + run index).
 """
 
 from __future__ import annotations
@@ -30,12 +32,29 @@ FILTER_HELP = {
 }
 
 
+def filter_description(name: str) -> str:
+    """Help text of a filter name: a GNN-baseline filter or ``KIND:MOTION``."""
+    if name in FILTER_HELP:
+        return FILTER_HELP[name]
+    from skyfuse.fusion.tracker.registry import MOTIONS, TRACKERS
+
+    kind, _, motion = name.partition(":")
+    if kind in TRACKERS and motion in MOTIONS:
+        return f"{TRACKERS[kind].description} tracker, {MOTIONS[motion].description}"
+    raise ValueError(
+        f"filter {name!r} is not known; choose from {', '.join(FILTER_HELP)} or KIND:MOTION "
+        f"with KIND in {', '.join(TRACKERS)} and MOTION in {', '.join(MOTIONS)}"
+    )
+
+
 class CrossingEvalConfig(BaseModel):
     """Options of ``skyfuse eval crossing-4g``."""
 
     scenario: str = Field(description="Scenario to evaluate (supported: crossing-4g)")
     filters: list[str] = Field(
-        ["kf", "singer", "imm2"], description="Filters: " + ", ".join(FILTER_HELP)
+        ["kf", "singer", "imm2"],
+        description="Filters: " + ", ".join(FILTER_HELP) + ", or an existence tracker "
+        "KIND:MOTION (e.g. jipda:imm-cv-ct)",
     )
     runs: int = Field(300, ge=1, le=100_000, description="Monte Carlo runs")
     sigma_az_mrad: float = Field(2.5, gt=0, le=100, description="Azimuth noise σ_θ, mrad")
@@ -54,6 +73,11 @@ class CrossingEvalConfig(BaseModel):
     singer_a_max: float = Field(40.0, gt=0, description="Singer A_max, m/s²")
     singer_p_max: float = Field(0.9, ge=0, le=1, description="Singer P_max (as printed in 003)")
     singer_p_0: float = Field(0.1, ge=0, le=1, description="Singer P_0 (as printed in 003)")
+    tracker_config: Path | None = Field(
+        None,
+        description="TOML with a [tracker] table (TrackerConfig fields) for the KIND:MOTION "
+        "filters; p_gate is always --p-gate",
+    )
     first_scan: int = Field(2, ge=1, description="Scan at which tracks are matched to targets")
     follow_distance: float = Field(
         2000.0, gt=0, description="A track follows a target at the end if within this, m"
@@ -63,10 +87,7 @@ class CrossingEvalConfig(BaseModel):
     @classmethod
     def _known_filters(cls, v: list[str]) -> list[str]:
         for name in v:
-            if name not in FILTER_HELP:
-                raise ValueError(
-                    f"filter {name!r} is not known; choose from {', '.join(FILTER_HELP)}"
-                )
+            filter_description(name)
         if not v:
             raise ValueError("give at least one filter")
         return v
@@ -121,17 +142,29 @@ def _scan_batch(scan):
 
 
 def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
-    """One Monte Carlo run: every filter with GNN over the same plots.
+    """One Monte Carlo run: every filter over the same plots.
 
-    At ``first_scan`` the confirmed tracks are matched to targets 0 and 1 (optimal
-    assignment by distance). Returns per filter: errors (n_scans, 2) of those two tracks
-    (NaN once deleted); the nearest-confirmed-track error (n_scans,), RMS over targets;
-    ``swapped``: at the last scan the track of a target follows the other target (is
-    nearest to it, within ``follow_distance``); ``lost``: the track of a target was deleted
-    or is farther than ``follow_distance`` from both; ``first_cross_scan``: the first scan
-    at which a target's track is nearest the other target (None if never); and the track
-    positions."""
-    from skyfuse.fusion.association import CONFIRMED, GNNConfig, GNNTracker
+    At the first scan ≥ ``first_scan`` with two confirmed tracks, they are matched to
+    targets 0 and 1 (optimal assignment by distance). Returns per filter: errors
+    (n_scans, 2) of those two tracks (NaN once deleted); the nearest-confirmed-track error
+    (n_scans,), RMS over targets; ``swapped``: at the last scan the track of a target
+    follows the other target (is nearest to it, within ``follow_distance``); ``lost``: the
+    track of a target was deleted or is farther than ``follow_distance`` from both;
+    ``first_cross_scan``: the first scan at which a target's track is nearest the other
+    target (None if never); and the track positions."""
+    scans, times_ns, tpos, t0, p_d = _simulate(cfg, run)
+    out = {}
+    for name in cfg.filters:
+        step = _stepper(name, cfg, t0, p_d)
+        t_start = time.process_time()
+        out[name] = _score(cfg, step, scans, tpos)
+        out[name]["cpu_s"] = time.process_time() - t_start
+    return {"times_s": (times_ns - t0) * 1e-9, "truth": tpos, "filters": out}
+
+
+def _simulate(cfg: CrossingEvalConfig, run: int):
+    """Plots of run ``run`` converted to the system frame: [(z, R, t_ns)], scan times,
+    truth positions (n_scans, 2, 2), start time (ns), P_D."""
     from skyfuse.fusion.frames import SystemFrame, convert_plots
     from skyfuse.fusion.sim import Simulator, build_scenario
 
@@ -148,55 +181,80 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
     times_ns = np.array([t for *_, t in scans], np.int64)
     truth = sim.truth_at(times_ns)
     tpos = np.stack([truth["x"], truth["y"]], axis=-1)  # (n_scans, 2 targets, 2)
-    t0 = sc.start_time
-    out = {}
-    for name in cfg.filters:
+    return scans, times_ns, tpos, sc.start_time, float(site.p_detection)
+
+
+def _stepper(name: str, cfg: CrossingEvalConfig, t0: int, p_d: float):
+    """``step(z, R, t_ns) -> (ids, confirmed (n,) bool, positions (n, 2))`` of a filter:
+    the GNN baseline with a filter of :func:`make_filter`, or an existence tracker
+    ``KIND:MOTION``."""
+    if name in FILTER_HELP:
+        from skyfuse.fusion.association import CONFIRMED, GNNConfig, GNNTracker
+
         gnn_cfg = GNNConfig(p_gate=cfg.p_gate, solver=cfg.solver, imm_gating=cfg.imm_gating)
         trk = GNNTracker(make_filter(name, cfg), gnn_cfg)
-        n_scans = len(scans)
-        err = np.full((n_scans, 2), np.nan)
-        best = np.full(n_scans, np.nan)
-        pos_hist = np.full((n_scans, 2, 2), np.nan)
-        matched = None
-        t_start = time.process_time()
-        for s, (z, R, t_ns) in enumerate(scans):
+
+        def step_gnn(z, R, t_ns):
             trk.step(z, R, (t_ns - t0) * 1e-9)
-            conf = np.flatnonzero(trk.status == CONFIRMED)
-            pos = trk.positions()
-            if s == cfg.first_scan and conf.size >= 2:
-                d = np.linalg.norm(pos[conf][:, None, :] - tpos[s][None], axis=-1)
+            return trk.ids, trk.status == CONFIRMED, trk.positions()
+
+        return step_gnn
+    from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+
+    kind, _, motion = name.partition(":")
+    settings = {}
+    if cfg.tracker_config is not None:
+        from skyfuse.services.cli.config import load_toml
+
+        settings = load_toml(cfg.tracker_config, "tracker")
+    settings.update(tracker=kind, motion=motion, p_gate=cfg.p_gate)
+    tracker = Tracker(TrackerConfig(**settings))
+
+    def step_existence(z, R, t_ns):
+        out = tracker.step(MeasurementBatch(t_ns, "radar", z, R, p_d, 0.0))
+        return out.ids, out.confirmed, out.states[:, 0::2][:, :2]
+
+    return step_existence
+
+
+def _score(cfg: CrossingEvalConfig, step, scans, tpos) -> dict:
+    """Run one filter over the scans and score it against the truth (see crossing_run)."""
+    n_scans = len(scans)
+    err = np.full((n_scans, 2), np.nan)
+    best = np.full(n_scans, np.nan)
+    pos_hist = np.full((n_scans, 2, 2), np.nan)
+    matched = None
+    for s, (z, R, t_ns) in enumerate(scans):
+        ids, confirmed, pos = step(z, R, t_ns)
+        conf = np.flatnonzero(confirmed)
+        if conf.size:
+            d = np.linalg.norm(pos[conf][:, None, :] - tpos[s][None], axis=-1)
+            best[s] = math.sqrt(float((d.min(axis=0) ** 2).mean()))
+            if matched is None and s >= cfg.first_scan and conf.size >= 2:
                 r_idx, c_idx = linear_sum_assignment(d)
-                matched = {int(c): int(trk.ids[conf[r]]) for r, c in zip(r_idx, c_idx)}
-            if conf.size:
-                d = np.linalg.norm(pos[conf][:, None, :] - tpos[s][None], axis=-1)
-                best[s] = math.sqrt(float((d.min(axis=0) ** 2).mean()))
-            if matched is not None:
-                for tgt, tid in matched.items():
-                    where = np.flatnonzero(trk.ids == tid)
-                    if where.size:
-                        pos_hist[s, tgt] = pos[where[0]]
-                        err[s, tgt] = float(np.linalg.norm(pos[where[0]] - tpos[s, tgt]))
-        follows = _follows(pos_hist[-1], tpos[-1], cfg.follow_distance)
-        if matched is None:
-            follows = np.array([-1, -1])
-        swapped = bool(any(follows[a] == 1 - a for a in (0, 1)))
-        lost = bool((follows < 0).any())
-        first_cross = None
-        for k in range(n_scans):
-            f_k = _follows(pos_hist[k], tpos[k], cfg.follow_distance)
-            if any(f_k[a] == 1 - a for a in (0, 1)):
-                first_cross = k
-                break
-        out[name] = {
-            "err": err,
-            "best": best,
-            "swapped": swapped,
-            "lost": lost,
-            "first_cross_scan": first_cross,
-            "positions": pos_hist,
-            "cpu_s": time.process_time() - t_start,
-        }
-    return {"times_s": (times_ns - t0) * 1e-9, "truth": tpos, "filters": out}
+                matched = {int(c): int(ids[conf[r]]) for r, c in zip(r_idx, c_idx)}
+        for tgt, tid in (matched or {}).items():
+            where = np.flatnonzero(ids == tid)
+            if where.size:
+                pos_hist[s, tgt] = pos[where[0]]
+                err[s, tgt] = float(np.linalg.norm(pos[where[0]] - tpos[s, tgt]))
+    follows = _follows(pos_hist[-1], tpos[-1], cfg.follow_distance)
+    if matched is None:
+        follows = np.array([-1, -1])
+    first_cross = None
+    for k in range(n_scans):
+        f_k = _follows(pos_hist[k], tpos[k], cfg.follow_distance)
+        if any(f_k[a] == 1 - a for a in (0, 1)):
+            first_cross = k
+            break
+    return {
+        "err": err,
+        "best": best,
+        "swapped": bool(any(follows[a] == 1 - a for a in (0, 1))),
+        "lost": bool((follows < 0).any()),
+        "first_cross_scan": first_cross,
+        "positions": pos_hist,
+    }
 
 
 def _follows(track_pos: np.ndarray, target_pos: np.ndarray, max_dist: float) -> np.ndarray:
@@ -264,7 +322,7 @@ def evaluate_crossing(cfg: CrossingEvalConfig, progress: Callable[[int], None] |
                 for k, w in windows.items():
                     crossings[k] += bool(w[c])
         summary["filters"][name] = {
-            "description": FILTER_HELP[name],
+            "description": filter_description(name),
             "rmse_target0": _clean(rmse_t[:, 0]),
             "rmse_target1": _clean(rmse_t[:, 1]),
             "rmse_nearest_track": _clean(rmse_b),

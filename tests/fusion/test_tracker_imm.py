@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 from skyfuse.fusion.models import ConstantVelocity
-from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker import MeasurementBatch, SectorCoverage, Tracker, TrackerConfig
 from skyfuse.fusion.tracker.density import TrackDensity
 from skyfuse.fusion.tracker.density.imm_mixture import IMMMixtureDensity, ModeTransition
 
@@ -40,7 +40,9 @@ def _scene(ndim, seed, steps=30, n_targets=6, clutter=40, side=20_000.0):
 @pytest.mark.parametrize("ndim", [2, 3])
 def test_single_mode_imm_equals_gaussian_mixture(kind, ndim):
     batches = _scene(ndim, 3 + ndim)
-    cfg = TrackerConfig(tracker=kind, ndim=ndim, clutter="estimated", v_max=300.0, depth=2)
+    cfg = TrackerConfig(
+        tracker=kind, motion="cv", ndim=ndim, clutter="estimated", v_max=300.0, depth=2
+    )
     ref, imm = Tracker(cfg), Tracker(cfg)
     imm.density = IMMMixtureDensity(
         [ConstantVelocity(q=cfg.q, ndim=ndim)], ModeTransition([[1.0]], 4.0), [1.0], ndim,
@@ -76,7 +78,7 @@ def test_two_model_mode_probabilities_match_hand_written_recursion():
     Π per 4 s = [[0.9, 0.1], [0.2, 0.8]]; the loop-by-loop reference below (spec 01 §5
     eq. 15-19, spec 02 5.16-5.18, 2.38) is independent of the tracker's array code."""
     qs, tpm, T, r, pd, rho = (1.0, 400.0), np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0, 100.0, 0.9, 1e-9
-    cfg = TrackerConfig(tracker="ipda", q=1.0, initiation="none", p_gate=0.999999,
+    cfg = TrackerConfig(tracker="ipda", motion="cv", q=1.0, initiation="none", p_gate=0.999999,
                         clutter="known", delta11=1.0)  # fmt: skip
     tr = Tracker(cfg)
     tr.density = IMMMixtureDensity(
@@ -174,3 +176,37 @@ def test_mode_transition_composes_and_rejects_bad_matrices():
         ModeTransition([[0.1, 0.9], [0.9, 0.1]], 4.0)
     with pytest.raises(ValueError, match="row-stochastic"):
         ModeTransition([[0.5, 0.6], [0.1, 0.9]], 4.0)
+
+
+@pytest.mark.parametrize("motion", ["imm-cv-ct", "imm-cv-singer"])
+def test_imm_multi_radar_3d_with_coverage_tracks_every_target(motion):
+    """Two radars with overlapping coverage, 3-D plots, clutter: every target gets one
+    confirmed track whose position error is within a few σ (σ = 30 m per axis)."""
+    rng = np.random.default_rng(21)
+    n, side = 6, 20_000.0
+    x0 = rng.uniform(6_000, 14_000, (n, 3))
+    x0[:, 2] = rng.uniform(3_000, 9_000, n)
+    v = np.column_stack([rng.normal(0, 50, (n, 2)), rng.normal(0, 3, n)])
+    tr = Tracker(TrackerConfig(tracker="lmits", ndim=3, motion=motion, v_max=400.0))
+    sites = {"A": np.zeros(2), "B": np.full(2, side)}
+    for k in range(1, 40):
+        for name, site in sites.items():
+            t = 4 * k * NS + (2 * NS if name == "B" else 0)
+            pos = x0 + v * t / NS
+            seen = np.linalg.norm(pos[:, :2] - site, axis=1) < 22_000
+            det = seen & (rng.random(n) < 0.9)
+            z = pos[det] + rng.normal(0, 30, (int(det.sum()), 3))
+            c = rng.uniform(0, side, (rng.poisson(20), 3))
+            cov = SectorCoverage(site, 0.0, 22_000.0, 0.0, 2 * np.pi, 0, 0)
+            b = MeasurementBatch(t, name, np.concatenate([z, c]), 900.0 * np.eye(3), 0.9,
+                                 20 / side**3, coverage=cov)  # fmt: skip
+            out = tr.step(b)
+    pos = x0 + v * t / NS
+    seen = np.zeros(n, bool)
+    for site in sites.values():
+        seen |= np.linalg.norm(pos[:, :2] - site, axis=1) < 20_000
+    assert seen.sum() >= 5
+    est = out.states[out.confirmed][:, 0::2]
+    d = np.linalg.norm(est[:, None, :] - pos[None], axis=2)
+    assert (d.min(axis=0)[seen] < 150.0).all(), d.min(axis=0)
+    assert out.confirmed.sum() <= n + 1

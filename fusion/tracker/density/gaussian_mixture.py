@@ -29,15 +29,29 @@ from ..its import component_update
 from .base import GatedTable, Prediction
 
 
-@dataclass
 class MixturePrediction(Prediction):
-    """Predicted components ``mix`` of the tracks ``rows``; loc (C,) each component's index
-    into rows; y (C, k), HPH (C, k, k) their predicted measurements."""
+    """Predicted components of the tracks ``rows``: weights w (C,), loc (C,) each
+    component's index into rows, y (C, k), HPH (C, k, k) their predicted measurements.
+    ``z_mean`` and ``S0`` (the track-level moment match, 4.66-4.68) are computed on first
+    use: only the non-parametric clutter estimate needs them."""
 
-    mix: comp.Mixture | None = None
-    loc: np.ndarray | None = None
-    y: np.ndarray | None = None
-    HPH: np.ndarray | None = None
+    def __init__(self, rows: np.ndarray, w: np.ndarray, loc: np.ndarray, y, HPH, mix=None):
+        self.rows, self.w, self.loc, self.y, self.HPH, self.mix = rows, w, loc, y, HPH, mix
+        self._moments: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _track_moments(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._moments is None:
+            _, z, S = moment_match(self.w, self.y, self.HPH, self.loc, len(self.rows))
+            self._moments = (z, S)
+        return self._moments
+
+    @property
+    def z_mean(self) -> np.ndarray:
+        return self._track_moments()[0]
+
+    @property
+    def S0(self) -> np.ndarray:
+        return self._track_moments()[1]
 
 
 @dataclass
@@ -122,8 +136,7 @@ class GaussianMixtureDensity:
         pred.x, pred.P = predict(pred.x, pred.P, self.model.F(dtc), self.model.Q(dtc))
         y = pred.x[:, self.pos]
         HPH = pred.P[:, self.pos][:, :, self.pos]
-        _, z_mean, S0 = moment_match(pred.w, y, HPH, loc, len(rows))
-        return MixturePrediction(rows, z_mean, S0, pred, loc, y, HPH)
+        return MixturePrediction(rows, pred.w, loc, y, HPH, pred)
 
     def likelihoods(
         self, pred: MixturePrediction, z: np.ndarray, R: np.ndarray, g: float
@@ -162,7 +175,11 @@ class GaussianMixtureDensity:
         inside[pred.rows] = True
         others = np.flatnonzero(~inside[self.mix.track])
         self.mix = comp.Mixture.concat([self.mix.take(others), kept])
-        self.stats = {"components_merged": len(merged), "components": len(self.mix)}
+        self.stats = {
+            "gated_pairs": len(table.pairs),  # (component, plot) pairs
+            "components_merged": len(merged),
+            "components": len(self.mix),
+        }
         loc = np.searchsorted(pred.rows, kept.track)
         _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(pred.rows))
         self.x[pred.rows] = x

@@ -43,8 +43,8 @@ from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
 from ..components import history_groups, prune_indices
-from .base import GatedTable, Prediction
-from .gaussian_mixture import track_table
+from .base import GatedTable
+from .gaussian_mixture import MixturePrediction, track_table
 
 
 class ModeTransition:
@@ -117,16 +117,22 @@ class IMMComponents:
         )
 
 
-@dataclass
-class IMMPrediction(Prediction):
+class IMMPrediction(MixturePrediction):
     """Predicted IMM components of ``rows``: comp (mu = c, the predicted mode
     probabilities), loc (C,) index into rows, per-mode predicted measurements
-    y (C, r, k) and H P Hᵀ (C, r, k, k)."""
+    y (C, r, k) and H P Hᵀ (C, r, k, k); z_mean, S0 from the mode-mixed (eq. 20-21)
+    component predictions, on first use."""
 
-    comp: IMMComponents | None = None
-    loc: np.ndarray | None = None
-    y: np.ndarray | None = None
-    HPH: np.ndarray | None = None
+    def __init__(self, rows, comp: IMMComponents, loc, y, HPH) -> None:
+        super().__init__(rows, comp.w, loc, y, HPH)
+        self.comp = comp
+
+    def _track_moments(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._moments is None:
+            yc, Sc = moment_match_rows(self.comp.mu, self.y, self.HPH)
+            _, z, S = moment_match(self.w, yc, Sc, self.loc, len(self.rows))
+            self._moments = (z, S)
+        return self._moments
 
 
 @dataclass
@@ -283,9 +289,7 @@ class IMMMixtureDensity:
         HPH = np.stack(
             [pred.P[j][:, self.pos[j]][:, :, self.pos[j]] for j in range(self.r)], axis=1
         )
-        yc, Sc = moment_match_rows(pred.mu, y, HPH)
-        _, z_mean, S0 = moment_match(pred.w, yc, Sc, loc, len(rows))
-        return IMMPrediction(rows, z_mean, S0, pred, loc, y, HPH)
+        return IMMPrediction(rows, pred, loc, y, HPH)
 
     # ------------------------------------------------------------------ likelihoods
     def likelihoods(self, pred: IMMPrediction, z: np.ndarray, R: np.ndarray, g: float) -> IMMTable:
@@ -366,7 +370,11 @@ class IMMMixtureDensity:
         inside[pred.rows] = True
         others = self.comp.take(np.flatnonzero(~inside[self.comp.track]))
         self.comp = IMMComponents.concat([others, kept])
-        self.stats = {"components_merged": len(merged), "components": len(self.comp)}
+        self.stats = {
+            "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
+            "components_merged": len(merged),
+            "components": len(self.comp),
+        }
         x, P = self._track_estimates(kept, np.searchsorted(pred.rows, kept.track), len(pred))
         self.x[pred.rows] = x
         self.P[pred.rows] = P
@@ -412,17 +420,17 @@ def _shift(hist: np.ndarray, new_ids) -> np.ndarray:
 
 def imm_density(cfg, second: str) -> IMMMixtureDensity:
     """The IMM density of a TrackerConfig: CV (q = ``imm_q_cv``) plus ``second`` =
-    ``ct`` (coordinated turn, σ_a = ``ct_sigma_a``, σ_ω = ``ct_sigma_omega``) or
-    ``singer`` (τ = ``singer_tau``, σ_m = ``singer_sigma_m``), 2-D or 3-D."""
+    ``ct`` (coordinated turn, σ_a = ``imm_ct_sigma_a``, σ_ω = ``imm_ct_sigma_omega``) or
+    ``singer`` (τ = ``imm_singer_tau``, σ_m = ``imm_singer_sigma_m``), 2-D or 3-D."""
     ndim = cfg.ndim
     qv = cfg.q_vertical if cfg.q_vertical is not None else cfg.imm_q_cv
     cv = ConstantVelocity(q=cfg.imm_q_cv, ndim=ndim, q_vertical=qv if ndim == 3 else None)
     if second == "ct":
         other = CoordinatedTurn(
-            cfg.ct_sigma_a, cfg.ct_sigma_omega, vertical=ndim == 3, q_vertical=qv
+            cfg.imm_ct_sigma_a, cfg.imm_ct_sigma_omega, vertical=ndim == 3, q_vertical=qv
         )
     elif second == "singer":
-        other = Singer(tau=cfg.singer_tau, sigma_m=cfg.singer_sigma_m, ndim=ndim)
+        other = Singer(tau=cfg.imm_singer_tau, sigma_m=cfg.imm_singer_sigma_m, ndim=ndim)
     else:
         raise ValueError(f"IMM second model {second!r}: must be 'ct' or 'singer'")
     return IMMMixtureDensity(
