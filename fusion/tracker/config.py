@@ -183,10 +183,12 @@ class TrackerConfig(BaseModel):
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
         if self.tracker in own_density_kinds() and self.motion != "cv":
-            raise ValueError(
-                f"tracker = {self.tracker!r} has its own density (constant velocity); "
-                f"motion = {self.motion!r} is not available for it"
-            )
+            if "motion" in self.model_fields_set:
+                raise ValueError(
+                    f"tracker = {self.tracker!r} has its own density (constant velocity); "
+                    f"motion = {self.motion!r} is not available for it"
+                )
+            self.motion = "cv"  # the default motion does not apply to these kinds
         if self.tau_terminate >= self.tau_confirm:
             raise ValueError(
                 f"tau_terminate = {self.tau_terminate} must be below tau_confirm = "

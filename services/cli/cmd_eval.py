@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     t = p.add_argument_group(
         "tracker settings (scenario runs: override the source's settings; FILE.mcap: the tracker)"
     )
-    add_model_arguments(t, TrackerConfig, skip=("p_gate", "singer_tau"))  # --singer-tau: above
+    add_model_arguments(t, TrackerConfig, skip=("p_gate",))
     r = p.add_argument_group("ASTERIX recordings (FILE.ast, FILE.pcap)")
     r.add_argument(
         "--sites", type=Path, default=None, help="Sites TOML ([[radar]] sac, sic, lat, lon, alt)"

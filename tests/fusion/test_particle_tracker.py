@@ -26,6 +26,7 @@ P0[:2, :2] = P0[2:, 2:] = [[25.0, 25.0], [25.0, 50.0]]  # two-point P_{2|2}, r =
 def config(kind: str, **kw) -> TrackerConfig:
     base = dict(
         tracker=kind,
+        motion="cv",  # the IPDA reference: one Kalman filter per track
         q=0.75,
         delta11=0.98,
         p_gate=0.99,
@@ -59,6 +60,7 @@ def test_kinds_registered_with_particle_density_and_config_fields():
     )
     assert TrackerConfig().particles == 1000
     assert config("ipf").association == "single" and config("lmipf").association == "lm"
+    assert TrackerConfig(tracker="ipf").motion == "cv"  # the default motion does not apply
     with pytest.raises(ValidationError, match="motion"):
         config("ipf", motion="imm-cv-ct")
 
