@@ -148,17 +148,10 @@ def main(argv: list[str] | None = None) -> int:
     load1 = os.getloadavg()
     print(f"\nload average {load0[0]:.2f} before, {load1[0]:.2f} after; "
           f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
-    doc = {
-        "benchmark": "particle_trackers",
-        "runs": a.runs,
-        "particles": a.particles,
-        "seed": a.seed,
-        "clutter": a.clutter,
-        "load_average_before_after": [load0[0], load1[0]],
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "results": results,
-    }
+    options = {k: getattr(a, k) for k in ("runs", "particles", "seed", "clutter")}
+    machine = {"python": platform.python_version(), "numpy": np.__version__}
+    machine["load_average_before_after"] = [load0[0], load1[0]]
+    doc = {"benchmark": "particle_trackers", **options, **machine, "results": results}
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(doc, indent=2) + "\n")
     print(f"wrote {a.out}")

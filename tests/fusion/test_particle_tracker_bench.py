@@ -4,23 +4,19 @@ gated plots, and the throughput figure follows from its definition)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
+import runpy
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_particle_trackers_benchmark_writes_json(tmp_path):
-    spec = importlib.util.spec_from_file_location(
-        "particle_trackers_bench", ROOT / "benchmarks" / "particle_trackers.py"
-    )
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    main = runpy.run_path(str(ROOT / "benchmarks" / "particle_trackers.py"))["main"]
     out = tmp_path / "pt.json"
     args = ["--runs", "1", "--scenarios", "thesis-mtt-5", "--clutter", "0", "--particles", "100"]
     args += ["--out", str(out)]
-    assert mod.main(args) == 0
+    assert main(args) == 0
     res = json.loads(out.read_text())["results"]["thesis-mtt-5"]
     assert set(res) == {"lmits", "ipf", "lmipf"}
     assert len({r["scans"] for r in res.values()}) == 1 and res["ipf"]["scans"] >= 20
