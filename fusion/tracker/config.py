@@ -12,7 +12,14 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from .registry import MOTIONS, TRACKERS, motion_help, single_gaussian_kinds, tracker_help
+from .registry import (
+    MOTIONS,
+    TRACKERS,
+    motion_help,
+    own_density_kinds,
+    single_gaussian_kinds,
+    tracker_help,
+)
 
 #: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry`.
 TrackerKind = Literal[tuple(TRACKERS)]  # type: ignore[valid-type]
@@ -158,8 +165,30 @@ class TrackerConfig(BaseModel):
         5.0, ge=0.0, description="IMM: acceleration σ of a new track, m/s²"
     )
 
+    # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
+    particles: int = Field(
+        1000, ge=1, le=1_000_000, description="ipf/lmipf: particles per track N (source 1000)"
+    )
+    resample_threshold: float | None = Field(
+        None,
+        gt=0.0,
+        le=1.0,
+        description="ipf/lmipf: resample a cloud when N_eff < this × N; None: every scan (A15)",
+    )
+    resampling: Literal["systematic", "stratified", "multinomial", "residual"] = Field(
+        "systematic", description="ipf/lmipf: resampling scheme (source: systematic)"
+    )
+    particle_seed: int = Field(0, ge=0, description="ipf/lmipf: seed of the particle noise")
+
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
+        if self.tracker in own_density_kinds() and self.motion != "cv":
+            if "motion" in self.model_fields_set:
+                raise ValueError(
+                    f"tracker = {self.tracker!r} has its own density (constant velocity); "
+                    f"motion = {self.motion!r} is not available for it"
+                )
+            self.motion = "cv"  # the default motion does not apply to these kinds
         if self.tau_terminate >= self.tau_confirm:
             raise ValueError(
                 f"tau_terminate = {self.tau_terminate} must be below tau_confirm = "

@@ -7,6 +7,9 @@ is one new module plus one ``register_*`` call here.
   ``gnn`` (:mod:`fusion.tracker.associators`);
 * tracker kinds: an association plus whether the Singer N-scan memory is used (ITS
   families) or the density is one Gaussian per track / one IMM per track (IPDA families);
+  a kind may bring its own density, which replaces the motion's: ``ipf`` / ``lmipf``
+  (particle clouds, :class:`fusion.particles.density.ParticleDensity`, spec 02 §6 and
+  spec 04 A.2, over the ``single`` / ``lm`` associations);
 * motions: ``cv`` (constant velocity, :class:`GaussianMixtureDensity`), ``imm-cv-ct``
   and ``imm-cv-singer`` (:class:`IMMMixtureDensity`, spec 01 §5 inside every component).
 """
@@ -29,6 +32,7 @@ class TrackerKindSpec:
     association: str
     memory: bool
     description: str
+    density: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -47,14 +51,29 @@ def register_association(name: str, fn: Callable) -> None:
     ASSOCIATIONS[name] = fn
 
 
-def register_tracker(name: str, association: str, memory: bool, description: str) -> None:
+def register_tracker(
+    name: str, association: str, memory: bool, description: str, density: Callable | None = None
+) -> None:
+    """``density``: ``factory(config) -> TrackDensity`` of a kind that replaces the motion
+    density (None: the configured motion's)."""
     if association not in ASSOCIATIONS:
         raise ValueError(f"tracker {name!r}: association {association!r} is not registered")
-    TRACKERS[name] = TrackerKindSpec(association, memory, description)
+    TRACKERS[name] = TrackerKindSpec(association, memory, description, density)
 
 
 def register_motion(name: str, factory: Callable, description: str) -> None:
     MOTIONS[name] = MotionSpec(factory, description)
+
+
+def make_density(cfg):
+    """The track density of a configuration: the tracker kind's own, else the motion's."""
+    own = TRACKERS[cfg.tracker].density
+    return own(cfg) if own is not None else MOTIONS[cfg.motion].factory(cfg)
+
+
+def own_density_kinds() -> tuple[str, ...]:
+    """Tracker kinds that bring their own density (motion must stay ``cv``)."""
+    return tuple(k for k, v in TRACKERS.items() if v.density is not None)
 
 
 def tracker_help() -> str:
@@ -89,6 +108,12 @@ def _imm_density(second: str):
     return factory
 
 
+def _particle_density(cfg):
+    from skyfuse.fusion.particles.density import ParticleDensity  # lazy: no import cycle
+
+    return ParticleDensity.from_config(cfg)
+
+
 register_association("single", assoc.associate_single)
 register_association("lm", assoc.associate_lm)
 register_association("joint", assoc.associate_joint)
@@ -101,6 +126,8 @@ register_tracker("lmipda", "lm", False, "LM-IPDA")
 register_tracker("lmits", "lm", True, "LM-ITS")
 register_tracker("jipda", "joint", False, "JIPDA")
 register_tracker("jits", "joint", True, "JITS")
+register_tracker("ipf", "single", False, "IPF, particle clouds", _particle_density)
+register_tracker("lmipf", "lm", False, "LM-IPF, particle clouds", _particle_density)
 
 register_motion("cv", _cv_density, "constant velocity")
 register_motion("imm-cv-ct", _imm_density("ct"), "IMM of CV and coordinated turn")

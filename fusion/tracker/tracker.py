@@ -7,7 +7,8 @@
    are predicted to their illumination time and updated; the others keep their state
    and existence (a radar that does not see a region does not erode its tracks).
 2. **Prediction** of the track density (:mod:`.density`: Gaussian mixture with Singer
-   memory, or an IMM per component, 5.4-5.5, spec 01 §5) and of existence (Markov chain,
+   memory, or an IMM per component, 5.4-5.5, spec 01 §5; particle clouds for ipf/lmipf,
+   :mod:`fusion.particles`, spec 04 A4) and of existence (Markov chain,
    :mod:`.existence`, 5.3) over per-track dt arrays.
 3. **Likelihoods**: the density gates the plots and returns the track × plot table
    p^τ_i = likelihood / P_G (5.7-5.10, 4.17).
@@ -42,7 +43,7 @@ from .initiation import PlotBuffer, one_point, pair_plots, two_point
 from .ipda import AssociationResult
 from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
 from .measurements import MeasurementBatch
-from .registry import ASSOCIATIONS, MOTIONS
+from .registry import ASSOCIATIONS, make_density
 
 NS = 1e-9
 
@@ -112,7 +113,7 @@ class Tracker:
         self.P_G = gate_probability(self.g, self.k)
         self.g_dup = float(chi2.ppf(cfg.duplicate_p, self.d))
         self.chain = self._make_chain(cfg)
-        self.density: TrackDensity = MOTIONS[cfg.motion].factory(cfg)
+        self.density: TrackDensity = make_density(cfg)
         self.associate = ASSOCIATIONS[cfg.association]
         self.ids = np.zeros(0, np.int64)
         self.exist = np.zeros((0, 2))

@@ -1,0 +1,25 @@
+"""The state-space model interface of the generic particle-filter steps (spec 04 B.2).
+
+A model acts on many clouds at once: particles x (n, N, d), one observation per cloud
+y (n, m). ``k`` is the time index of the step being taken (k = 1, 2, …), needed by
+time-varying models such as the scalar benchmark of spec 04 B.3.
+
+* ``propagate(x, k, rng)`` draws x_k ~ p(x_k | x_{k−1}) for every particle (the prior
+  proposal of SIR/SIS, Tab 3.1/3.3).
+* ``mean_transition(x, k)`` = μ = E[x_k | x_{k−1}] (the APF look-ahead point, Tab 3.4).
+* ``log_likelihood(x, y, k)`` = log p(y_k | x_k), shape (n, N).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+
+class StateSpaceModel(Protocol):
+    def propagate(self, x: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray: ...
+
+    def mean_transition(self, x: np.ndarray, k: int) -> np.ndarray: ...
+
+    def log_likelihood(self, x: np.ndarray, y: np.ndarray, k: int) -> np.ndarray: ...
