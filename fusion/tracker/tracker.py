@@ -318,6 +318,7 @@ class Tracker:
             Sc = HPH + R_nom
             _, _, S_bar = comp.moment_match(pred.w, y, Sc, loc, ns)
             vol = gate_volume(S_bar, self.g) if ns else np.zeros(0)
+            vol = np.maximum(vol, cfg.clutter_volume or 0.0)  # V_k reading, issue 16
             rho_trk = estimated_clutter_density(
                 m_trk, pdpg, psi_det, vol, cfg.clutter_density_floor
             )
