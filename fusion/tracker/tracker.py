@@ -38,7 +38,12 @@ from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .gating import gate, gate_probability, gate_threshold, gate_volume
 from .gnn import gnn_association
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
-from .ipda import AssociationResult, estimated_clutter_density, single_target
+from .ipda import (
+    AssociationResult,
+    estimated_clutter_density,
+    plots_in_track_gate,
+    single_target,
+)
 from .its import component_update
 from .jits import joint_association
 from .lm_its import modified_clutter_density
@@ -316,7 +321,10 @@ class Tracker:
             m_trk = np.bincount(tp_track, minlength=ns)
             R_nom = b.R.mean(axis=0) if m else np.eye(self.k)
             Sc = HPH + R_nom
-            _, _, S_bar = comp.moment_match(pred.w, y, Sc, loc, ns)
+            _, y_bar, S_bar = comp.moment_match(pred.w, y, Sc, loc, ns)
+            nu = b.z[tp_plot] - y_bar[tp_track]
+            d2 = np.einsum("pi,pi->p", nu, np.linalg.solve(S_bar[tp_track], nu[..., None])[..., 0])
+            m_trk = plots_in_track_gate(d2, tp_track, ns, self.g, m_trk)
             vol = gate_volume(S_bar, self.g) if ns else np.zeros(0)
             vol = np.maximum(vol, cfg.clutter_volume or 0.0)  # V_k reading, issue 16
             rho_trk = estimated_clutter_density(

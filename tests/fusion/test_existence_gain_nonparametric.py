@@ -95,3 +95,60 @@ def test_stated_model_loses_existence_at_low_detection():
     v_gate = np.pi * G * np.sqrt(np.linalg.det(S))
     assert closed_form_gain(0.05, 0.6, v_gate, S) < -0.05
     assert closed_form_gain(0.05, 0.6, 5.0 * v_gate, S) > 0.3
+
+
+def test_plot_count_uses_the_track_level_gate_of_v():
+    """m̂ (2.35) counts the plots in the same track-level gate whose volume V_k divides it.
+
+    A two-component ITS track: a strong tight component and a weak wide one. A second
+    target's plot lies in the wide component's gate but outside the ellipse of the
+    moment-matched S̄; only the own plot is in V_k, so m = 1 (the union of the component
+    gates would give m = 2 and double ρ̂). Closed form: ρ̂ = (1 − a ψ_{k|k−1})/V_k,
+    p_i = Σ_{c gates i} ξ^c N(z_i; ŷ, S^c)/P_G, Λ (2.39) and ψ (2.41)."""
+    from skyfuse.fusion.tracker.components import Mixture
+
+    p_d, psi0 = 0.8, 0.2
+    trk = Tracker(
+        TrackerConfig(
+            tracker="its", depth=1, q=0.75, psi_init=psi0, initiation="none",
+            clutter="estimated", delta11=0.98, delta21=0.0,
+        )
+    )  # fmt: skip
+    x = np.array([0.0, 10.0, 0.0, 0.0])
+    P_small, P_wide = np.diag([10.0, 1.0, 10.0, 1.0]), np.diag([5000.0, 1.0, 5000.0, 1.0])
+    trk.add_track(x, P_small, 0)
+    w = np.array([0.99, 0.01])
+    trk.mix = Mixture(
+        np.zeros(2, np.int64), w, np.stack([x, x]), np.stack([P_small, P_wide]),
+        np.zeros((2, 1), np.int64),
+    )  # fmt: skip
+    F = np.kron(np.eye(2), F_AXIS)
+    Q = np.kron(np.eye(2), Q_AXIS)
+    H = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
+    y = H @ F @ x
+    S = [H @ (F @ P @ F.T + Q) @ H.T + R for P in (P_small, P_wide)]
+    S_bar = w[0] * S[0] + w[1] * S[1]
+    z = y + np.array([[3.0, -4.0], [100.0, 0.0]])
+    inside = [float((zi - y) @ np.linalg.solve(S_bar, zi - y)) < G for zi in z]
+    assert inside == [True, False]
+    p_g = chi2.cdf(G, 2)
+
+    def gauss(nu, s):
+        return np.exp(-0.5 * nu @ np.linalg.solve(s, nu)) / (2 * np.pi * np.sqrt(np.linalg.det(s)))
+
+    p = [
+        sum(
+            w[c] * gauss(zi - y, S[c])
+            for c in range(2)
+            if (zi - y) @ np.linalg.solve(S[c], zi - y) < G
+        )
+        / p_g
+        for zi in z
+    ]
+    a = p_d * p_g
+    psi_pred = 0.98 * psi0
+    rho = (1.0 - a * psi_pred) / (np.pi * G * np.sqrt(np.linalg.det(S_bar)))
+    lam = 1.0 - a + a * (p[0] + p[1]) / rho
+    expected = lam * psi_pred / (1.0 - (1.0 - lam) * psi_pred)
+    out = trk.step(MeasurementBatch(1_000_000_000, "r", z, R, p_d))
+    assert out.existence[0] == pytest.approx(expected, rel=1e-9)
