@@ -21,7 +21,8 @@ The computation is :mod:`fusion.evaluation`; this module schedules it:
   a block runs, never its numbers.
 * **Calibration** (``calibrate``): per variant, ψ_init is searched
   (:func:`fusion.evaluation.calibrate_psi_init`) so that the first ``calibration_runs``
-  runs give the source's confirmed false tracks scaled to that many runs
+  runs (default: all runs, as the source) give the source's confirmed false tracks
+  scaled to that many runs
   (15 per 500 multi-target, 20 per 500 single-target, ± 10 %, at least ± 0.5), counting
   the tracks that were false when they reached confirmation (see
   :mod:`fusion.evaluation.summary`).
@@ -82,7 +83,9 @@ class TrackerEvalConfig(BaseModel):
         False, description="Search ψ_init per tracker and depth for the source's false tracks"
     )
     calibration_runs: int | None = Field(
-        None, ge=1, description="Runs per calibration evaluation (default: min(runs, 100))"
+        None,
+        ge=1,
+        description="Runs per calibration evaluation (default: all runs, as the source)",
     )
     calibration_file: Path | None = Field(
         None, description="JSON with calibrated ψ_init (default: OUT/calibration.json if any)"
@@ -535,16 +538,18 @@ def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
     calibration: dict[str, dict] = {}
     t_cal = time.perf_counter()
     if cfg.calibrate:
-        runs_c = cfg.calibration_runs or min(exp.runs, 100)
+        runs_c = cfg.calibration_runs or exp.runs
         target, tol = calibration_target(exp, runs_c)
         print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
         with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
             calibration = calibrate(exp, runs_c, engine, advance)
         for k, c in calibration.items():
             note = "" if c["converged"] else ", NOT converged"
+            ci = c.get("psi_interval_95")
+            err = f", 95 % [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ", sampling error unknown"
             print(
-                f"  {k}: ψ_init = {c['psi_init']:.4g}, {c['false_tracks']:g} false tracks "
-                f"({len(c['evaluations'])} evaluations{note})"
+                f"  {k}: ψ_init = {c['psi_init']:.4g}{err}, {c['false_tracks']:g} false "
+                f"tracks ({len(c['evaluations'])} evaluations{note})"
             )
         if cal_path is not None:
             save_calibration(cal_path, exp, runs_c, calibration)
