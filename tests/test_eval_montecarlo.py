@@ -231,3 +231,13 @@ def test_scheduler_needs_the_dask_engine():
 
     with pytest.raises(ValueError, match="dask engine"):
         Engine(2, "processes", scheduler="tcp://127.0.0.1:8786")
+
+
+def test_thesis_experiments_read_v_k_as_the_initiation_region():
+    """V_k of (2.35) in the thesis experiments: at least π (v_max T)² (issue 16)."""
+    v = Variant("its", 1)
+    assert _small().tracker_config(v).clutter_volume == pytest.approx(math.pi * 50.0**2)
+    slow = _small().model_copy(update={"tracker_settings": {"v_max": 30.0}})
+    assert slow.tracker_config(v).clutter_volume == pytest.approx(math.pi * 30.0**2)
+    gate = _small().model_copy(update={"tracker_settings": {"clutter_volume": 1e-9}})
+    assert gate.tracker_config(v).clutter_volume == 1e-9

@@ -55,6 +55,9 @@ from skyfuse.fusion.evaluation.summary import false_at_confirmation
 from skyfuse.fusion.metrics.retention import ROW_KEYS, retention_markdown
 
 Advance = Callable[[int], None]
+#: Bumped when the tracker's numbers change for the same settings (2: m̂ of 2.35 counted
+#: in the track-level gate, issue 16), so that older cached blocks are not reused.
+CACHE_VERSION = 2
 EngineKind = Literal["auto", "dask", "processes"]
 
 
@@ -246,9 +249,16 @@ def _engine(workers: int | Engine) -> Engine:
 
 def experiment_key(exp: Experiment) -> str:
     """Hash of everything that changes a run's numbers except the run count, the tracker
-    list and ψ_init (which names the variant directory)."""
+    list and ψ_init (which names the variant directory): the experiment, the shared
+    tracker settings with their defaults, and :data:`CACHE_VERSION`."""
     d = exp.model_dump(mode="json", exclude={"runs", "trackers", "depths", "psi_init"})
     d.pop("default_psi_init")
+    # the settings every variant gets (source defaults included), and the cache version
+    shared = exp.tracker_config(exp.variants()[0]).model_dump(mode="json")
+    d["tracker_defaults"] = {
+        k: v for k, v in shared.items() if k not in ("tracker", "depth", "psi_init")
+    }
+    d["cache_version"] = CACHE_VERSION
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
