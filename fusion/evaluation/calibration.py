@@ -90,6 +90,19 @@ def best_evaluation(evals: list[tuple[float, float]], target: float) -> tuple[fl
     return min(evals, key=lambda e: (abs(e[1] - target), -e[0] if e[1] < target else e[0]))
 
 
+def _check_search(
+    target: float, tolerance: float, psi0: float, lo: float, hi: float, max_evals: int
+) -> None:
+    if not 0 < lo < hi < 1:
+        raise ValueError(f"lo = {lo}, hi = {hi}: need 0 < lo < hi < 1")
+    if not lo <= psi0 <= hi:
+        raise ValueError(f"psi0 = {psi0}: must be within [lo, hi] = [{lo}, {hi}]")
+    if target < 0 or tolerance < 0:
+        raise ValueError(f"target = {target}, tolerance = {tolerance}: must be >= 0")
+    if max_evals < 1:
+        raise ValueError(f"max_evals = {max_evals}: must be >= 1")
+
+
 def calibrate_psi_init(
     count: Callable[[float], float],
     target: float,
@@ -102,14 +115,7 @@ def calibrate_psi_init(
     max_evals: int = 10,
 ) -> Calibration:
     """Search ψ_init in [lo, hi] with count(ψ) ≈ target (module docstring)."""
-    if not 0 < lo < hi < 1:
-        raise ValueError(f"lo = {lo}, hi = {hi}: need 0 < lo < hi < 1")
-    if not lo <= psi0 <= hi:
-        raise ValueError(f"psi0 = {psi0}: must be within [lo, hi] = [{lo}, {hi}]")
-    if target < 0 or tolerance < 0:
-        raise ValueError(f"target = {target}, tolerance = {tolerance}: must be >= 0")
-    if max_evals < 1:
-        raise ValueError(f"max_evals = {max_evals}: must be >= 1")
+    _check_search(target, tolerance, psi0, lo, hi, max_evals)
     evals: list[tuple[float, float]] = []
 
     def f(psi: float) -> float:

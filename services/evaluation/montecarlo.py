@@ -513,6 +513,45 @@ def run_tracker_eval(args) -> int:
         return _tracker_eval(args, cfg, engine)
 
 
+def _calibration(
+    cfg: TrackerEvalConfig, exp: Experiment, engine: Engine, cal_path: Path | None
+) -> dict[str, dict]:
+    """ψ_init per variant key: calibrated (``--calibrate``, saved to ``cal_path``), read
+    from ``cal_path`` if it exists, else empty (the experiment's ψ_init)."""
+    from skyfuse.services.cli.config import ConfigError
+    from skyfuse.services.cli.progress import progress_bar
+
+    variants = exp.variants()
+    calibration: dict[str, dict] = {}
+    if cfg.calibrate:
+        runs_c = cfg.calibration_runs or exp.runs
+        target, tol = calibration_target(exp, runs_c)
+        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
+        with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
+            calibration = calibrate(exp, runs_c, engine, advance)
+        for k, c in calibration.items():
+            note = "" if c["converged"] else ", NOT converged"
+            ci = c.get("psi_interval_95")
+            err = f", 95 % [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ", sampling error unknown"
+            print(
+                f"  {k}: ψ_init = {c['psi_init']:.4g}{err}, {c['false_tracks']:g} false "
+                f"tracks ({len(c['evaluations'])} evaluations{note})"
+            )
+        if cal_path is not None:
+            save_calibration(cal_path, exp, runs_c, calibration)
+            print(f"wrote {cal_path}")
+    elif cal_path is not None and cal_path.exists():
+        try:
+            calibration = load_calibration(cal_path, exp)
+        except (ValueError, json.JSONDecodeError) as e:
+            raise ConfigError(f"calibration_file: {e}") from None
+        calibration = {v.key: calibration[v.key] for v in variants if v.key in calibration}
+        if calibration:
+            print(f"ψ_init from {cal_path}: " + ", ".join(
+                f"{k} {c['psi_init']:.4g}" for k, c in calibration.items()))  # fmt: skip
+    return calibration
+
+
 def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
     from pydantic import ValidationError
     from skyfuse.services.cli.config import ConfigError, format_validation_error
@@ -545,34 +584,8 @@ def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
         flush=True,
     )
     cal_path = cfg.calibration_file or (out / "calibration.json" if out is not None else None)
-    calibration: dict[str, dict] = {}
     t_cal = time.perf_counter()
-    if cfg.calibrate:
-        runs_c = cfg.calibration_runs or exp.runs
-        target, tol = calibration_target(exp, runs_c)
-        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
-        with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
-            calibration = calibrate(exp, runs_c, engine, advance)
-        for k, c in calibration.items():
-            note = "" if c["converged"] else ", NOT converged"
-            ci = c.get("psi_interval_95")
-            err = f", 95 % [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ", sampling error unknown"
-            print(
-                f"  {k}: ψ_init = {c['psi_init']:.4g}{err}, {c['false_tracks']:g} false "
-                f"tracks ({len(c['evaluations'])} evaluations{note})"
-            )
-        if cal_path is not None:
-            save_calibration(cal_path, exp, runs_c, calibration)
-            print(f"wrote {cal_path}")
-    elif cal_path is not None and cal_path.exists():
-        try:
-            calibration = load_calibration(cal_path, exp)
-        except (ValueError, json.JSONDecodeError) as e:
-            raise ConfigError(f"calibration_file: {e}") from None
-        calibration = {v.key: calibration[v.key] for v in variants if v.key in calibration}
-        if calibration:
-            print(f"ψ_init from {cal_path}: " + ", ".join(
-                f"{k} {c['psi_init']:.4g}" for k, c in calibration.items()))  # fmt: skip
+    calibration = _calibration(cfg, exp, engine, cal_path)
     t_cal = time.perf_counter() - t_cal
     total = exp.runs * len(variants)
     with progress_bar(f"eval {tag}", total, enabled=cfg.progress) as advance:
