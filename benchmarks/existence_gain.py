@@ -186,7 +186,9 @@ def mtt_existence(depth: int, runs: int, clutter_volume: float | None) -> dict:
     share of targets with such a track at ψ ≥ τ_c = 0.95."""
     from skyfuse.fusion.evaluation import Experiment, Variant, VariantRunner
 
-    settings = {} if clutter_volume is None else {"clutter_volume": clutter_volume}
+    # None: V_k = the gate of S̄ (1e-9 m² is below any gate; the experiments' default is
+    # π (v_max T)²)
+    settings = {"clutter_volume": 1e-9 if clutter_volume is None else clutter_volume}
     exp = Experiment(
         scenario="thesis-mtt-5", trackers=["its"], depths=[depth], runs=runs, seed=1,
         carry_false_tracks=False, tracker_settings=settings,
