@@ -196,6 +196,7 @@ def main() -> int:
     ap.add_argument("--engine", default="auto", choices=("auto", "dask", "processes"))
     ap.add_argument("--scheduler", default=None, help="Dask scheduler, tcp://HOST:8786")
     ap.add_argument("--clutter-volume", type=float, default=None, help="V_k reading, m²")
+    ap.add_argument("--depths", default=None, help="Singer depths, e.g. 1,3,7 (default: source's)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--timing", type=Path, default=None, help="Default: OUT/timing.json")
@@ -216,7 +217,7 @@ def main() -> int:
         ap.error(f"experiment {unknown[0]!r}: choose from {', '.join(EXPERIMENTS)}")
     for name in a.experiments or list(EXPERIMENTS):
         scenario, trackers, depths, _ = EXPERIMENTS[name]
-        argv = _argv(a, scenario, trackers, depths)
+        argv = _argv(a, scenario, trackers, a.depths or depths)
         print(f"== {name}: skyfuse {' '.join(argv)}", flush=True)
         t0 = time.perf_counter()
         code = skyfuse(argv)
