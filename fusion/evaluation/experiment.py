@@ -7,7 +7,9 @@ settings default to the source's (spec 03 §0, §2; spec 02 §8, §10):
 
 * CV model with q = 0.75 m²/s⁴, R = σ² I from the scenario (25 m²), T = 1 s;
 * Markov chain one, Δ11 = 0.98, Δ21 = 0; gate P_G = 0.99 (g = 9.21, [IMPL]);
-* **non-parametric** (estimated) clutter density (2.35), as the thesis experiments;
+* **non-parametric** (estimated) clutter density (2.35), as the thesis experiments, with
+  V_k = max(gate of the track's S, π (v_max T)²) (``clutter_volume``; [A], issue 16:
+  the gate alone cannot give the source's tables, see docs/reproduction.md);
 * two-point initiation from plots of consecutive scans only (``init_max_dt`` 1.5 T) no
   track selected, with v_max = 50 m/s ([A], the spec's suggestion);
 * confirmation at ψ ≥ 0.99 (single target) / 0.95 (multi-target); termination at
@@ -22,6 +24,7 @@ run r's last one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -43,6 +46,16 @@ PLANAR_SCENARIOS = (
 SOURCE_RUNS = 500
 FALSE_TRACK_TARGET_STT = 20.0
 FALSE_TRACK_TARGET_MTT = 15.0
+
+#: Scan period of the planar scenarios, s (spec 03 §0).
+SCAN_PERIOD = 1.0
+
+
+def initiation_region(v_max: float, period: float = SCAN_PERIOD) -> float:
+    """π (v_max T)², m²: the validation region of two-point initiation (spec 02 §5), the
+    reading of the thesis's V_k in (2.35) that reproduces its tables (issue 16)."""
+    return math.pi * (v_max * period) ** 2
+
 
 TRACKER_KINDS = tuple(TRACKERS)  # from the registry of fusion.tracker
 
@@ -177,6 +190,8 @@ class Experiment(BaseModel):
             "existence_chain": "mc1",
         }
         base.update(self.tracker_settings)
+        if "clutter_volume" not in self.tracker_settings:
+            base["clutter_volume"] = initiation_region(float(base["v_max"]))  # type: ignore[arg-type]
         base["tracker"], base["depth"] = variant.tracker, variant.depth
         base["psi_init"] = self.psi_for(variant) if psi_init is None else float(psi_init)
         return TrackerConfig.model_validate(base)

@@ -127,6 +127,12 @@ class TrackerConfig(BaseModel):
     clutter_density_floor: float = Field(
         1e-10, gt=0.0, description="Smallest clutter density used, plots per m² (per m³ in 3-D)"
     )
+    clutter_volume: float | None = Field(
+        None,
+        gt=0.0,
+        description="Estimated clutter (2.35): V_k = max(gate of S, this), m² (m³ in 3-D); "
+        "None: the gate ellipse of the track's S",
+    )
     lm_prior_density: Literal["canonical", "thesis"] = Field(
         "canonical", description="LM-IPDA prior (6.12) with plain ρ (canonical) or ρ^τ (6.13)"
     )

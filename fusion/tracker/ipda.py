@@ -44,6 +44,18 @@ def estimated_clutter_density(
     return np.maximum(m_hat / np.maximum(volume, 1e-300), floor)
 
 
+def plots_in_track_gate(
+    d2: np.ndarray, tp_track: np.ndarray, n: int, g: float, union_count: np.ndarray
+) -> np.ndarray:
+    """m_k of (2.35): per track, the track–plot rows inside the track-level gate
+    V_k = {d̄² < g}, d̄² of each row from the track's moment-matched ȳ and S̄, the same
+    region whose volume V_k divides m̂_k. Counting the union of the component gates
+    instead (plots only a weak, wide component reaches) overstates ρ̂ (issue 16). A track
+    whose rows all lie outside V_k keeps ``union_count`` (its m over the union)."""
+    inside = np.bincount(tp_track[d2 < g], minlength=n)
+    return np.where(inside > 0, inside, union_count)
+
+
 def single_target(
     psi_pred: np.ndarray,
     pdpg: np.ndarray,

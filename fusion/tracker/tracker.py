@@ -288,6 +288,9 @@ class Tracker:
             pdpg,
             psi_det,
             self.g,
+            z=b.z,
+            z_mean=pred.z_mean,
+            volume_floor=cfg.clutter_volume,
         )
         problem = AssociationProblem(
             psi_det,

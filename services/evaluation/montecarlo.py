@@ -13,9 +13,16 @@ The computation is :mod:`fusion.evaluation`; this module schedules it:
   after it (``.pkl``) are written under a directory named by the experiment's settings
   (not its run count) and the variant's ψ_init; an interrupted or extended experiment
   continues after the last complete block.
+* **Engines** (:class:`Engine`): in this process (one worker), a local process pool, or
+  Dask (``dask.distributed``, the ``cluster`` extra): a local cluster of ``workers``
+  single-threaded worker processes on 127.0.0.1, or an existing cluster by its scheduler
+  address (``tcp://HOST:8786``). Tasks carry everything they need (experiment JSON,
+  variant key, ψ_init, run range, pickled runner state), so the engine changes only where
+  a block runs, never its numbers.
 * **Calibration** (``calibrate``): per variant, ψ_init is searched
   (:func:`fusion.evaluation.calibrate_psi_init`) so that the first ``calibration_runs``
-  runs give the source's confirmed false tracks scaled to that many runs
+  runs (default: all runs, as the source) give the source's confirmed false tracks
+  scaled to that many runs
   (15 per 500 multi-target, 20 per 500 single-target, ± 10 %, at least ± 0.5), counting
   the tracks that were false when they reached confirmation (see
   :mod:`fusion.evaluation.summary`).
@@ -31,6 +38,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -47,6 +55,10 @@ from skyfuse.fusion.evaluation.summary import false_at_confirmation
 from skyfuse.fusion.metrics.retention import ROW_KEYS, retention_markdown
 
 Advance = Callable[[int], None]
+#: Bumped when the tracker's numbers change for the same settings (2: m̂ of 2.35 counted
+#: in the track-level gate, issue 16), so that older cached blocks are not reused.
+CACHE_VERSION = 2
+EngineKind = Literal["auto", "dask", "processes"]
 
 
 class TrackerEvalConfig(BaseModel):
@@ -56,6 +68,17 @@ class TrackerEvalConfig(BaseModel):
     runs: int = Field(100, ge=1, le=100_000, description="Monte Carlo runs")
     seed: int = Field(1, ge=0, description="Seed; run r uses seed·100003 + r")
     workers: int = Field(1, ge=1, le=64, description="Worker processes")
+    engine: EngineKind = Field(
+        "auto",
+        description="Where runs execute with more than one worker or a scheduler: dask "
+        "(dask.distributed, extra 'cluster'), processes (a local process pool), auto (dask "
+        "if installed)",
+    )
+    scheduler: str | None = Field(
+        None,
+        description="Address of a running Dask scheduler, e.g. tcp://HOST:8786 (default: a "
+        "local cluster of --workers processes on 127.0.0.1)",
+    )
     out: Path | None = Field(None, description="Directory for tables, figures, JSON, cache")
     trackers: list[str] = Field(["its", "lmits"], description="Trackers to compare")
     depths: list[int] = Field([1, 3, 5, 7, 9], description="Singer memory depths N")
@@ -63,7 +86,9 @@ class TrackerEvalConfig(BaseModel):
         False, description="Search ψ_init per tracker and depth for the source's false tracks"
     )
     calibration_runs: int | None = Field(
-        None, ge=1, description="Runs per calibration evaluation (default: min(runs, 100))"
+        None,
+        ge=1,
+        description="Runs per calibration evaluation (default: all runs, as the source)",
     )
     calibration_file: Path | None = Field(
         None, description="JSON with calibrated ψ_init (default: OUT/calibration.json if any)"
@@ -113,9 +138,85 @@ def _calibrate_task(exp_json: str, key: str, runs: int, psi0: float):
 # --------------------------------------------------------------------------------------
 # scheduling
 # --------------------------------------------------------------------------------------
-def _map_tasks(fn, tasks: list[tuple], workers: int, done_cb) -> None:
-    """Run ``fn(*task)``: in this process (workers = 1) or in a pool; ``done_cb(result)``
-    may return new tasks (the next block of a chain)."""
+def dask_available() -> bool:
+    """True when ``dask.distributed`` imports (the ``cluster`` extra)."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class Engine:
+    """Executes chains of tasks: ``map(fn, tasks, done_cb)`` runs ``fn(*task)`` for every
+    task; ``done_cb(result)`` may return follow-up tasks (the next block of a chain).
+
+    kind ``processes``: this process (workers = 1) or a ``ProcessPoolExecutor``; ``dask``:
+    a ``distributed.Client`` of the cluster at ``scheduler``, or of a local cluster of
+    ``workers`` single-threaded processes bound to 127.0.0.1 without a dashboard, started
+    on first use and closed by :meth:`close`; ``auto``: dask when installed and there is
+    more than one worker or a scheduler, else processes."""
+
+    def __init__(
+        self, workers: int = 1, kind: EngineKind = "processes", scheduler: str | None = None
+    ) -> None:
+        if kind == "auto":
+            parallel = workers > 1 or scheduler is not None
+            kind = "dask" if parallel and dask_available() else "processes"
+        if kind == "dask" and not dask_available():
+            raise RuntimeError("engine 'dask' needs dask.distributed: pip install -e '.[cluster]'")
+        if scheduler is not None and kind != "dask":
+            raise ValueError(f"scheduler = {scheduler!r} needs the dask engine")
+        self.workers, self.kind, self.scheduler = workers, kind, scheduler
+        self._client = None
+        self._cluster = None
+
+    def describe(self) -> str:
+        if self.kind == "processes":
+            return f"{self.workers} worker process(es)"
+        where = self.scheduler or f"local cluster of {self.workers} worker(s)"
+        return f"dask, {where}"
+
+    def client(self):
+        """The Dask client (connects or starts the local cluster on first call)."""
+        if self._client is None:
+            from distributed import Client, LocalCluster
+
+            if self.scheduler is not None:
+                self._client = Client(self.scheduler)
+            else:
+                self._cluster = LocalCluster(
+                    n_workers=self.workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                )
+                self._client = Client(self._cluster)
+        return self._client
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._client = self._cluster = None
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def map(self, fn, tasks: list[tuple], done_cb) -> None:
+        if self.kind == "dask":
+            _map_dask(fn, tasks, self.client(), done_cb)
+        else:
+            _map_pool(fn, tasks, self.workers, done_cb)
+
+
+def _map_pool(fn, tasks: list[tuple], workers: int, done_cb) -> None:
+    """Run ``fn(*task)`` in this process (workers = 1) or in a process pool."""
     queue = list(tasks)
     if workers <= 1:
         while queue:
@@ -131,11 +232,33 @@ def _map_tasks(fn, tasks: list[tuple], workers: int, done_cb) -> None:
                 queue.extend(done_cb(f.result()) or [])
 
 
+def _map_dask(fn, tasks: list[tuple], client, done_cb) -> None:
+    """Run ``fn(*task)`` on a Dask cluster; follow-up tasks are submitted as results
+    arrive (``pure=False``: every block is computed, never deduplicated)."""
+    from distributed import as_completed
+
+    pending = as_completed([client.submit(fn, *t, pure=False) for t in tasks])
+    for fut in pending:
+        for t in done_cb(fut.result()) or []:
+            pending.add(client.submit(fn, *t, pure=False))
+
+
+def _engine(workers: int | Engine) -> Engine:
+    return workers if isinstance(workers, Engine) else Engine(workers)
+
+
 def experiment_key(exp: Experiment) -> str:
     """Hash of everything that changes a run's numbers except the run count, the tracker
-    list and ψ_init (which names the variant directory)."""
+    list and ψ_init (which names the variant directory): the experiment, the shared
+    tracker settings with their defaults, and :data:`CACHE_VERSION`."""
     d = exp.model_dump(mode="json", exclude={"runs", "trackers", "depths", "psi_init"})
     d.pop("default_psi_init")
+    # the settings every variant gets (source defaults included), and the cache version
+    shared = exp.tracker_config(exp.variants()[0]).model_dump(mode="json")
+    d["tracker_defaults"] = {
+        k: v for k, v in shared.items() if k not in ("tracker", "depth", "psi_init")
+    }
+    d["cache_version"] = CACHE_VERSION
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
@@ -146,7 +269,7 @@ def _variant_dir(cache: Path, exp: Experiment, v: Variant, psi: float) -> Path:
 def run_experiment(
     exp: Experiment,
     psi: dict[str, float],
-    workers: int = 1,
+    workers: int | Engine = 1,
     block: int = 10,
     cache: Path | None = None,
     advance: Advance | None = None,
@@ -190,12 +313,12 @@ def run_experiment(
             return [(exp_json, key, psi[key], stop, min(stop + block, exp.runs), state)]
         return []
 
-    _map_tasks(_block_task, tasks, workers, done)
+    _engine(workers).map(_block_task, tasks, done)
     return {k: RunBlock.concat(sorted(p, key=lambda b: int(b.runs[0]))) for k, p in parts.items()}
 
 
 def calibrate(
-    exp: Experiment, runs: int, workers: int = 1, advance: Advance | None = None
+    exp: Experiment, runs: int, workers: int | Engine = 1, advance: Advance | None = None
 ) -> dict[str, dict]:
     """Calibrated ψ_init per variant key (``Calibration.as_dict`` entries)."""
     advance = advance or (lambda n=1: None)
@@ -208,7 +331,7 @@ def calibrate(
         advance(1)
         return []
 
-    _map_tasks(_calibrate_task, tasks, workers, done)
+    _engine(workers).map(_calibrate_task, tasks, done)
     return {v.key: out[v.key] for v in exp.variants()}
 
 
@@ -218,7 +341,7 @@ def calibrate(
 def evaluate(
     exp: Experiment,
     *,
-    workers: int = 1,
+    workers: int | Engine = 1,
     block: int = 10,
     cache: Path | None = None,
     calibration: dict[str, dict] | None = None,
@@ -249,8 +372,24 @@ def evaluate(
         "calibration": cal,
         "false_track_target_per_500_runs": exp.false_track_target,
         "elapsed_s": round(time.perf_counter() - t0, 2),
-        "machine": {"cpus": os.cpu_count(), "workers": workers},
+        "machine": {"cpus": os.cpu_count(), "engine": _engine(workers).describe()},
     }
+
+
+#: Summary fields that are measurements of this machine, not results of the runs.
+MEASURED_FIELDS = ("elapsed_s", "calibration_s", "runs_s", "machine")
+
+
+def results_digest(summary: dict) -> str:
+    """SHA-256 (16 hex) of the summary without the CPU and wall-clock measurements
+    (``MEASURED_FIELDS``, every row's ``cpu_s`` and ``cpu_ms_per_run``): equal for any
+    engine, worker count or block size (the numbers depend on the experiment and ψ_init)."""
+    d = {k: v for k, v in summary.items() if k not in MEASURED_FIELDS}
+    d["rows"] = [
+        {k: v for k, v in r.items() if k not in ("cpu_s", "cpu_ms_per_run")}
+        for r in summary["rows"]
+    ]
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def retention_table(summary: dict) -> str:
@@ -361,12 +500,63 @@ def _tracker_settings(args) -> tuple[dict, float | None]:
 
 
 def run_tracker_eval(args) -> int:
-    """``skyfuse eval SCENARIO --trackers ...`` (see :mod:`services.cmd_eval`)."""
-    from pydantic import ValidationError
-    from skyfuse.services.cli.config import ConfigError, build_config, format_validation_error
-    from skyfuse.services.cli.progress import progress_bar
+    """``skyfuse eval SCENARIO --trackers ...`` (see :mod:`services.cmd_eval`): one engine
+    (process pool or Dask cluster) for the calibration and the runs."""
+    from skyfuse.services.cli.config import ConfigError, build_config
 
     cfg = build_config(TrackerEvalConfig, args)
+    try:
+        engine = Engine(cfg.workers, cfg.engine, cfg.scheduler)
+    except (RuntimeError, ValueError) as e:
+        raise ConfigError(f"engine: {e}") from None
+    with engine:
+        return _tracker_eval(args, cfg, engine)
+
+
+def _calibration(
+    cfg: TrackerEvalConfig, exp: Experiment, engine: Engine, cal_path: Path | None
+) -> dict[str, dict]:
+    """ψ_init per variant key: calibrated (``--calibrate``, saved to ``cal_path``), read
+    from ``cal_path`` if it exists, else empty (the experiment's ψ_init)."""
+    from skyfuse.services.cli.config import ConfigError
+    from skyfuse.services.cli.progress import progress_bar
+
+    variants = exp.variants()
+    calibration: dict[str, dict] = {}
+    if cfg.calibrate:
+        runs_c = cfg.calibration_runs or exp.runs
+        target, tol = calibration_target(exp, runs_c)
+        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
+        with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
+            calibration = calibrate(exp, runs_c, engine, advance)
+        for k, c in calibration.items():
+            note = "" if c["converged"] else ", NOT converged"
+            ci = c.get("psi_interval_95")
+            err = f", 95 % [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ", sampling error unknown"
+            print(
+                f"  {k}: ψ_init = {c['psi_init']:.4g}{err}, {c['false_tracks']:g} false "
+                f"tracks ({len(c['evaluations'])} evaluations{note})"
+            )
+        if cal_path is not None:
+            save_calibration(cal_path, exp, runs_c, calibration)
+            print(f"wrote {cal_path}")
+    elif cal_path is not None and cal_path.exists():
+        try:
+            calibration = load_calibration(cal_path, exp)
+        except (ValueError, json.JSONDecodeError) as e:
+            raise ConfigError(f"calibration_file: {e}") from None
+        calibration = {v.key: calibration[v.key] for v in variants if v.key in calibration}
+        if calibration:
+            print(f"ψ_init from {cal_path}: " + ", ".join(
+                f"{k} {c['psi_init']:.4g}" for k, c in calibration.items()))  # fmt: skip
+    return calibration
+
+
+def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
+    from pydantic import ValidationError
+    from skyfuse.services.cli.config import ConfigError, format_validation_error
+    from skyfuse.services.cli.progress import progress_bar
+
     settings, psi = _tracker_settings(args)
     try:
         exp = Experiment(
@@ -390,42 +580,18 @@ def run_tracker_eval(args) -> int:
     t0 = time.perf_counter()
     print(
         f"{exp.scenario}: {exp.runs} runs, seed {exp.seed}, variants "
-        f"{', '.join(v.key for v in variants)}, {cfg.workers} worker(s)",
+        f"{', '.join(v.key for v in variants)}, {engine.describe()}",
         flush=True,
     )
     cal_path = cfg.calibration_file or (out / "calibration.json" if out is not None else None)
-    calibration: dict[str, dict] = {}
     t_cal = time.perf_counter()
-    if cfg.calibrate:
-        runs_c = cfg.calibration_runs or min(exp.runs, 100)
-        target, tol = calibration_target(exp, runs_c)
-        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
-        with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
-            calibration = calibrate(exp, runs_c, cfg.workers, advance)
-        for k, c in calibration.items():
-            note = "" if c["converged"] else ", NOT converged"
-            print(
-                f"  {k}: ψ_init = {c['psi_init']:.4g}, {c['false_tracks']:g} false tracks "
-                f"({len(c['evaluations'])} evaluations{note})"
-            )
-        if cal_path is not None:
-            save_calibration(cal_path, exp, runs_c, calibration)
-            print(f"wrote {cal_path}")
-    elif cal_path is not None and cal_path.exists():
-        try:
-            calibration = load_calibration(cal_path, exp)
-        except (ValueError, json.JSONDecodeError) as e:
-            raise ConfigError(f"calibration_file: {e}") from None
-        calibration = {v.key: calibration[v.key] for v in variants if v.key in calibration}
-        if calibration:
-            print(f"ψ_init from {cal_path}: " + ", ".join(
-                f"{k} {c['psi_init']:.4g}" for k, c in calibration.items()))  # fmt: skip
+    calibration = _calibration(cfg, exp, engine, cal_path)
     t_cal = time.perf_counter() - t_cal
     total = exp.runs * len(variants)
     with progress_bar(f"eval {tag}", total, enabled=cfg.progress) as advance:
         summary = evaluate(
             exp,
-            workers=cfg.workers,
+            workers=engine,
             block=cfg.block,
             cache=cache,
             calibration=calibration,
@@ -448,5 +614,6 @@ def run_tracker_eval(args) -> int:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)
         Path(json_out).write_text(json.dumps(summary, indent=1))
         print(f"wrote {json_out}")
+    print(f"results digest {results_digest(summary)} (equal for any engine and workers)")
     print(f"elapsed {elapsed:.1f} s")
     return 0

@@ -192,3 +192,52 @@ def test_false_tracks_are_carried_into_the_next_run():
     assert second.carried[0] == len(left)
     ids1 = set(second.tracks.track_id[second.tracks.scan == 1].tolist())
     assert left & ids1  # some carried track is still alive in scan 1 of run 1
+
+
+def _eval_json(tmp_path, name: str, *flags: str) -> dict:
+    path = tmp_path / f"{name}.json"
+    argv = ["eval", "thesis-mtt-5", "--trackers", "its,lmits", "--depths", "1", "--runs", "3"]
+    argv += ["--seed", "2", "--block", "1", "--no-progress", "--json", str(path), *flags]
+    assert main(argv) == 0
+    return json.loads(path.read_text())
+
+
+def _without_measurements(summary: dict) -> dict:
+    from skyfuse.services.evaluation.montecarlo import MEASURED_FIELDS
+
+    d = {k: v for k, v in summary.items() if k not in MEASURED_FIELDS}
+    d["rows"] = _strip(summary)["rows"]
+    return d
+
+
+def test_json_identical_for_one_two_workers_and_a_dask_cluster(tmp_path, capsys):
+    """The same JSON (less CPU and wall-clock fields) in-process, with a 2-process pool
+    and with a local Dask cluster of 2 workers; the printed digests agree too."""
+    pytest.importorskip("distributed")
+    one = _eval_json(tmp_path, "one", "--workers", "1")
+    pool = _eval_json(tmp_path, "pool", "--workers", "2", "--engine", "processes")
+    dask = _eval_json(tmp_path, "dask", "--workers", "2", "--engine", "dask")
+    assert dask["machine"]["engine"].startswith("dask")
+    assert _without_measurements(one) == _without_measurements(pool)
+    assert _without_measurements(one) == _without_measurements(dask)
+    digests = [ln.split()[2] for ln in capsys.readouterr().out.splitlines() if "digest" in ln]
+    assert len(digests) == 3 and len(set(digests)) == 1
+    # the rows are real results: some target cases were counted
+    assert sum(r["nCases"] for r in one["rows"]) > 0
+
+
+def test_scheduler_needs_the_dask_engine():
+    from skyfuse.services.evaluation.montecarlo import Engine
+
+    with pytest.raises(ValueError, match="dask engine"):
+        Engine(2, "processes", scheduler="tcp://127.0.0.1:8786")
+
+
+def test_thesis_experiments_read_v_k_as_the_initiation_region():
+    """V_k of (2.35) in the thesis experiments: at least π (v_max T)² (issue 16)."""
+    v = Variant("its", 1)
+    assert _small().tracker_config(v).clutter_volume == pytest.approx(math.pi * 50.0**2)
+    slow = _small().model_copy(update={"tracker_settings": {"v_max": 30.0}})
+    assert slow.tracker_config(v).clutter_volume == pytest.approx(math.pi * 30.0**2)
+    gate = _small().model_copy(update={"tracker_settings": {"clutter_volume": 1e-9}})
+    assert gate.tracker_config(v).clutter_volume == 1e-9
