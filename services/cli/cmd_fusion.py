@@ -2,11 +2,14 @@
 service. Subscribes to every radar's plots and sites, orders batches across radars,
 runs the configured tracker and publishes on ``skyfuse/@v1/fusion/{id}/…``:
 ``tracks`` (a TrackBatch after each cycle), ``events`` (TrackEvents), ``status``
-(periodic Status) and the queryable ``snapshot`` (the latest TrackBatch).
+(periodic Status), ``registration`` (the radar bias estimates, RegistrationStatus, with
+each Status) and the queryable ``snapshot`` (the latest TrackBatch).
 
 TOML: ``[fusion]`` (this service, incl. ``[[fusion.sites]]``), ``[tracker]`` (the
-tracker, see ``fusion.tracker.TrackerConfig``), ``[transport]``. Environment:
-``SKYFUSE_FUSION_*``, ``SKYFUSE_TRACKER_*``, ``SKYFUSE_*`` (transport).
+tracker, see ``fusion.tracker.TrackerConfig``), ``[registration]`` (the online sensor
+registration, ``fusion.registration.RegistrationConfig``), ``[transport]``. Environment:
+``SKYFUSE_FUSION_*``, ``SKYFUSE_TRACKER_*``, ``SKYFUSE_REGISTRATION_*``, ``SKYFUSE_*``
+(transport).
 
 Exits 0 on SIGINT/SIGTERM (after applying what is buffered), 1 if the network fails,
 2 on a bad configuration."""
@@ -24,6 +27,10 @@ from skyfuse.services.cli.config import (
     build_config,
 )
 from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
+from skyfuse.services.fusion.registration_link import (
+    add_registration_arguments,
+    registration_config,
+)
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -55,6 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "table and SKYFUSE_TRACKER_<FIELD>",
     )
     add_model_arguments(group, _tracker_config_model())
+    add_registration_arguments(p)
     cat = p.add_argument_group("ASTERIX CAT062 output (see skyfuse cat062)")
     cat.add_argument(
         "--cat062-udp",
@@ -79,14 +87,20 @@ def tracker_config(args: argparse.Namespace):
     )
 
 
-def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None):
+def make_pipeline_factory(
+    tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None, registration=None
+):
     """``frame -> pipeline``: the conversion + tracker + TrackBatch code path shared with
-    ``skyfuse track``."""
+    ``skyfuse track`` (``registration``: a RegistrationConfig, default on)."""
     from skyfuse.services.fusion.pipeline import TrackPipeline
 
     def factory(frame):
         return TrackPipeline(
-            frame, tracker_cfg, fusion_id=fusion_id, assumed_altitude=assumed_altitude
+            frame,
+            tracker_cfg,
+            fusion_id=fusion_id,
+            assumed_altitude=assumed_altitude,
+            registration=registration,
         )
 
     return factory
@@ -95,9 +109,12 @@ def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: floa
 def run(args: argparse.Namespace) -> int:
     cfg, tcfg = service_config(FusionConfig, args, "fusion")
     tracker_cfg = tracker_config(args)
+    reg_cfg = registration_config(args, toml_path=getattr(args, "config", None))
     core = FusionCore(
         cfg,
-        make_pipeline_factory(tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude),
+        make_pipeline_factory(
+            tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude, registration=reg_cfg
+        ),
     )
     cat062 = None
     if getattr(args, "cat062_udp", None):
@@ -122,6 +139,7 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
     pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
     pub_events = declare_publisher(session, keys.fusion_events(fid))
     pub_status = declare_publisher(session, keys.fusion_status(fid))
+    pub_registration = declare_publisher(session, keys.fusion_registration(fid))
     snapshot_key = keys.fusion_snapshot(fid)
     latest = {"payload": None}
 
@@ -186,15 +204,22 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
             publish(core.poll(budget_s=0.2))
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval
-                pub_status.put(core.status().to_json_bytes())
+                _publish_status(core.status(), pub_status, pub_registration)
     finally:
         token.undeclare()
         inbox.close()
         _drain_on_stop(core, inbox, handle, publish, stop)
         st = core.status()
-        pub_status.put(st.to_json_bytes())
+        _publish_status(st, pub_status, pub_registration)
         queryable.undeclare()
         _log_totals(core, st)
+
+
+def _publish_status(st, pub_status, pub_registration) -> None:
+    """The Status, and its registration part on its own key (once the pipeline runs)."""
+    pub_status.put(st.to_json_bytes())
+    if st.registration is not None:
+        pub_registration.put(st.registration.to_json_bytes())
 
 
 def _open_inputs(session, core: FusionCore) -> Inbox:

@@ -16,6 +16,7 @@ from skyfuse.fusion.tracker.tracker import Tracker, TrackerOutput
 from skyfuse.schemas import (
     FrameSpec,
     PlotBatch,
+    RadarKind,
     RadarSite,
     Track,
     TrackBatch,
@@ -24,15 +25,29 @@ from skyfuse.schemas import (
     TrackStatus,
 )
 from skyfuse.services.fusion.adapter import measurement_batch_from
+from skyfuse.services.fusion.registration_link import RegistrationLink
 
 TWO_PI = 2.0 * math.pi
+
+
+def assumed_height(site: RadarSite, configured: float | None) -> float | None:
+    """Height given to a radar's plots without one (m above the ellipsoid, σ 3000 m):
+    ``configured``, else the site's height (its ground level: the aircraft without a
+    flight level are mostly on the surface near the radar, docs/registration.md §4).
+    Cartesian sensors keep their own rule (the site height with σ_cartesian)."""
+    if configured is not None or site.kind is RadarKind.CARTESIAN:
+        return configured
+    return site.alt
 
 
 class TrackPipeline:
     """Conversion + tracker + output messages for one fusion id.
 
     frame: the system frame (a ``FrameSpec`` or ``SystemFrame``); publish: ``confirmed``
-    (default) or ``all`` tracks in each TrackBatch (tentative tracks are many in clutter)."""
+    (default) or ``all`` tracks in each TrackBatch (tentative tracks are many in clutter);
+    registration: the online sensor registration (a RegistrationConfig, default on);
+    assumed_altitude: height of plots without one, m (default: the radar site's height),
+    ± 3000 m."""
 
     def __init__(
         self,
@@ -43,6 +58,7 @@ class TrackPipeline:
         publish: str = "confirmed",
         debias: bool = False,
         assumed_altitude: float | None = None,
+        registration=None,
     ) -> None:
         if publish not in ("confirmed", "all"):
             raise ValueError(f"publish = {publish!r}: must be 'confirmed' or 'all'")
@@ -55,19 +71,23 @@ class TrackPipeline:
         self.assumed_altitude = assumed_altitude
         self.cycle = 0
         self.rejected: dict[str, int] = {}
+        self.registration = RegistrationLink(registration)
 
     def step(self, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
         """Convert and apply one batch; return the tracker's array output."""
+        corr = self.registration.correction(site)
         converted = convert_plots(
             self.frame,
             site,
             batch,
             debias=self.debias,
             ndim=self.cfg.ndim,
-            assumed_altitude=self.assumed_altitude,
+            assumed_altitude=assumed_height(site, self.assumed_altitude),
+            bias=corr,
         )
-        mb = measurement_batch_from(converted, site, batch)
+        mb = self.registration.shift_times(measurement_batch_from(converted, site, batch), corr)
         out = self.tracker.step(mb)
+        self.registration.after(out, converted, self.tracker.vel)
         for k, v in out.batch.rejected.items():
             self.rejected[k] = self.rejected.get(k, 0) + v
         return out
