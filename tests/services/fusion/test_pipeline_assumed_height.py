@@ -54,3 +54,18 @@ def test_plots_without_altitude_sit_at_the_site_height_by_default():
     u = 3000.0 - site.alt - D[1:] ** 2 / (2 * R)
     np.testing.assert_allclose(rho_3000, np.sqrt(D[1:] ** 2 - u**2), rtol=0, atol=30.0)
     assert (rho_default[1:] - rho_3000 > 50.0).all()  # 227 m at 20 km, 88 m at 60 km
+
+
+def test_near_radar_plots_are_kept_and_counted():
+    """A flight level above the slant range (3000 m at 1 km: |sin e| > 1) is kept, placed
+    within the slant range of the radar (the site is the frame origin) and counted in
+    ``plots_near_radar``; consistent plots (2 km up at 3 km, 3 km up at 50 km) are not."""
+    site = _site()
+    frame = SystemFrame.from_spec(FrameSpec(kind=FrameKind.STEREOGRAPHIC, lat0=41.3, lon0=2.1))
+    pipe = TrackPipeline(frame)
+    b = _batch([1_000.0, 3_000.0, 50_000.0], np.radians([0.0, 90.0, 180.0]))
+    b = b.model_copy(update={"altitude": [3_000.0, 2_027.0, 3_000.0]})
+    out = pipe.step(site, b)
+    assert len(out.batch.z) == 3 and not pipe.rejected
+    assert pipe.registration.plots_near_radar == 1
+    assert np.hypot(*out.batch.z[0]) <= 1_000.0 + 1.0  # within D of the radar
