@@ -10,6 +10,7 @@ from __future__ import annotations
 from . import keys
 from .base import SCHEMA_VERSION, WireModel
 from .plots import PlotBatch
+from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
 from .status import Backlog, LatencyStats, RadarHealth, Status
 from .tracks import (
@@ -33,6 +34,7 @@ MODELS: dict[str, type[WireModel]] = {
     "status": Status,
     "snapshot": TrackBatch,
     "truth": Truth,
+    "registration": RegistrationStatus,
     "service-status": Status,
 }
 
@@ -56,9 +58,11 @@ __all__ = [
     "LatencyStats",
     "PlotBatch",
     "RadarBias",
+    "RadarBiasEstimate",
     "RadarHealth",
     "RadarKind",
     "RadarSite",
+    "RegistrationStatus",
     "Status",
     "Track",
     "TrackBatch",

@@ -13,6 +13,7 @@ key expression                              payload                    direction
 ``skyfuse/@v1/fusion/{id}/events``          :class:`TrackEvent`        fusion →
 ``skyfuse/@v1/fusion/{id}/status``          :class:`Status`            fusion →
 ``skyfuse/@v1/fusion/{id}/snapshot``        queryable → TrackBatch     fusion
+``skyfuse/@v1/fusion/{id}/registration``    RegistrationStatus         fusion →
 ``skyfuse/@v1/sim/truth``                   :class:`Truth`             simulator →
 ``skyfuse/@v1/service/{name}/status``       :class:`Status`            any service
 ``skyfuse/@v1/service/{name}/alive``        liveliness token           any service
@@ -72,6 +73,11 @@ def fusion_snapshot(fusion_id: str) -> str:
     return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/snapshot"
 
 
+def fusion_registration(fusion_id: str) -> str:
+    """Online sensor-registration estimates (RegistrationStatus, issue 17)."""
+    return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/registration"
+
+
 def service_alive(name: str) -> str:
     """Liveliness token of a running service (fusion, recorder, …)."""
     return f"{PREFIX}/service/{check_id(name, 'service name')}/alive"
@@ -84,7 +90,8 @@ def service_status(name: str) -> str:
 @dataclass(frozen=True)
 class KeyInfo:
     """What a key names: ``kind`` is one of site, plots, alive, tracks, events,
-    status, snapshot, truth, service-status; ``owner`` the radar/fusion/service id."""
+    status, snapshot, registration, truth, service-status; ``owner`` the
+    radar/fusion/service id."""
 
     kind: str
     owner: str | None
@@ -92,7 +99,12 @@ class KeyInfo:
 
 _PATTERNS = [
     (re.compile(rf"^{re.escape(PREFIX)}/radar/([^/]+)/(site|plots|alive)$"), None),
-    (re.compile(rf"^{re.escape(PREFIX)}/fusion/([^/]+)/(tracks|events|status|snapshot)$"), None),
+    (
+        re.compile(
+            rf"^{re.escape(PREFIX)}/fusion/([^/]+)/(tracks|events|status|snapshot|registration)$"
+        ),
+        None,
+    ),
     (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/status$"), "service-status"),
     (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/alive$"), "service-alive"),
 ]

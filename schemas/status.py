@@ -6,6 +6,7 @@ from pydantic import Field
 
 from .base import WireModel
 from .keys import ID_PATTERN
+from .registration import RegistrationStatus
 
 
 class RadarHealth(WireModel):
@@ -62,3 +63,6 @@ class Status(WireModel):
     tracks_total: int | None = Field(None, ge=0)
     backlog: Backlog | None = None
     message: str = ""
+    registration: RegistrationStatus | None = Field(
+        None, description="Fusion: online sensor-registration estimates (issue 17)"
+    )

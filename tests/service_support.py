@@ -129,3 +129,15 @@ def wait_for(pred, timeout: float = 10.0, step: float = 0.05) -> bool:
             return True
         time.sleep(step)
     return bool(pred())
+
+
+BIASED_TRUTH = {"LYVR": (0.2, 150.0), "LRTR": (-0.15, -100.0)}
+"""Azimuth (deg) and range (m) biases of the biased regional recording (issue 17)."""
+BIASED_REGIONAL = (
+    "--scenario", "regional", "--seed", "4", "--duration", "200", "--targets", "15",
+    "--param", "radars=3," + ",".join(
+        f"{r}.bias_azimuth_deg={a},{r}.bias_range_m={d}" for r, (a, d) in BIASED_TRUTH.items()
+    ) + ",LYVR.bias_time_ms=50",
+)  # fmt: skip
+"""``skyfuse simulate`` arguments of a small regional recording, three radars (LYBE,
+LYVR, LRTR) of which two biased, for the registration tests (``simulated_recording``)."""

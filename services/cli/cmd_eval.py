@@ -86,7 +86,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="UTC date of the first record, YYYY-MM-DD (default: pcap capture time, else today)",
     )
-    p.add_argument("--config", type=Path, default=None, help="TOML file with a [tracker] table")
+    from skyfuse.services.fusion.registration_link import add_registration_arguments
+
+    add_registration_arguments(p)
+    p.add_argument(
+        "--config", type=Path, default=None,
+        help="TOML file with a [tracker] (and [registration]) table",
+    )  # fmt: skip
     add_json_argument(
         p, "Write the summary (tables, curves, configuration) as JSON to FILE", default=None
     )

@@ -4,13 +4,16 @@ runs the configured tracker and publishes on ``skyfuse/@v1/fusion/{id}/…``:
 ``tracks`` (the track feed: a delta TrackBatch after each cycle — or group of cycles
 when several batches are ready at once — and the full picture every ``--full-interval``
 s), ``events`` (TrackEvents), ``status`` (periodic Status with the backlog; also a
-queryable answering the last one) and the queryable ``snapshot`` (the full picture now;
+queryable answering the last one), ``registration`` (the radar bias estimates,
+RegistrationStatus, with each Status) and the queryable ``snapshot`` (the full picture now;
 see ``schemas.tracks`` for the contract). Payloads are JSON with the Zenoh encoding
 ``application/json;skyfuse.{Model}/{schema version}``.
 
 TOML: ``[fusion]`` (this service, incl. ``[[fusion.sites]]``), ``[tracker]`` (the
-tracker, see ``fusion.tracker.TrackerConfig``), ``[transport]``. Environment:
-``SKYFUSE_FUSION_*``, ``SKYFUSE_TRACKER_*``, ``SKYFUSE_*`` (transport).
+tracker, see ``fusion.tracker.TrackerConfig``), ``[registration]`` (the online sensor
+registration, ``fusion.registration.RegistrationConfig``), ``[transport]``. Environment:
+``SKYFUSE_FUSION_*``, ``SKYFUSE_TRACKER_*``, ``SKYFUSE_REGISTRATION_*``, ``SKYFUSE_*``
+(transport).
 
 Exits 0 on SIGINT/SIGTERM (after applying what is buffered), 1 if the network fails,
 2 on a bad configuration."""
@@ -28,6 +31,10 @@ from skyfuse.services.cli.config import (
     build_config,
 )
 from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
+from skyfuse.services.fusion.registration_link import (
+    add_registration_arguments,
+    registration_config,
+)
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -60,6 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "table and SKYFUSE_TRACKER_<FIELD>",
     )
     add_model_arguments(group, _tracker_config_model())
+    add_registration_arguments(p)
     cat = p.add_argument_group("ASTERIX CAT062 output (see skyfuse cat062)")
     cat.add_argument(
         "--cat062-udp",
@@ -84,14 +92,20 @@ def tracker_config(args: argparse.Namespace):
     )
 
 
-def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None):
+def make_pipeline_factory(
+    tracker_cfg, fusion_id: str, *, assumed_altitude: float | None = None, registration=None
+):
     """``frame -> pipeline``: the conversion + tracker + TrackBatch code path shared with
-    ``skyfuse track``."""
+    ``skyfuse track`` (``registration``: a RegistrationConfig, default on)."""
     from skyfuse.services.fusion.pipeline import TrackPipeline
 
     def factory(frame):
         return TrackPipeline(
-            frame, tracker_cfg, fusion_id=fusion_id, assumed_altitude=assumed_altitude
+            frame,
+            tracker_cfg,
+            fusion_id=fusion_id,
+            assumed_altitude=assumed_altitude,
+            registration=registration,
         )
 
     return factory
@@ -100,9 +114,12 @@ def make_pipeline_factory(tracker_cfg, fusion_id: str, *, assumed_altitude: floa
 def run(args: argparse.Namespace) -> int:
     cfg, tcfg = service_config(FusionConfig, args, "fusion")
     tracker_cfg = tracker_config(args)
+    reg_cfg = registration_config(args, toml_path=getattr(args, "config", None))
     core = FusionCore(
         cfg,
-        make_pipeline_factory(tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude),
+        make_pipeline_factory(
+            tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude, registration=reg_cfg
+        ),
     )
     cat062 = None
     if getattr(args, "cat062_udp", None):
@@ -170,6 +187,7 @@ class _Service:
         self.pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
         self.pub_events = declare_publisher(session, keys.fusion_events(fid))
         self.pub_status = declare_publisher(session, keys.fusion_status(fid))
+        self.pub_registration = declare_publisher(session, keys.fusion_registration(fid))
         self.snapshot_key, self.status_key = keys.fusion_snapshot(fid), keys.fusion_status(fid)
         self.last_status = core.status().to_json_bytes()
         self.queryables = [
@@ -189,8 +207,12 @@ class _Service:
         q.reply(self.status_key, self.last_status, encoding=payload_encoding(self.status_key))
 
     def publish_status(self) -> None:
-        self.last_status = self.core.status().to_json_bytes()
+        """The Status, and its registration part on its own key (once the pipeline runs)."""
+        st = self.core.status()
+        self.last_status = st.to_json_bytes()
         self.pub_status.put(self.last_status)
+        if st.registration is not None:
+            self.pub_registration.put(st.registration.to_json_bytes())
 
     def publish(self, outputs) -> None:
         for out in outputs:

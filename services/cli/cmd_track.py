@@ -17,8 +17,15 @@ recording holds simulation truth (``truth``: GOSPA, coverage, position RMSE) and
 An ASTERIX recording (CAT048 plots with CAT034 service messages; pcap of UDP or a raw
 ``.ast`` file, told apart from MCAP by its first bytes) is decoded with
 :func:`skyfuse.services.asterix.read_asterix` (``--sites`` TOML, ``--date`` of the first
-record). Plots without a flight level (primary-only) get ``--assumed-altitude`` (default
-3000 m for ASTERIX, ± 3000 m). A file that is neither is an error that says so (exit 1).
+record). Plots without a flight level (primary-only, or Mode-S replies without altitude)
+get ``--assumed-altitude`` (default: the radar site's height, i.e. its ground level;
+± 3000 m; the live fusion service's default too). A file that is neither is an error
+that says so (exit 1).
+
+Online sensor registration (``--registration on|frozen|off``, ``--registration-reference``,
+the ``[registration]`` table of ``--config``) estimates and corrects each radar's biases
+as in the live service; the summary's ``registration`` holds the final estimates with
+their σ, and ``plots_near_radar`` the plots kept by the near-radar projection.
 
 Examples::
 
@@ -46,6 +53,10 @@ from skyfuse.services.cli.config import (
     build_config,
 )
 from skyfuse.services.cli.progress import progress_bar
+from skyfuse.services.fusion.registration_link import (
+    add_registration_arguments,
+    registration_config,
+)
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +103,7 @@ class TrackCommandConfig(BaseModel):
         ge=-1000,
         le=30000,
         description="Height assumed for plots without altitude/elevation, m, ± 3000 m (default: "
-        "3000 for ASTERIX input, none for MCAP: such plots are rejected)",
+        "the radar site's height)",
     )
 
 
@@ -113,11 +124,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", type=Path, default=None, help="TOML file with a [tracker] table")
     group = p.add_argument_group("tracker")
     add_model_arguments(group, _tracker_config_model())
+    add_registration_arguments(p)
     p.set_defaults(func=run)
-
-
-ASTERIX_ASSUMED_ALTITUDE_M = 3000.0
-"""Height given to ASTERIX plots without a flight level (primary-only), m (± 3000 m)."""
 
 
 def _counting(messages, advance):
@@ -145,7 +153,7 @@ def _summary(cfg: TrackCommandConfig, tcfg, src, result, assumed) -> dict:
         summary["asterix"] = {
             "radars": ax.radars,
             "scan_period_source": ax.scan_period_source,
-            "assumed_altitude_m": assumed,
+            "assumed_altitude_m": assumed if assumed is not None else "site height",
             "label_warmup_s": LABEL_WARMUP_S,
             "counts": ax.stats,
             "messages": ax.messages[:20],
@@ -185,14 +193,13 @@ def run(args: argparse.Namespace) -> int:
         log.error("%s", e)
         return 1
     assumed = cfg.assumed_altitude
-    if assumed is None and src.asterix is not None:
-        assumed = ASTERIX_ASSUMED_ALTITUDE_M
     ocfg = OfflineConfig(
         tracker=tcfg,
         frame_kind=cfg.frame_kind,
         fusion_id=cfg.fusion_id,
         publish=cfg.publish,
         assumed_altitude=assumed,
+        registration=registration_config(args, toml_path=getattr(args, "config", None)),
     )
     warmup = obs.LABEL_WARMUP_S if src.asterix is not None else 0.0
     meta = {"command": "skyfuse track", "source": str(cfg.file), "tracker": tcfg.model_dump_json()}

@@ -15,7 +15,9 @@
   :func:`skyfuse.fusion.metrics.label_metrics.label_metrics`: completeness, track-id
   changes per aircraft, confirmed false tracks per hour, time to confirm. The label is
   the plot's simulation ``target_id`` or, in real data, its Mode-S address (I048/220);
-  labels score tracks, they never drive association.
+  labels score tracks, they never drive association. With reported altitudes the same
+  measures are given per traffic class (``labels_by_traffic``: airborne, surface,
+  overhead, all; :mod:`skyfuse.fusion.metrics.traffic_split`).
 * :class:`TrackWriter` — writes each step's TrackBatch and TrackEvents to MCAP on
   ``skyfuse/@v1/fusion/{id}/tracks`` and ``…/events``.
 * :class:`Timing` — wall and CPU time, ms per tracker step (mean, p95, max), plots/s.
@@ -214,6 +216,7 @@ class PlotTrackRows:
         self.label = label
         self.kind: str | None = label
         self._cols: list[list[np.ndarray]] = [[], [], [], []]
+        self._geo: list[list[np.ndarray]] = [[], []]
 
     def _labels(self, batch: PlotBatch) -> np.ndarray:
         for name in (self.label,) if self.label else ("target_id", "mode_s"):
@@ -243,6 +246,9 @@ class PlotTrackRows:
             self._cols, (batch.column("time") * 1e-9, self._labels(batch), track, conf)
         ):
             col.append(v)
+        for col, name in zip(self._geo, ("altitude", "range")):
+            v = batch.column(name)
+            col.append(np.full(m, np.nan) if v is None else np.asarray(v, float))
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(time s, label, track, confirmed), concatenated over the batches."""
@@ -251,6 +257,25 @@ class PlotTrackRows:
             return np.zeros(0), z, z.copy(), np.zeros(0, bool)
         t, label, track, conf = (np.concatenate(c) for c in self._cols)
         return t, label, track, conf
+
+    def geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """(reported altitude m, slant range m) of each row, NaN where the plot has none."""
+        if not self._geo[0]:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(self._geo[0]), np.concatenate(self._geo[1])
+
+    def traffic_metrics(self, *, min_label_share: float = 0.5) -> dict | None:
+        """The label measures per traffic class (airborne: FL ≥ 10 and ≥ 2 NM out;
+        surface: FL < 10; overhead; all), :func:`fusion.metrics.traffic_split
+        .split_label_metrics`; None when no plot reports an altitude."""
+        from skyfuse.fusion.metrics.traffic_split import split_label_metrics, traffic_class
+
+        alt, rng = self.geometry()
+        if not np.isfinite(alt).any():
+            return None
+        t, label, track, conf = self.arrays()
+        cls = traffic_class(alt, rng)
+        return split_label_metrics(t, label, track, conf, cls, min_label_share=min_label_share)
 
     def metrics(self, *, warmup_s: float = 0.0, min_label_share: float = 0.5) -> dict:
         """The label metrics of the rows as a JSON-ready dict (see :func:`metrics_dict`)."""
@@ -298,7 +323,11 @@ class LabelObserver(Observer):
 
     def summary(self) -> dict:
         m = self.rows.metrics(warmup_s=self.warmup_s, min_label_share=self.min_label_share)
-        return {"labels": {"kind": self.rows.kind, **m}}
+        out = {"labels": {"kind": self.rows.kind, **m}}
+        split = self.rows.traffic_metrics(min_label_share=self.min_label_share)
+        if split is not None:
+            out["labels_by_traffic"] = split
+        return out
 
 
 class TrackWriter(Observer):

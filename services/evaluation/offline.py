@@ -61,7 +61,13 @@ class OfflineConfig(BaseModel):
     fusion_id: str = Field("main", description="Fusion id of the output messages")
     publish: Literal["confirmed", "all"] = Field("confirmed", description="Tracks published")
     assumed_altitude: float | None = Field(
-        None, ge=-1000, le=30000, description="Height for plots without one, m (± 3000 m)"
+        None,
+        ge=-1000,
+        le=30000,
+        description="Height for plots without one, m, ± 3000 m (default: the site's height)",
+    )
+    registration: object | None = Field(
+        None, description="RegistrationConfig of the online sensor registration (default: on)"
     )
 
 
@@ -139,6 +145,10 @@ class OfflineResult:
         }
         if p is not None:
             out["tracker_totals"] = dict(p.tracker.totals)
+            reg = getattr(p, "registration", None)  # services.fusion.registration_link
+            if reg is not None:
+                out["plots_near_radar"] = reg.plots_near_radar
+                out["registration"] = reg.estimator.status()
         for obs in self.observers:
             out.update(obs.summary())
         return out
@@ -171,6 +181,7 @@ class _Run:
                 fusion_id=self.cfg.fusion_id,
                 publish=self.cfg.publish,
                 assumed_altitude=self.cfg.assumed_altitude,
+                registration=self.cfg.registration,
             )
         for o in self.obs:
             o.start(self.frame)

@@ -15,6 +15,13 @@ observers of :mod:`~skyfuse.services.evaluation.observers`:
   targets inside coverage (the :class:`~skyfuse.services.evaluation.observers.Coverage`
   rule): GOSPA (order p, cut-off c, α = 2, with the track-switch term) over time, truth
   coverage and position RMSE.
+* **sensor registration** (``registration_vs_truth``, recordings whose truth carries
+  radar biases, ``skyfuse simulate --param ID.bias_*``): the bias estimates against the
+  truth over time and at the end, duplicate confirmed tracks per aircraft
+  (:mod:`~skyfuse.services.evaluation.registration_eval`); the same recording is then run
+  again with registration off (``registration_off``: RMSE, coverage, GOSPA, duplicates).
+* **traffic classes** (``labels_by_traffic``): the label measures separately for
+  airborne (FL ≥ 10, ≥ 2 NM), surface (FL < 10) and overhead traffic, and for all.
 """
 
 from __future__ import annotations
@@ -46,17 +53,47 @@ class RecordingEvalOptions(BaseModel):
     min_label_share: float = Field(0.5, gt=0, le=1, description="Label share of a true track")
     sector_count: int = Field(16, ge=1, le=360, description="ASTERIX: sectors per turn")
     assumed_altitude: float | None = Field(
-        None, ge=-1000, le=30000, description="Height of plots without one, m (ASTERIX: 3000)"
+        None,
+        ge=-1000,
+        le=30000,
+        description="Height of plots without one, m, ± 3000 m (default: the site's height)",
+    )
+    compare_registration: bool = Field(
+        True,
+        description="When the truth carries radar biases and registration is not off, "
+        "run again with registration off and report its RMSE and duplicates",
     )
 
 
+def _truth_observers(opts: RecordingEvalOptions) -> list:
+    """The truth GOSPA/RMSE observer and the registration-vs-truth observer on it."""
+    from skyfuse.services.evaluation import observers as obs
+    from skyfuse.services.evaluation.registration_eval import RegistrationObserver
+
+    truth = obs.TruthObserver(
+        obs.Coverage(opts.coverage_window, opts.min_detections),
+        c=opts.gospa_c,
+        p=opts.gospa_p,
+        switch_penalty=opts.switch_penalty,
+    )
+    return [truth, RegistrationObserver(truth)]
+
+
 def evaluate_recording(
-    path: str | Path, tcfg=None, opts: RecordingEvalOptions | None = None, *, sites=None, date=None
+    path: str | Path,
+    tcfg=None,
+    opts: RecordingEvalOptions | None = None,
+    *,
+    sites=None,
+    date=None,
+    registration=None,
 ) -> dict:
     """Run ``tcfg`` (a ``TrackerConfig``, default its defaults) over the recording at
-    ``path``; return the summary dict (``labels``, ``truth`` when the recording has
-    Truth messages, ``timing``, counts). ``sites``, ``date``: ASTERIX input only (see
-    :func:`~skyfuse.services.evaluation.inputs.open_input`). Raises ``InputError``."""
+    ``path``; return the summary dict (``labels``, ``labels_by_traffic``, ``truth`` when
+    the recording has Truth messages, ``registration_vs_truth``, ``timing``, counts).
+    ``registration``: a RegistrationConfig (default on). ``sites``, ``date``: ASTERIX
+    input only (see :func:`~skyfuse.services.evaluation.inputs.open_input`). Raises
+    ``InputError``."""
     from skyfuse.fusion.tracker import TrackerConfig
     from skyfuse.services.evaluation import observers as obs
     from skyfuse.services.evaluation.inputs import open_input
@@ -66,24 +103,26 @@ def evaluate_recording(
     tcfg = tcfg if tcfg is not None else TrackerConfig()
     src = open_input(Path(path), sites_file=sites, date=date, sector_count=opts.sector_count)
     asterix = src.asterix is not None
-    assumed = opts.assumed_altitude
-    if assumed is None and asterix:
-        assumed = 3000.0
     warmup = opts.warmup_s if opts.warmup_s is not None else (60.0 if asterix else 0.0)
+    truth_obs, reg_obs = _truth_observers(opts)
     observers = [
         obs.LabelObserver(warmup_s=warmup, min_label_share=opts.min_label_share),
-        obs.TruthObserver(
-            obs.Coverage(opts.coverage_window, opts.min_detections),
-            c=opts.gospa_c,
-            p=opts.gospa_p,
-            switch_penalty=opts.switch_penalty,
-        ),
+        truth_obs,
+        reg_obs,
         obs.Timing(),
     ]
-    ocfg = OfflineConfig(tracker=tcfg, frame_kind=opts.frame_kind, assumed_altitude=assumed)
+    ocfg = OfflineConfig(
+        tracker=tcfg,
+        frame_kind=opts.frame_kind,
+        assumed_altitude=opts.assumed_altitude,
+        registration=registration,
+    )
     result = run_offline(src.messages(), src.sites, ocfg, observers)
     summary = {"file": str(path), "tracker": tcfg.tracker, "depth": tcfg.memory_depth}
     summary.update(result.summary())
+    mode = registration.mode if registration is not None else "on"
+    if opts.compare_registration and reg_obs.truth and mode != "off":
+        summary["registration_off"] = _without_registration(path, ocfg, opts, sites, date)
     summary["recording_rejected"] = dict(src.stats.rejected)
     if asterix:
         summary["asterix"] = {"radars": src.asterix.radars, "counts": src.asterix.stats}
@@ -92,12 +131,33 @@ def evaluate_recording(
     return summary
 
 
+def _without_registration(path, ocfg, opts, sites, date) -> dict:
+    """The truth scores of a second pass with registration off (the same input)."""
+    from skyfuse.fusion.registration import RegistrationConfig
+    from skyfuse.services.evaluation.inputs import open_input
+    from skyfuse.services.evaluation.offline import run_offline
+
+    src = open_input(Path(path), sites_file=sites, date=date, sector_count=opts.sector_count)
+    base = ocfg.registration or RegistrationConfig()
+    off = ocfg.model_copy(update={"registration": base.model_copy(update={"mode": "off"})})
+    truth, reg = _truth_observers(opts)
+    run_offline(src.messages(), src.sites, off, [truth, reg])
+    t = truth.summary().get("truth", {})
+    return {
+        "position_rmse_m": t.get("position_rmse_m"),
+        "coverage": t.get("coverage"),
+        "gospa_mean_m": (t.get("gospa") or {}).get("mean_m"),
+        "duplicates": reg.duplicates(),
+    }
+
+
 def run_recording(args) -> int:
     """``skyfuse eval FILE``: tracker from ``--config`` [tracker] and the flags."""
     from skyfuse.fusion.tracker import TrackerConfig
     from skyfuse.services.cli.config import ConfigError, build_config
     from skyfuse.services.evaluation.inputs import InputError
     from skyfuse.services.evaluation.report import write_summary
+    from skyfuse.services.fusion.registration_link import registration_config
 
     tcfg = build_config(
         TrackerConfig,
@@ -112,6 +172,7 @@ def run_recording(args) -> int:
             tcfg,
             sites=getattr(args, "sites", None),
             date=getattr(args, "date", None),
+            registration=registration_config(args, toml_path=getattr(args, "config", None)),
         )
     except InputError as e:
         if e.usage:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 STDOUT = "-"
+_TR = "labels_by_traffic"
 
 _HEADLINE = (
     ("batches", ("batches",)),
@@ -26,8 +27,17 @@ _HEADLINE = (
     ("truth_coverage", ("truth", "coverage")),
     ("position_rmse_m", ("truth", "position_rmse_m")),
     ("gospa_mean_m", ("truth", "gospa", "mean_m")),
+    ("plots_near_radar", ("plots_near_radar",)),
+    ("airborne_track_ids_per_aircraft", (_TR, "airborne", "track_ids_per_aircraft")),
+    ("airborne_id_changes_per_aircraft", (_TR, "airborne", "id_changes_per_aircraft")),
+    ("surface_track_ids_per_aircraft", (_TR, "surface", "track_ids_per_aircraft")),
+    ("all_track_ids_per_aircraft", (_TR, "all", "track_ids_per_aircraft")),
+    ("duplicates_per_aircraft", ("registration_vs_truth", "duplicates", "duplicates_per_aircraft")),
+    ("registration_off_rmse_m", ("registration_off", "position_rmse_m")),
+    ("registration_off_duplicates_per_aircraft",
+     ("registration_off", "duplicates", "duplicates_per_aircraft")),
     ("wall_s", ("timing", "wall_s")),
-)
+)  # fmt: skip
 
 
 def _get(d: dict, path: tuple[str, ...]):

@@ -14,11 +14,13 @@ import dataclasses
 import numpy as np
 from skyfuse.fusion.frames import SystemFrame, convert_plots
 from skyfuse.fusion.frames.plot_conversion import ConvertedPlots
+from skyfuse.fusion.registration import RegistrationMode
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.fusion.tracker.tracker import Tracker, TrackerOutput
-from skyfuse.schemas import FrameSpec, PlotBatch, RadarSite, TrackEvent, TrackEventKind
+from skyfuse.schemas import FrameSpec, PlotBatch, RadarKind, RadarSite, TrackEvent, TrackEventKind
 from skyfuse.services.fusion.adapter import measurement_batch_from
 from skyfuse.services.fusion.feed import FeedBuilder, FeedMessage
+from skyfuse.services.fusion.registration_link import RegistrationLink
 
 _COLUMNS = (
     "range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude", "mode_s",
@@ -26,11 +28,24 @@ _COLUMNS = (
 )  # fmt: skip
 
 
+def assumed_height(site: RadarSite, configured: float | None) -> float | None:
+    """Height given to a radar's plots without one (m above the ellipsoid, σ 3000 m):
+    ``configured``, else the site's height (its ground level: the aircraft without a
+    flight level are mostly on the surface near the radar, docs/registration.md §4).
+    Cartesian sensors keep their own rule (the site height with σ_cartesian)."""
+    if configured is not None or site.kind is RadarKind.CARTESIAN:
+        return configured
+    return site.alt
+
+
 class TrackPipeline:
     """Conversion + tracker + output messages for one fusion id.
 
     frame: the system frame (a ``FrameSpec`` or ``SystemFrame``); publish: ``confirmed``
-    (default) or ``all`` tracks in each TrackBatch (tentative tracks are many in clutter)."""
+    (default) or ``all`` tracks in each TrackBatch (tentative tracks are many in clutter);
+    registration: the online sensor registration (a RegistrationConfig, default on);
+    assumed_altitude: height of plots without one, m (default: the radar site's height),
+    ± 3000 m."""
 
     def __init__(
         self,
@@ -41,6 +56,7 @@ class TrackPipeline:
         publish: str = "confirmed",
         debias: bool = False,
         assumed_altitude: float | None = None,
+        registration=None,
     ) -> None:
         if publish not in ("confirmed", "all"):
             raise ValueError(f"publish = {publish!r}: must be 'confirmed' or 'all'")
@@ -52,6 +68,7 @@ class TrackPipeline:
         self.debias = debias
         self.assumed_altitude = assumed_altitude
         self.rejected: dict[str, int] = {}
+        self.registration = RegistrationLink(registration)
         self.feed = FeedBuilder(
             self.frame, self.cfg.ndim, list(self.tracker.model.labels), fusion_id, publish
         )
@@ -61,18 +78,23 @@ class TrackPipeline:
         return self._track(self._convert(site, batch), site, batch)
 
     def _convert(self, site: RadarSite, batch: PlotBatch):
+        """The plots in the system frame, corrected by the radar's current registration
+        estimate (:mod:`~skyfuse.services.fusion.registration_link`)."""
         return convert_plots(
             self.frame,
             site,
             batch,
             debias=self.debias,
             ndim=self.cfg.ndim,
-            assumed_altitude=self.assumed_altitude,
+            assumed_altitude=assumed_height(site, self.assumed_altitude),
+            bias=self.registration.correction(site),
         )
 
     def _track(self, converted, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
-        mb = measurement_batch_from(converted, site, batch)
+        corr = self.registration.correction(site)
+        mb = self.registration.shift_times(measurement_batch_from(converted, site, batch), corr)
         out = self.tracker.step(mb)
+        self.registration.after(out, converted, self.tracker.vel)
         for k, v in out.batch.rejected.items():
             self.rejected[k] = self.rejected.get(k, 0) + v
         return out
@@ -93,8 +115,15 @@ class TrackPipeline:
         events: list[TrackEvent] = []
         failed: list[tuple[PlotBatch, Exception]] = []
         last = None
-        for (site, batch), converted in zip(items, self._convert_all(items)):
+        # registration on: each batch's correction depends on the steps before it, so it
+        # is converted just before its step (the same tracks as batch by batch, live or
+        # offline); otherwise the plots of each radar are converted at once
+        learning = self.registration.mode is RegistrationMode.ON
+        conversions = [None] * len(items) if learning else self._convert_all(items)
+        for (site, batch), converted in zip(items, conversions):
             try:
+                if learning:
+                    converted = self._convert(site, batch)
                 if isinstance(converted, Exception):
                     raise converted
                 out = self._track(converted, site, batch)

@@ -91,8 +91,8 @@ class FusionConfig(BaseModel):
         ge=-1000,
         le=30000,
         description="Height assumed for plots without altitude or elevation (primary-only "
-        "ASTERIX plots), m, carried with a ±3000 m uncertainty (default: such plots are "
-        "rejected and counted)",
+        "ASTERIX plots), m, carried with a ±3000 m uncertainty (default: the radar site's "
+        "height, i.e. its ground level)",
     )
     status_interval: float = Field(1.0, gt=0, description="Status publication period, s")
     full_interval: float = Field(
@@ -563,12 +563,18 @@ class FusionCore:
             picture = self.pipeline.picture()
             total = len(picture)
             confirmed = int(np.count_nonzero(getattr(picture, "confirmed", [])))
+        reg = getattr(self.pipeline, "registration", None)  # registration_link (issue 17)
         return Status(
             service="fusion",
             service_id=self.cfg.fusion_id,
             time=time.time_ns(),
             uptime_s=now - self.started,
-            counters={**self.counters, "queued": len(self.buffer)},
+            counters={
+                **self.counters,
+                "queued": len(self.buffer),
+                "plots_near_radar": reg.plots_near_radar if reg else 0,
+            },
+            registration=reg.status(self.cfg.fusion_id) if reg else None,
             rejected={**self.rejected, **self._plot_rejections()},
             radars=[
                 RadarHealth(

@@ -135,8 +135,9 @@ def test_liveliness_updates_radar_health(alive):
 
 
 def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
-    """2-D plots without a flight level: rejected (counted) by default, tracked with an
-    assumed altitude when the fusion configuration gives one."""
+    """2-D plots without a flight level: tracked at the site's height by default (issue
+    17) and at an assumed altitude when the fusion configuration gives one; never
+    rejected."""
     from skyfuse.fusion.tracker.config import TrackerConfig
     from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
 
@@ -157,5 +158,5 @@ def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
         results[assumed] = sum(
             n for reason, n in c.status().rejected.items() if reason.startswith("plot:")
         )
-    assert results[None] == len(batch)  # every plot rejected, with its reason counted
+    assert results[None] == 0
     assert results[3000.0] == 0
