@@ -26,7 +26,8 @@ def test_lmipf_on_polar_multiradar_recording_as_lmits(tmp_path):
     ref = track_summary(tmp_path, "--tracker", "lmits")
     pf = track_summary(tmp_path, "--tracker", "lmipf", "--particles", "300")
     assert pf["plots_processed"] == ref["plots_processed"] > 1000
-    assert pf["targets_with_confirmed_track"] == pf["targets_with_plots"] >= 10
-    assert pf["false_tracks"] <= ref["false_tracks"]
-    assert pf["truth_coverage_after_acquisition"] >= 0.95
-    assert pf["position_rmse_m"] < 1.3 * ref["position_rmse_m"]
+    lab, lab_ref = pf["labels"], ref["labels"]
+    assert lab["aircraft_with_confirmed_track"] == lab["aircraft"] >= 10
+    assert lab["confirmed_false_tracks"] <= lab_ref["confirmed_false_tracks"]
+    assert pf["truth"]["coverage_after_acquisition"] >= 0.95
+    assert pf["truth"]["position_rmse_m"] < 1.3 * ref["truth"]["position_rmse_m"]

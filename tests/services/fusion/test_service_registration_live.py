@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from service_support import BIASED_REGIONAL, BIASED_TRUTH, peer, skyfuse, stop
-from skyfuse.schemas import PlotBatch, RegistrationStatus, Status, keys
+from skyfuse.schemas import FeedKind, PlotBatch, RegistrationStatus, Status, TrackBatch, keys
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
 from skyfuse.services.runtime.transport import (
@@ -34,7 +34,7 @@ FIELDS = ("azimuth", "azimuth_sigma", "range", "range_sigma", "time", "time_sigm
 
 
 def _live(rec: Path, tmp_path: Path, n_batches: int) -> tuple[list, list, int]:
-    """(registration messages, statuses, track batches) of a live run over ``rec``."""
+    """(registration messages, statuses, plot batches applied) of a live run over ``rec``."""
     ep = loopback_endpoint(free_port())
     proc = skyfuse(
         "fusion", "--listen", ep, "--reorder-wait", "0.3", "--status-interval", "0.5",
@@ -51,7 +51,7 @@ def _live(rec: Path, tmp_path: Path, n_batches: int) -> tuple[list, list, int]:
             assert wait_for_tokens(s, [service_alive_key("fusion")], 20.0) == []
             assert replay(s, rec, fast=True).plot_batches == n_batches
             deadline = time.monotonic() + 120
-            while sum(g.tag == "tracks" for g in got) < n_batches and time.monotonic() < deadline:
+            while _applied(got) < n_batches and time.monotonic() < deadline:
                 got.extend(inbox.drain())
                 time.sleep(0.05)
             rc, _ = stop(proc)  # the final Status and registration are published
@@ -63,7 +63,13 @@ def _live(rec: Path, tmp_path: Path, n_batches: int) -> tuple[list, list, int]:
     assert rc == 0, (tmp_path / "fusion.log").read_text()[-3000:]
     regs = [RegistrationStatus.from_json_bytes(g.payload) for g in got if g.tag == "reg"]
     statuses = [Status.from_json_bytes(g.payload) for g in got if g.tag == "status"]
-    return regs, statuses, sum(g.tag == "tracks" for g in got)
+    return regs, statuses, _applied(got)
+
+
+def _applied(got: list) -> int:
+    """Plot batches the received track feed has applied (a delta may carry several)."""
+    feed = [TrackBatch.from_json_bytes(g.payload) for g in got if g.tag == "tracks"]
+    return sum(b.batches for b in feed if b.kind is FeedKind.DELTA)
 
 
 def test_live_fusion_publishes_registration_equal_to_offline(tmp_path, simulated_recording):
