@@ -1,10 +1,11 @@
-"""``skyfuse tracks [--json] [--connect EP]``: follow the fused track feed.
+"""``skyfuse tracks [--json [FILE]] [--connect EP]``: follow the fused track feed.
 
 Without ``--json``: a live table (rich) of the confirmed tracks of the picture rebuilt
 from the feed (the snapshot, then the deltas and full messages: ``schemas.TrackPicture``),
 with the last track events; when the output is not a terminal, plain tab-separated text
 (the picture at each full message, every second by default). With ``--json``: one
-JSON object per line, ``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent.
+JSON object per line, ``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent
+(to FILE with ``--json FILE``, the same spelling as every command).
 ``--snapshot`` asks the fusion service's queryable for the current tracks once and
 prints them. Works from any host that can reach a Zenoh endpoint of the network
 (``--connect tcp/HOST:PORT``, peer or client mode)."""
@@ -20,7 +21,12 @@ import time
 
 from pydantic import BaseModel, Field, ValidationError
 from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPicture, TrackStatus, keys
-from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.cli.config import (
+    ConfigError,
+    add_json_argument,
+    add_model_arguments,
+    build_config,
+)
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -51,7 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_model_arguments(p, TracksConfig, skip=("json_lines",))
-    p.add_argument("--json", dest="json_lines", action="store_true", help="JSON lines output")
+    add_json_argument(
+        p, "JSON lines (one message each) to FILE; --json alone (or FILE -) to stdout", None
+    )
     add_transport_arguments(p)
     p.set_defaults(func=run)
 
@@ -107,31 +115,40 @@ def plain_table(batch: TrackBatch | None, all_tracks: bool) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    json_out = getattr(args, "json_out", None)
+    args.json_lines = json_out is not None
     cfg = build_config(TracksConfig, args)
     tcfg = _transport_config(args)
+    try:  # JSON lines into a file: what stdout would have had
+        out = sys.stdout if json_out in (None, "-") else open(json_out, "w", encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"--json {json_out}: cannot write ({e.strerror})") from e
     stop = StopFlag().install()
     fid = cfg.fusion_id if cfg.fusion_id == "*" else keys.check_id(cfg.fusion_id, "fusion id")
     base = f"{keys.PREFIX}/fusion/{fid}"
     try:
         with open_session(tcfg) as session:
             if cfg.snapshot:
-                return _snapshot(session, f"{base}/snapshot", cfg)
-            return _follow(session, base, cfg, stop)
+                return _snapshot(session, f"{base}/snapshot", cfg, out)
+            return _follow(session, base, cfg, stop, out)
     except TransportError as e:
         log.error("%s", e)
         return EXIT_FAILED
+    finally:
+        if out is not sys.stdout:
+            out.close()
 
 
-def _snapshot(session, key: str, cfg: TracksConfig) -> int:
+def _snapshot(session, key: str, cfg: TracksConfig, out) -> int:
     replies = query(session, key, timeout=3.0)
     if not replies:
         log.error("no fusion service answered on %s", key)
         return EXIT_FAILED
     for k, payload in replies:
         if cfg.json_lines:
-            sys.stdout.write(json.dumps({"topic": k, "message": json.loads(payload)}) + "\n")
-        elif not sys.stdout.isatty():
-            sys.stdout.write(plain_table(TrackBatch.from_json_bytes(payload), cfg.all_tracks))
+            out.write(json.dumps({"topic": k, "message": json.loads(payload)}) + "\n")
+        elif not out.isatty():
+            out.write(plain_table(TrackBatch.from_json_bytes(payload), cfg.all_tracks))
         else:
             from rich.console import Console
 
@@ -161,7 +178,7 @@ class Pictures:
         return None if self.last is None else self.by_id[self.last].batch()
 
 
-def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
+def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag, out) -> int:
     inbox = Inbox(capacity=10_000)
     inbox.subscribe(session, f"{base}/tracks", "tracks")
     inbox.subscribe(session, f"{base}/events", "events")
@@ -174,7 +191,7 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
                 pictures.apply(TrackBatch.from_json_bytes(payload))
             except ValidationError as e:
                 log.warning("invalid snapshot: %s", e.errors()[0]["msg"])
-    plain = not cfg.json_lines and not sys.stdout.isatty()
+    plain = not cfg.json_lines and not out.isatty()
     events: list[TrackEvent] = []
     live = None
     if not cfg.json_lines and not plain:
@@ -197,8 +214,8 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
                 except ValueError:
                     log.warning("undecodable payload on %s", item.key)
                     continue
-                sys.stdout.write(json.dumps({"topic": item.key, "message": payload}) + "\n")
-                sys.stdout.flush()
+                out.write(json.dumps({"topic": item.key, "message": payload}) + "\n")
+                out.flush()
                 batches += item.tag == "tracks"
                 continue
             try:
@@ -207,8 +224,8 @@ def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag) -> int:
                     pictures.apply(msg)
                     batches += 1
                     if plain and msg.kind is FeedKind.FULL:
-                        sys.stdout.write(plain_table(pictures.latest(), cfg.all_tracks))
-                        sys.stdout.flush()
+                        out.write(plain_table(pictures.latest(), cfg.all_tracks))
+                        out.flush()
                 else:
                     events.append(TrackEvent.from_json_bytes(item.payload))
                     del events[:-20]
