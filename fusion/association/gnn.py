@@ -139,72 +139,84 @@ class GNNTracker:
     # --- one scan ----------------------------------------------------------------------
     def step(self, z: np.ndarray, R: np.ndarray, time_s: float) -> ScanReport:
         """Process the plots of one scan: z (k, m), R (k, m, m) in the system frame, all
-        taken at ``time_s`` seconds."""
+        taken at ``time_s`` seconds: predict, gate and assign, update, then the life cycle
+        (confirm, delete) and initiation from the unassigned plots."""
         z = np.asarray(z, float).reshape(-1, np.shape(z)[-1] if np.ndim(z) == 2 else 2)
         k, m = z.shape
         R = np.asarray(R, float).reshape(k, m, m)
         n = self.ids.size
-        assigned_plot = np.full(n, -1)
-        n_gated = 0
+        assigned_plot, n_gated = np.full(n, -1), 0
         if n:
-            dt = time_s - self.time
-            self.state = self.filt.predict(self.state, dt)
-            zero_R = np.zeros((n, m, m))
-            pred = self.filt.predict_measurement(self.state, zero_R)
-            G = gate_threshold(self.cfg.p_gate, m)
-            # miss cost: the gate-edge cost with the track's own S (plot R at its mean)
-            Rbar = R.mean(axis=0) if k else np.zeros((m, m))
-            if isinstance(self.filt, IMM) and self.cfg.imm_gating == "per-mode":
-                g, miss = self._gate_per_mode(pred[2], z, R, G, Rbar)
-            else:
-                g = gate(pred[0], pred[1], z, R, G)
-                miss = G + np.linalg.slogdet(pred[1] + Rbar)[1]
-            n_gated = len(g)
-            rows = assign_sparse(g.state, g.plot, g.cost, miss, n, k, self._solve)
-            assigned_plot[rows >= 0] = g.plot[rows[rows >= 0]]
-            upd = np.flatnonzero(assigned_plot >= 0)
-            if upd.size:
-                sub = self.state.take(upd)
-                zi, Ri = z[assigned_plot[upd]], R[assigned_plot[upd]]
-                out = self.filt.update(sub, zi, Ri)
-                self.state.put(upd, out[0])
-            hit = assigned_plot >= 0
-            self.age += 1
-            self.hits += hit
-            self.misses = np.where(hit, 0, self.misses + 1)
+            assigned_plot, n_gated = self._assign_and_update(z, R, time_s)
         report = ScanReport(time_s, self.ids.copy(), assigned_plot.copy(), n_gated_pairs=n_gated)
-        # life cycle: confirm, delete
         if n:
-            cfg = self.cfg
-            newly = (self.status == TENTATIVE) & (self.hits >= cfg.confirm_m)
-            self.status[newly] = CONFIRMED
-            report.confirmed = self.ids[newly].tolist()
-            hopeless = (self.status == TENTATIVE) & (
-                self.hits + np.maximum(cfg.confirm_n - self.age, 0) < cfg.confirm_m
-            )
-            lost = (self.status == CONFIRMED) & (self.misses >= cfg.max_misses)
-            dead = hopeless | lost
-            report.deleted = self.ids[dead].tolist()
-            self._keep(~dead)
-        # initiation from unassigned plots
+            self._life_cycle(report)
         used = np.zeros(k, bool)
         used[assigned_plot[assigned_plot >= 0]] = True
         free = np.flatnonzero(~used)
         if free.size:
-            new = self.filt.initiate(
-                z[free],
-                R[free],
-                velocity_sigma=self.cfg.velocity_sigma,
-                acceleration_sigma=self.cfg.acceleration_sigma,
-            )
-            self.state = self._concat(self.state, new)
-            ids = np.arange(self._next_id, self._next_id + free.size)
-            self._next_id += free.size
-            self.ids = np.concatenate([self.ids, ids])
-            self.status = np.concatenate([self.status, np.full(free.size, TENTATIVE)])
-            self.hits = np.concatenate([self.hits, np.ones(free.size, int)])
-            self.age = np.concatenate([self.age, np.ones(free.size, int)])
-            self.misses = np.concatenate([self.misses, np.zeros(free.size, int)])
-            report.born = ids.tolist()
+            report.born = self._initiate(z[free], R[free])
         self.time = time_s
         return report
+
+    def _assign_and_update(self, z: np.ndarray, R: np.ndarray, time_s: float):
+        """Predict every track to ``time_s``, gate, assign (one plot per track) and update
+        the assigned tracks; returns (assigned plot per track or −1, gated pairs)."""
+        k, m = z.shape
+        n = self.ids.size
+        assigned_plot = np.full(n, -1)
+        self.state = self.filt.predict(self.state, time_s - self.time)
+        pred = self.filt.predict_measurement(self.state, np.zeros((n, m, m)))
+        G = gate_threshold(self.cfg.p_gate, m)
+        # miss cost: the gate-edge cost with the track's own S (plot R at its mean)
+        Rbar = R.mean(axis=0) if k else np.zeros((m, m))
+        if isinstance(self.filt, IMM) and self.cfg.imm_gating == "per-mode":
+            g, miss = self._gate_per_mode(pred[2], z, R, G, Rbar)
+        else:
+            g = gate(pred[0], pred[1], z, R, G)
+            miss = G + np.linalg.slogdet(pred[1] + Rbar)[1]
+        rows = assign_sparse(g.state, g.plot, g.cost, miss, n, k, self._solve)
+        assigned_plot[rows >= 0] = g.plot[rows[rows >= 0]]
+        upd = np.flatnonzero(assigned_plot >= 0)
+        if upd.size:
+            sub = self.state.take(upd)
+            out = self.filt.update(sub, z[assigned_plot[upd]], R[assigned_plot[upd]])
+            self.state.put(upd, out[0])
+        hit = assigned_plot >= 0
+        self.age += 1
+        self.hits += hit
+        self.misses = np.where(hit, 0, self.misses + 1)
+        return assigned_plot, len(g)
+
+    def _life_cycle(self, report: ScanReport) -> None:
+        """M-of-N confirmation, deletion of hopeless tentative and lost confirmed tracks."""
+        cfg = self.cfg
+        newly = (self.status == TENTATIVE) & (self.hits >= cfg.confirm_m)
+        self.status[newly] = CONFIRMED
+        report.confirmed = self.ids[newly].tolist()
+        hopeless = (self.status == TENTATIVE) & (
+            self.hits + np.maximum(cfg.confirm_n - self.age, 0) < cfg.confirm_m
+        )
+        lost = (self.status == CONFIRMED) & (self.misses >= cfg.max_misses)
+        dead = hopeless | lost
+        report.deleted = self.ids[dead].tolist()
+        self._keep(~dead)
+
+    def _initiate(self, z: np.ndarray, R: np.ndarray) -> list[int]:
+        """New tentative tracks from the unassigned plots ``z``, ``R``; their ids."""
+        new = self.filt.initiate(
+            z,
+            R,
+            velocity_sigma=self.cfg.velocity_sigma,
+            acceleration_sigma=self.cfg.acceleration_sigma,
+        )
+        count = len(z)
+        self.state = self._concat(self.state, new)
+        ids = np.arange(self._next_id, self._next_id + count)
+        self._next_id += count
+        self.ids = np.concatenate([self.ids, ids])
+        self.status = np.concatenate([self.status, np.full(count, TENTATIVE)])
+        self.hits = np.concatenate([self.hits, np.ones(count, int)])
+        self.age = np.concatenate([self.age, np.ones(count, int)])
+        self.misses = np.concatenate([self.misses, np.zeros(count, int)])
+        return ids.tolist()
