@@ -29,6 +29,7 @@ from skyfuse.services.cli.config import (
 )
 from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
+from skyfuse.services.fusion.state_store import Persistence
 from skyfuse.services.runtime.transport import (
     Inbox,
     add_transport_arguments,
@@ -104,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
         cfg,
         make_pipeline_factory(tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude),
     )
+    try:
+        persist = Persistence.from_config(core)
+    except OSError as e:  # PermissionError included: an unsafe or unusable state dir
+        raise ConfigError(f"state_dir: {e}") from None
     cat062 = None
     if getattr(args, "cat062_udp", None):
         from skyfuse.services.cli.cmd_cat062 import Cat062UdpSender
@@ -113,16 +118,23 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as e:
             raise ConfigError(str(e)) from None
     try:
-        return run_service(tcfg, lambda session, stop: serve(session, core, stop, cat062=cat062))
+        return run_service(
+            tcfg, lambda session, stop: serve(session, core, stop, cat062=cat062, persist=persist)
+        )
     finally:
         if cat062 is not None:
             log.info("cat062 output: %s", dict(cat062.stats))
             cat062.close()
 
 
-def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat062=None) -> None:
+def serve(
+    session, core: FusionCore, stop, *, duration: float | None = None, cat062=None, persist=None
+) -> None:
     """The service loop: until ``stop`` is set (or ``duration`` s elapse). ``cat062``: a
-    :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output."""
+    :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output;
+    ``persist``: a :class:`services.fusion.state_store.Persistence` (resume, snapshots)."""
+    if persist is not None:
+        persist.start()
     svc = _Service(session, core, cat062)
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
@@ -151,6 +163,8 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
                 core.counters["reading_paused"] += 1
                 time.sleep(min(0.01, _next_wait(core, now)))
             svc.publish(core.poll(budget_s=0.2))
+            if persist is not None:
+                persist.tick(time.monotonic())
             if time.monotonic() >= next_status:
                 next_status = time.monotonic() + core.cfg.status_interval
                 svc.publish_status()
@@ -158,6 +172,8 @@ def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat
         token.undeclare()
         inbox.close()
         svc.shutdown(inbox, getattr(stop, "grace", 4.5))
+        if persist is not None:
+            persist.save()
 
 
 class _Service:
