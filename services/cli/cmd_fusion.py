@@ -135,7 +135,7 @@ def serve(
     ``persist``: a :class:`services.fusion.state_store.Persistence` (resume, snapshots)."""
     if persist is not None:
         persist.start()
-    svc = _Service(session, core, cat062)
+    svc = _Service(session, core, cat062, persist)
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")
@@ -180,9 +180,9 @@ class _Service:
     """The fusion service's Zenoh side: publishers, queryables (snapshot, Status), input
     handling and the shutdown drain."""
 
-    def __init__(self, session, core: FusionCore, cat062) -> None:
+    def __init__(self, session, core: FusionCore, cat062, persist=None) -> None:
         fid = core.cfg.fusion_id
-        self.session, self.core, self.cat062 = session, core, cat062
+        self.session, self.core, self.cat062, self.persist = session, core, cat062, persist
         self.pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
         self.pub_events = declare_publisher(session, keys.fusion_events(fid))
         self.pub_status = declare_publisher(session, keys.fusion_status(fid))
@@ -209,6 +209,8 @@ class _Service:
         self.pub_status.put(self.last_status)
 
     def publish(self, outputs) -> None:
+        if outputs and self.persist is not None:
+            self.persist.guard_ids()  # every id published is below the persisted ceiling
         for out in outputs:
             for msg in (out.tracks, out.full):
                 if msg is None:

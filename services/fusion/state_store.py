@@ -14,10 +14,13 @@ Two files in the state directory of one fusion id (``--state-dir``, default
   to maintain. At start the service resumes from it when it was written less than
   ``resume_max_age`` s ago (default 60 s), by the same fusion id, with the same tracker
   configuration and the same configured frame; otherwise it starts empty and says why.
-* ``ids.json`` — the next track id and the incarnation ``epoch``, written with every
-  snapshot and at start. Even when the state is too old to resume, a new tracker starts
-  numbering at the persisted next id, so **track ids are never reused** while this file
-  is younger than ``id_horizon`` (default 30 days). ``epoch`` is +1 at every start (and
+* ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
+  Before any output is published, the service checks that its tracker's next id is below
+  the persisted ceiling, else it first writes a new one (next id + ``ID_RESERVE``); at
+  start a tracker — resumed or new (the state too old to resume) — numbers from the
+  ceiling. Tracks created after the last snapshot are lost by a ``kill -9``, but their
+  ids are never given again: **track ids are never reused** while this file is younger
+  than ``id_horizon`` (default 30 days). ``epoch`` is +1 at every start (and
   every standby takeover) and is sent in every ``TrackBatch`` and ``Status``: a consumer
   sees a restart as a change of ``epoch``.
 
@@ -51,6 +54,8 @@ log = logging.getLogger(__name__)
 FORMAT = 1
 """Version of the layout of ``state.pickle`` (bumped when what is saved changes)."""
 STATE_FILE, IDS_FILE = "state.pickle", "ids.json"
+ID_RESERVE = 1000
+"""Ids reserved by one write of ``ids.json`` (a jump of at most this at a restart)."""
 
 
 def default_state_dir(fusion_id: str) -> Path:
@@ -293,7 +298,7 @@ class Persistence:
             why_not = restore(core, saved)
             self.resumed = why_not is None
             why = f"{why}, {'resumed' if self.resumed else 'tracks not resumed: ' + why_not}"
-        if core.pipeline is not None and not self.resumed:  # created from the config
+        if core.pipeline is not None:  # resumed, or created from the configuration
             tr = core.pipeline.tracker
             tr._next_id = max(int(tr._next_id), store.next_id_floor)
         n = 0 if core.pipeline is None else len(core.pipeline.tracker.ids)
@@ -308,6 +313,20 @@ class Persistence:
         if now >= self._next:
             self.save()
             self._next = time.monotonic() + self.interval
+
+    def guard_ids(self) -> None:
+        """Before publishing: if the tracker's next id reached the persisted ceiling,
+        persist a new one (next id + ``ID_RESERVE``), so no published id is given again
+        after a crash."""
+        core, store = self.core, self.store
+        if core.pipeline is None or next_track_id(core.pipeline) < store.next_id_floor:
+            return
+        store.next_id_floor = next_track_id(core.pipeline) + ID_RESERVE
+        try:
+            store.write_ids(Ids(store.next_id_floor, core.epoch or 0))
+        except OSError as e:
+            core.counters["state_save_errors"] += 1
+            log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
 
     def save(self) -> None:
         core = self.core
