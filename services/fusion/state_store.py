@@ -39,15 +39,15 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import os
 import pickle
 import stat
-import tempfile
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
+
+from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
@@ -60,27 +60,7 @@ ID_RESERVE = 1000
 
 def default_state_dir(fusion_id: str) -> Path:
     """``$XDG_STATE_HOME/skyfuse/fusion-{id}`` (default ``~/.local/state/...``)."""
-    base = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
-    return Path(base) / "skyfuse" / f"fusion-{fusion_id}"
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file, fsync, replace, fsync dir)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    dfd = os.open(path.parent, os.O_RDONLY)
-    try:
-        os.fsync(dfd)
-    finally:
-        os.close(dfd)
+    return state_home() / f"fusion-{fusion_id}"
 
 
 def tracker_fingerprint(pipeline) -> str:

@@ -17,7 +17,8 @@ from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.schemas import FeedKind, TrackBatch, TrackPicture
 from skyfuse.services.fusion.pipeline import TrackPipeline
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
-from skyfuse.services.fusion.state_store import Persistence, StateStore, atomic_write
+from skyfuse.services.fusion.state_store import Persistence, StateStore
+from skyfuse.services.runtime.state_files import atomic_write
 
 
 @pytest.fixture(scope="module")
