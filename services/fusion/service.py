@@ -190,6 +190,12 @@ class FusionConfig(BaseModel):
         "this, s (default 30 days)",
     )
 
+    standby: bool = Field(
+        False,
+        description="Hot standby: if another instance of this fusion id is active, follow "
+        "it and take over when it goes away (else: refuse to start, exit 1)",
+    )
+
     @field_validator("future_tolerance", "site_tolerance", "snapshot_interval", mode="before")
     @classmethod
     def _off(cls, v):
