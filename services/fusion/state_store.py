@@ -153,7 +153,10 @@ class StateStore:
         path = self.dir / STATE_FILE
         if not path.exists():
             return None, "no saved state"
-        self._check_private(path)
+        try:
+            self._check_private(path)
+        except PermissionError as e:
+            return None, str(e)
         try:
             with open(path, "rb") as f:
                 saved = pickle.load(f)

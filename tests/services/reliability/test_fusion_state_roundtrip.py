@@ -129,6 +129,14 @@ def test_state_dir_writable_by_others_is_refused(tmp_path, scenario):
     os.chmod(d, 0o777)
     with pytest.raises(PermissionError, match="writable by group/others"):
         StateStore(d, "main", max_age=1, id_horizon=1)
+    os.chmod(d, 0o700)
+    core = make_core(tmp_path, scenario[0])
+    p = Persistence.from_config(core)
+    p.start()
+    p.save()
+    os.chmod(d / "state.pickle", 0o666)  # a file others could have replaced: not loaded
+    store = StateStore(d, "main", max_age=60, id_horizon=60)
+    assert store.load()[0] is None and "writable" in store.load()[1]
 
 
 def test_atomic_write_replaces_whole_files(tmp_path):
