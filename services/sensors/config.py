@@ -85,8 +85,9 @@ class SensorServiceConfig(ScenarioSelection):
     )
     state_dir: Path | None = Field(
         None,
-        description="Simulated radar: directory of its progress file, to continue after a "
-        "restart (default: $XDG_STATE_HOME/skyfuse/sensor-{radar})",
+        description="Directory of the sensor's progress (simulated radar: where it "
+        "stopped; --asterix-udp: the sequence-number ceilings), to continue after a "
+        "restart (default: $XDG_STATE_HOME/skyfuse/sensor-{radar or asterix-udp})",
     )
     resume_max_age: float | None = Field(
         60.0,

@@ -100,3 +100,45 @@ class SensorProgress:
         except OSError as e:
             log.error("cannot write %s: %s", self.path, e)
         self._written = time.monotonic()
+
+
+SEQ_RESERVE = 1000
+"""Sequence numbers reserved by one write of ``sequence.json``."""
+
+
+class SequenceCeiling:
+    """Sequence numbers of a live sensor that never go back across restarts.
+
+    A live ASTERIX feed (``--asterix-udp``) numbers each radar's batches from 0 in every
+    run. This class shifts them by a per-radar base persisted in ``sequence.json`` of the
+    sensor's state directory: before a batch is published with a number at or above the
+    persisted ceiling, a new ceiling (that number + ``SEQ_RESERVE``) is written
+    atomically; at start the base of each radar is its ceiling. So after a restart — even
+    after ``kill -9`` — every radar's numbers continue above all numbers published
+    before (with a gap of at most ``SEQ_RESERVE``), and a receiver can tell a repeat of
+    an earlier batch (same ``seq``) from a new one."""
+
+    def __init__(self, directory: Path) -> None:
+        self.dir = Path(directory)
+        self.dir.mkdir(parents=True, exist_ok=True, mode=0o700)
+        self.path = self.dir / "sequence.json"
+        try:
+            saved = json.loads(self.path.read_text())
+            self.ceiling = {str(k): int(v) for k, v in saved.items()}
+        except FileNotFoundError:
+            self.ceiling = {}
+        except (ValueError, TypeError, AttributeError) as e:
+            log.warning("%s unreadable (%s): sequence numbers from 0", self.path, e)
+            self.ceiling = {}
+        self.base = dict(self.ceiling)
+
+    def number(self, radar_id: str, seq: int) -> int:
+        """The published sequence number of this run's batch number ``seq``."""
+        out = self.base.get(radar_id, 0) + seq
+        if out >= self.ceiling.get(radar_id, 0):
+            self.ceiling[radar_id] = out + SEQ_RESERVE
+            try:
+                atomic_write(self.path, json.dumps(self.ceiling).encode())
+            except OSError as e:
+                log.error("cannot write %s: %s", self.path, e)
+        return out

@@ -23,7 +23,12 @@ from skyfuse.services.runtime.transport import (
     wait_for_tokens,
 )
 from skyfuse.services.sensors.config import SensorServiceConfig
-from skyfuse.services.sensors.continuation import SensorProgress, selection_fingerprint
+from skyfuse.services.sensors.continuation import (
+    SEQ_RESERVE,
+    SensorProgress,
+    SequenceCeiling,
+    selection_fingerprint,
+)
 
 pytestmark = pytest.mark.service
 
@@ -83,3 +88,15 @@ def test_progress_is_resumed_only_for_the_same_selection(tmp_path):
     assert SensorProgress.from_config(paced).resume_after() == 123
     old = cfg.model_copy(update={"resume_max_age": 0.0})
     assert SensorProgress.from_config(old).resume_after() is None
+
+
+def test_live_sequence_numbers_never_go_back_across_restarts(tmp_path):
+    run1 = SequenceCeiling(tmp_path)
+    first = [run1.number("R1", k) for k in range(1500)] + [run1.number("R2", 0)]
+    assert first[:1500] == list(range(1500)) and first[-1] == 0
+    # killed without any clean write: the next run continues above everything published
+    run2 = SequenceCeiling(tmp_path)
+    second = [run2.number("R1", k) for k in range(10)]
+    assert second == sorted(second) and min(second) > max(first[:1500])
+    assert min(second) - max(first[:1500]) <= SEQ_RESERVE
+    assert run2.number("R2", 0) > 0 and run2.number("R3", 0) == 0
