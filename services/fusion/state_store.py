@@ -26,7 +26,8 @@ Two files in the state directory of one fusion id (``--state-dir``, default
 
 **Writes are atomic**: a temporary file in the same directory, ``fsync``, ``os.replace``
 over the old file, ``fsync`` of the directory — after ``kill -9`` or a power loss the file
-is the previous or the new snapshot, never a torn one.
+is the previous or the new snapshot, never a torn one. The service loop only pickles the
+state (consistent: nothing changes it meanwhile); a writer thread writes the bytes.
 
 **Trust assumption**: ``pickle`` executes code while loading, so the state directory must
 be writable only by the account running the service (it is created mode 0700 and files
@@ -93,6 +94,7 @@ class StateStore:
         self.dir.mkdir(parents=True, exist_ok=True, mode=0o700)
         self._check_private(self.dir)
         self.saves = 0
+        self._ids_lock = threading.Lock()
         self.last_save_s = 0.0
         self.next_id_floor = 1
         """Lowest id a new tracker may give (from ``ids.json``, within the horizon)."""
@@ -118,9 +120,14 @@ class StateStore:
             log.warning("state: %s unreadable (%s): starting ids from 1", path, e)
             return None
 
-    def write_ids(self, ids: Ids) -> None:
-        ids.written_ns = time.time_ns()
-        atomic_write(self.dir / IDS_FILE, json.dumps(ids.__dict__).encode())
+    def write_ids(self, epoch: int, raise_to: int = 0) -> None:
+        """Persist the id ceiling (raised to ``raise_to`` first) and ``epoch``. Under a
+        lock (the snapshot writer thread and the service loop both write): the ceiling
+        on disk never goes down."""
+        with self._ids_lock:
+            self.next_id_floor = max(self.next_id_floor, raise_to)
+            ids = Ids(self.next_id_floor, epoch, time.time_ns())
+            atomic_write(self.dir / IDS_FILE, json.dumps(ids.__dict__).encode())
 
     def begin_epoch(self) -> Ids:
         """At start or takeover: the new incarnation (persisted epoch + 1) and the next
@@ -129,24 +136,29 @@ class StateStore:
         age = (time.time_ns() - old.written_ns) / 1e9
         floor = old.next_track_id if age <= self.id_horizon else 1
         self.next_id_floor = max(1, floor)
-        ids = Ids(self.next_id_floor, old.epoch + 1)
-        self.write_ids(ids)
-        return ids
+        self.write_ids(old.epoch + 1)
+        return Ids(self.next_id_floor, old.epoch + 1)
 
     # --- state -----------------------------------------------------------------------
-    def save(self, state: dict, next_track_id: int, epoch: int) -> None:
-        """Write ``state`` (a dict of picklable objects) and the ids, both atomically."""
-        t0 = time.perf_counter()
-        blob = pickle.dumps(
+    def serialise(self, state: dict, epoch: int) -> bytes:
+        """``state`` (a dict of picklable objects) as the bytes of ``state.pickle``."""
+        return pickle.dumps(
             {"format": FORMAT, "fusion_id": self.fusion_id, "written_ns": time.time_ns(),
              "epoch": epoch, **state},
             protocol=5,
         )  # fmt: skip
+
+    def write(self, blob: bytes, next_track_id: int, epoch: int) -> None:
+        """Write a serialised state and the ids, both atomically (any thread)."""
+        t0 = time.perf_counter()
         atomic_write(self.dir / STATE_FILE, blob)
-        self.next_id_floor = max(self.next_id_floor, next_track_id)
-        self.write_ids(Ids(self.next_id_floor, epoch))
+        self.write_ids(epoch, raise_to=next_track_id)
         self.saves += 1
         self.last_save_s = time.perf_counter() - t0
+
+    def save(self, state: dict, next_track_id: int, epoch: int) -> None:
+        """Serialise and write ``state`` now."""
+        self.write(self.serialise(state, epoch), next_track_id, epoch)
 
     def load(self) -> tuple[dict | None, str]:
         """The saved state if it may be resumed, else ``None``; and why (for the log)."""
@@ -257,6 +269,10 @@ class Persistence:
         self.core, self.store, self.interval = core, store, interval
         self._next = 0.0
         self.resumed = False
+        self._pending: tuple | None = None
+        self._cond = threading.Condition()
+        self._writer: threading.Thread | None = None
+        self._closing = False
 
     @classmethod
     def from_config(cls, core) -> Persistence | None:
@@ -292,10 +308,43 @@ class Persistence:
         self._next = time.monotonic() + self.interval
 
     def tick(self, now: float) -> None:
-        """Save if a snapshot is due."""
-        if now >= self._next:
-            self.save()
-            self._next = time.monotonic() + self.interval
+        """If a snapshot is due: serialise the state here (consistent: the loop is not
+        changing it; ~1.5 ms at 500 tracks) and hand the bytes to the writer thread
+        (the two fsync'd writes, ~25 ms, off the service loop; the newest wins)."""
+        if now < self._next:
+            return
+        self._next = time.monotonic() + self.interval
+        blob, nid, epoch = self._serialised()
+        with self._cond:
+            self._pending = (blob, nid, epoch)
+            self._cond.notify()
+        if self._writer is None:
+            self._writer = threading.Thread(target=self._write_loop, name="state", daemon=True)
+            self._writer.start()
+
+    def _serialised(self) -> tuple[bytes, int, int]:
+        core = self.core
+        nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
+        return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+
+    def _write_loop(self) -> None:
+        while True:
+            with self._cond:
+                while self._pending is None and not self._closing:
+                    self._cond.wait()
+                job, self._pending = self._pending, None
+            if job is None:
+                return
+            self._write(*job)
+
+    def _write(self, blob: bytes, nid: int, epoch: int) -> None:
+        try:
+            self.store.write(blob, nid, epoch)
+        except OSError as e:  # a full disk must not stop the tracking
+            self.core.counters["state_save_errors"] += 1
+            log.error("state: cannot save to %s: %s", self.store.dir, e)
+            return
+        self.core.counters["state_saves"] += 1
 
     def guard_ids(self) -> None:
         """Before publishing: if the tracker's next id reached the persisted ceiling,
@@ -304,20 +353,19 @@ class Persistence:
         core, store = self.core, self.store
         if core.pipeline is None or next_track_id(core.pipeline) < store.next_id_floor:
             return
-        store.next_id_floor = next_track_id(core.pipeline) + ID_RESERVE
         try:
-            store.write_ids(Ids(store.next_id_floor, core.epoch or 0))
+            store.write_ids(core.epoch or 0, raise_to=next_track_id(core.pipeline) + ID_RESERVE)
         except OSError as e:
             core.counters["state_save_errors"] += 1
             log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
 
     def save(self) -> None:
-        core = self.core
-        nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
-        try:
-            self.store.save(capture(core), nid, core.epoch or 0)
-        except OSError as e:  # a full disk must not stop the tracking
-            core.counters["state_save_errors"] += 1
-            log.error("state: cannot save to %s: %s", self.store.dir, e)
-            return
-        core.counters["state_saves"] += 1
+        """Save now, in this thread (at a clean stop: after the writer thread's last
+        write, so the newest state is the one left on disk)."""
+        if self._writer is not None:
+            with self._cond:
+                self._closing = True
+                self._cond.notify()
+            self._writer.join(timeout=10.0)
+            self._writer, self._closing = None, False
+        self._write(*self._serialised())

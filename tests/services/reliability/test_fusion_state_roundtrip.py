@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 
 import numpy as np
 import pytest
@@ -161,3 +162,21 @@ def test_track_picture_applies_a_new_epoch_and_marks_it_incomplete():
     assert not pic.apply(_delta(2, 1, []))  # an old delta of the same epoch
     assert pic.apply(_delta(2, 2, [])) and not pic.complete  # resumed behind: new epoch
     assert pic.apply(_delta(3, 2, [], FeedKind.FULL)) and pic.complete
+
+
+def test_periodic_snapshots_are_written_by_the_writer_thread(tmp_path, scenario):
+    sites, batches = scenario
+    core = make_core(tmp_path, sites)
+    p = Persistence.from_config(core)
+    p.start()
+    feed(core, batches[:60])
+    p.tick(float("inf"))  # due: serialised here, written by the thread
+    deadline = time.monotonic() + 10
+    while core.counters["state_saves"] < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert core.counters["state_saves"] == 1
+    ids = core.pipeline.tracker.ids.copy()
+    feed(core, batches[60:80])  # after the snapshot: not in it
+    again = make_core(tmp_path, sites)
+    Persistence.from_config(again).start()
+    np.testing.assert_array_equal(again.pipeline.tracker.ids, ids)
