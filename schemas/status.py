@@ -53,6 +53,9 @@ class Backlog(WireModel):
 class Status(WireModel):
     service: str = Field(description="Service kind: sensor, fusion, recorder, replay")
     service_id: str = Field(pattern=ID_PATTERN)
+    epoch: int | None = Field(
+        None, ge=0, description="Incarnation of the service: +1 at every (re)start or takeover"
+    )
     time: int = Field(ge=0, description="Wall-clock time of this report, ns UTC")
     uptime_s: float = Field(ge=0.0)
     counters: dict[str, int] = Field(default_factory=dict, description="Monotonic counters")

@@ -18,9 +18,12 @@ the next full message, and applies the deltas whose ``cycle`` is greater than th
 a gap in the delta cycles means a lost message: the picture is marked incomplete until
 the next full message (:class:`TrackPicture` does exactly that). A feed read from its
 first delta (``cycle`` 1, e.g. the MCAP of ``skyfuse track``) is complete from the start.
-After a restart of the service its cycles start again from 1: older-looking deltas are
-ignored until the next full message replaces the picture. Messages without ``kind``
-(older recordings) are full pictures.
+Every message carries the service's incarnation ``epoch`` (+1 at every restart or
+standby takeover): a restarted service that resumed its saved state continues its cycles
+from the snapshot (possibly a little behind the last one published), one that did not
+starts again from 1; either way a delta of a new epoch is applied and marks the picture
+incomplete until the next full message (sent with the first cycle of a new epoch).
+Messages without ``kind`` (older recordings) are full pictures.
 """
 
 from __future__ import annotations
@@ -110,6 +113,12 @@ class TrackBatch(WireModel):
 
     fusion_id: str = Field(pattern=ID_PATTERN)
     cycle: int = Field(ge=0, description="Fusion cycle number")
+    epoch: int | None = Field(
+        None,
+        ge=0,
+        description="Incarnation of the fusion service: +1 at every (re)start or standby "
+        "takeover; a change means a restart (cycles continue when the state was resumed)",
+    )
     time: int = Field(ge=0, description="Time of the cycle (the applied batch's time_end), ns UTC")
     kind: FeedKind = Field(FeedKind.FULL, description="delta (changed tracks) or full picture")
     frame: FrameSpec
@@ -174,9 +183,12 @@ class TrackPicture:
             self.tracks = {t.track_id: t for t in batch.tracks}
             self.complete = True
         else:
-            if self.cycle is not None and batch.cycle <= self.cycle:
+            new_epoch = self.header is not None and batch.epoch != self.header.epoch
+            if not new_epoch and self.cycle is not None and batch.cycle <= self.cycle:
                 return False
-            if self.cycle is None:  # joined the feed at its first delta, or late
+            if new_epoch:  # the service restarted: cycles may repeat or restart
+                self.complete = False
+            elif self.cycle is None:  # joined the feed at its first delta, or late
                 self.complete = batch.cycle == 1
             elif batch.cycle != self.cycle + 1:
                 self.complete = False

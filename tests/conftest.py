@@ -4,6 +4,9 @@
   once per test session (cached by its arguments), for tests that only read it.
 * ``shared_data`` — the public data directory (``service_support.SHARED_DATA``); the test
   is skipped when it is absent.
+* every test gets its own ``XDG_STATE_HOME`` (a temporary directory, inherited by the
+  processes it starts): a ``skyfuse fusion`` of one test never resumes the saved state
+  of another (``services.fusion.state_store``) nor writes into the user's home.
 """
 
 from __future__ import annotations
@@ -35,3 +38,8 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"{SHARED_DATA} is absent")
     return SHARED_DATA
+
+
+@pytest.fixture(autouse=True)
+def _private_state_home(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.mktemp("state")))

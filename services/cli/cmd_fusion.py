@@ -36,6 +36,9 @@ from skyfuse.services.fusion.registration_link import (
     registration_config,
 )
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
+from skyfuse.services.fusion.standby import Election, Follower, FusionIdTaken, become_active
+from skyfuse.services.fusion.state_store import Persistence
+from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK
 from skyfuse.services.runtime.transport import (
     Inbox,
     add_transport_arguments,
@@ -121,6 +124,10 @@ def run(args: argparse.Namespace) -> int:
             tracker_cfg, cfg.fusion_id, assumed_altitude=cfg.assumed_altitude, registration=reg_cfg
         ),
     )
+    try:
+        persist = Persistence.from_config(core)
+    except OSError as e:  # PermissionError included: an unsafe or unusable state dir
+        raise ConfigError(f"state_dir: {e}") from None
     cat062 = None
     if getattr(args, "cat062_udp", None):
         from skyfuse.services.cli.cmd_cat062 import Cat062UdpSender
@@ -130,60 +137,97 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as e:
             raise ConfigError(str(e)) from None
     try:
-        return run_service(tcfg, lambda session, stop: serve(session, core, stop, cat062=cat062))
+        return run_service(
+            tcfg, lambda session, stop: serve(session, core, stop, cat062=cat062, persist=persist)
+        )
     finally:
         if cat062 is not None:
             log.info("cat062 output: %s", dict(cat062.stats))
             cat062.close()
 
 
-def serve(session, core: FusionCore, stop, *, duration: float | None = None, cat062=None) -> None:
+def serve(
+    session, core: FusionCore, stop, *, duration: float | None = None, cat062=None, persist=None
+) -> int:
     """The service loop: until ``stop`` is set (or ``duration`` s elapse). ``cat062``: a
-    :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output."""
-    svc = _Service(session, core, cat062)
+    :class:`services.cmd_cat062.Cat062UdpSender` that also gets every output;
+    ``persist``: a :class:`services.fusion.state_store.Persistence` (resume, snapshots).
+    Publishes only as the active instance of its fusion id (``services.fusion.standby``);
+    returns the exit status (1: another instance holds the id)."""
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")
     inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
+    election = Election(session, core.cfg.fusion_id)
+    keep = 2 * (core.cfg.snapshot_interval or 0.0) + core.cfg.max_lateness + 5.0
+    follower = Follower(core.cfg.inbox, keep)
+    try:
+        if not become_active(election, inbox, stop, standby=core.cfg.standby, follower=follower):
+            inbox.close()
+            return EXIT_OK
+    except FusionIdTaken:
+        inbox.close()
+        election.close()
+        raise
+    if persist is not None:
+        persist.start()
+    svc = _Service(session, core, cat062, persist)
+    for item in follower.newer_than_state(core):  # received while in standby
+        svc.handle(item)
     # sites published before we joined: ask the sensors' queryables
     for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
         core.on_site_payload(key, payload)
     token = declare_liveliness(session, service_alive_key("fusion"))
     log.info("fusion %s running (reorder wait %.2f s)", core.cfg.fusion_id, core.cfg.reorder_wait)
-    t0 = time.monotonic()
-    next_status = t0
     try:
-        while not stop.is_set():
-            now = time.monotonic()
-            if duration is not None and now - t0 >= duration:
-                break
-            room = core.cfg.queue - len(core.buffer)
-            if room > 0 and not core.over_backlog(now):
-                item = inbox.get(timeout=_next_wait(core, now))
-                if item is not None:
-                    svc.handle(item)
-                    for more in inbox.drain(min(1000, room)):
-                        svc.handle(more)
-            else:  # stop reading: the bounded inbox fills, Zenoh (BLOCK) slows the senders
-                core.counters["reading_paused"] += 1
-                time.sleep(min(0.01, _next_wait(core, now)))
-            svc.publish(core.poll(budget_s=0.2))
-            if time.monotonic() >= next_status:
-                next_status = time.monotonic() + core.cfg.status_interval
-                svc.publish_status()
+        return _loop(svc, inbox, stop, duration, election, persist)
     finally:
         token.undeclare()
         inbox.close()
         svc.shutdown(inbox, getattr(stop, "grace", 4.5))
+        if persist is not None:
+            persist.save()
+        election.close()
+
+
+def _loop(svc: _Service, inbox: Inbox, stop, duration, election, persist) -> int:
+    core = svc.core
+    t0 = time.monotonic()
+    next_status = t0
+    while not stop.is_set():
+        now = time.monotonic()
+        if duration is not None and now - t0 >= duration:
+            break
+        if not election.is_active():  # a smaller token appeared: never two publishers
+            log.error("fusion %s: instance %s is active too: stopping", core.cfg.fusion_id,
+                      election.leader())  # fmt: skip
+            return EXIT_FAILED
+        room = core.cfg.queue - len(core.buffer)
+        if room > 0 and not core.over_backlog(now):
+            item = inbox.get(timeout=_next_wait(core, now))
+            if item is not None:
+                svc.handle(item)
+                for more in inbox.drain(min(1000, room)):
+                    svc.handle(more)
+        else:  # stop reading: the bounded inbox fills, Zenoh (BLOCK) slows the senders
+            core.counters["reading_paused"] += 1
+            time.sleep(min(0.01, _next_wait(core, now)))
+        svc.publish(core.poll(budget_s=0.2))
+        if persist is not None:
+            persist.tick(time.monotonic())
+        if time.monotonic() >= next_status:
+            next_status = time.monotonic() + core.cfg.status_interval
+            svc.publish_status()
+    return EXIT_OK
 
 
 class _Service:
     """The fusion service's Zenoh side: publishers, queryables (snapshot, Status), input
     handling and the shutdown drain."""
 
-    def __init__(self, session, core: FusionCore, cat062) -> None:
+    def __init__(self, session, core: FusionCore, cat062, persist=None) -> None:
         fid = core.cfg.fusion_id
-        self.session, self.core, self.cat062 = session, core, cat062
+        self.session, self.core, self.cat062, self.persist = session, core, cat062, persist
         self.pub_tracks = declare_publisher(session, keys.fusion_tracks(fid))
         self.pub_events = declare_publisher(session, keys.fusion_events(fid))
         self.pub_status = declare_publisher(session, keys.fusion_status(fid))
@@ -215,6 +259,8 @@ class _Service:
             self.pub_registration.put(st.registration.to_json_bytes())
 
     def publish(self, outputs) -> None:
+        if outputs and self.persist is not None:
+            self.persist.guard_ids()  # every id published is below the persisted ceiling
         for out in outputs:
             for msg in (out.tracks, out.full):
                 if msg is None:

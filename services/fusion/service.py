@@ -35,6 +35,7 @@ import re
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -166,7 +167,36 @@ class FusionConfig(BaseModel):
         "ids is rejected",
     )
 
-    @field_validator("future_tolerance", "site_tolerance", mode="before")
+    state_dir: Path | None = Field(
+        None,
+        description="Directory of this fusion id's saved state (snapshots, next track id, "
+        "epoch; owner-only). Default: $XDG_STATE_HOME/skyfuse/fusion-{id}, i.e. "
+        "~/.local/state/skyfuse/fusion-{id}",
+    )
+    snapshot_interval: float | None = Field(
+        2.0,
+        gt=0,
+        le=3600.0,
+        description="Save the tracker state this often, s ('off': no saved state, no resume, "
+        "no persisted ids)",
+    )
+    resume_max_age: float = Field(
+        60.0, ge=0.0, description="At start, resume a saved state at most this old, s"
+    )
+    id_horizon: float = Field(
+        30 * 86400.0,
+        ge=0.0,
+        description="Never reuse a track id while the persisted next id is younger than "
+        "this, s (default 30 days)",
+    )
+
+    standby: bool = Field(
+        False,
+        description="Hot standby: if another instance of this fusion id is active, follow "
+        "it and take over when it goes away (else: refuse to start, exit 1)",
+    )
+
+    @field_validator("future_tolerance", "site_tolerance", "snapshot_interval", mode="before")
     @classmethod
     def _off(cls, v):
         """``off`` (flag, TOML or environment) switches a check off."""
@@ -251,6 +281,8 @@ class FusionCore:
         """Batches in the reorder buffer: id(batch) -> (arrival, plots), arrival order."""
         self._warned: set[str] = set()
         self._log = RateLimitedLog(log)
+        self.epoch: int | None = None
+        """Incarnation number, sent in every TrackBatch and Status (``state_store``)."""
         for site in cfg.sites:
             self.on_site(site, configured=True)
 
@@ -462,6 +494,7 @@ class FusionCore:
         applied = [p for p in ready if id(p.batch) not in bad]
         if msg is None:
             return None
+        self._stamp(msg)
         n = sum(len(p.batch.time) for p in applied)
         self.counters["cycles"] += len(applied)
         self.counters["groups"] += 1
@@ -474,7 +507,7 @@ class FusionCore:
         full = None
         if time.monotonic() >= self._next_full:
             self._next_full = time.monotonic() + self.cfg.full_interval
-            full = self.pipeline.full()
+            full = self._stamp(self.pipeline.full())
         return CycleOutput(
             msg, events, [p.sent_ns for p in applied], [p.time_end for p in applied], full
         )
@@ -535,8 +568,14 @@ class FusionCore:
         """The current picture as a full TrackBatch (JSON), or ``None`` before any track
         cycle; safe to call from another thread (the snapshot queryable)."""
         pipe = self.pipeline
-        snap = None if pipe is None else pipe.snapshot()
+        snap = None if pipe is None else self._stamp(pipe.snapshot())
         return None if snap is None else snap.to_json_bytes()
+
+    def _stamp(self, msg: FeedMessage | None) -> FeedMessage | None:
+        """Put the incarnation ``epoch`` into a feed message's header."""
+        if msg is not None and self.epoch is not None:
+            msg.header["epoch"] = self.epoch
+        return msg
 
     # --- status ----------------------------------------------------------------------
     def latency_stats(self) -> LatencyStats:
@@ -567,6 +606,7 @@ class FusionCore:
         return Status(
             service="fusion",
             service_id=self.cfg.fusion_id,
+            epoch=self.epoch,
             time=time.time_ns(),
             uptime_s=now - self.started,
             counters={

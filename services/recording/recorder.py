@@ -40,7 +40,7 @@ import json
 import logging
 import math
 import time
-from collections import Counter
+from collections import Counter, deque
 from pathlib import Path
 
 import numpy as np
@@ -233,6 +233,7 @@ class Recorder:
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
         self._scan_plots: dict[str, list[PlotBatch]] = {}
         self._scan_count: dict[str, int] = {}
+        self._seen: dict[str, deque] = {}
         self.limits: Counter[str] = Counter()
         self._log = RateLimitedLog(log)
         self._writer: RecordingWriter | None = None
@@ -370,6 +371,9 @@ class Recorder:
                 "rejected %s on %s: %s", model.__name__, item.key[:80], rejection_detail(exc)
             )
             return False
+        if isinstance(msg, PlotBatch) and self._duplicate(msg):
+            self.rejected["duplicate batch"] += 1
+            return False
         pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
         self._write(item.key, item.payload, item.recv_ns, pub_time, model)
         if self.cfg.foxglove:
@@ -383,6 +387,21 @@ class Recorder:
             self.sites[msg.radar_id] = (msg, item.payload)
         self.maybe_flush()
         return True
+
+    def _duplicate(self, msg: PlotBatch) -> bool:
+        """Whether a batch with the same ``(seq, time_end, scan)`` of its radar was
+        recorded among the last 256 (a restarted sensor's repeats, see
+        ``services.sensors.continuation``); at most ``max_scan_radars`` radars are
+        remembered (the oldest forgotten)."""
+        seen = self._seen.pop(msg.radar_id, None) or deque(maxlen=256)
+        self._seen[msg.radar_id] = seen  # most recent last
+        while len(self._seen) > self.cfg.max_scan_radars:
+            self._seen.pop(next(iter(self._seen)))
+        ident = (msg.seq, msg.time_end, msg.scan)
+        if ident in seen:
+            return True
+        seen.append(ident)
+        return False
 
     def _buffer_plots(self, msg: PlotBatch, log_time: int) -> None:
         """Hold ``msg`` for its radar's scan message, within the bounds

@@ -95,7 +95,8 @@ def _rules_for(p: Principal) -> list[dict]:
         rules += _writer(p.cn, [f"{P}/radar/{p.name}/**", own_service, f"{P}/sim/**"])
     elif p.role == "fusion":
         own = [f"{P}/fusion/{p.name}/**", own_service, f"{P}/service/fusion/**"]
-        rules += _writer(p.cn, own) + _reader(p.cn, [f"{P}/radar/**"])
+        # its own fusion/F/** too: the election tokens of its instances (fusion.standby)
+        rules += _writer(p.cn, own) + _reader(p.cn, [f"{P}/radar/**", f"{P}/fusion/{p.name}/**"])
     elif p.role == "recorder":
         rules += _writer(p.cn, [own_service]) + _reader(p.cn, [f"{P}/**"])
     elif p.role == "client":

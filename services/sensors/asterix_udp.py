@@ -16,7 +16,9 @@ import time
 
 from skyfuse.schemas import PlotBatch, RadarSite
 from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.state_files import state_home
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, parse_host_port
+from skyfuse.services.sensors.continuation import SequenceCeiling
 from skyfuse.services.sensors.fleet import RadarFleet, asterix_sites, stats_text
 
 log = logging.getLogger(__name__)
@@ -65,13 +67,17 @@ class AsterixUdpSensor:
         self._published: dict[str, RadarSite] = {}
         self._clock_warned = False
         self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}")
+        self.sequence = SequenceCeiling(
+            cfg.state_dir or state_home() / f"sensor-{cfg.radar or 'asterix-udp'}"
+        )
 
     def _publish(self, batches: list[PlotBatch], stamp_ns: int) -> None:
         for b in batches:
             if self.cfg.radar is not None and b.radar_id != self.cfg.radar:
                 self.filtered += 1
                 continue
-            self.fleet.plots(b, stamp_ns)
+            seq = self.sequence.number(b.radar_id, b.seq)  # continues across restarts
+            self.fleet.plots(b if seq == b.seq else b.model_copy(update={"seq": seq}), stamp_ns)
 
     def _sites(self) -> None:
         """Publish the sites of the radars heard so far: new ones, and changed ones — a

@@ -83,6 +83,23 @@ class SensorServiceConfig(ScenarioSelection):
     linger: float = Field(
         0.5, ge=0, le=30, description="Seconds to stay connected after the last batch"
     )
+    state_dir: Path | None = Field(
+        None,
+        description="Directory of the sensor's progress (simulated radar: where it "
+        "stopped; --asterix-udp: the sequence-number ceilings), to continue after a "
+        "restart (default: $XDG_STATE_HOME/skyfuse/sensor-{radar or asterix-udp})",
+    )
+    resume_max_age: float | None = Field(
+        60.0,
+        ge=0,
+        description="Simulated radar: continue after the last published batch if the "
+        "previous run stopped at most this long ago, s ('off': always from the start)",
+    )
+
+    @field_validator("resume_max_age", mode="before")
+    @classmethod
+    def _off(cls, v):
+        return None if isinstance(v, str) and v.strip().lower() in ("off", "none") else v
 
     @field_validator("radar")
     @classmethod

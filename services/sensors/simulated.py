@@ -30,6 +30,7 @@ from skyfuse.services.runtime.transport import (
     wall_stamp,
 )
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
+from skyfuse.services.sensors.continuation import SensorProgress
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +63,7 @@ class SimulatedRadar:
         self._queryable = session.declare_queryable(keys.radar_site(cfg.radar), self._answer_site)
         self._token = None
         self._ready = declare_liveliness(session, service_alive_key(f"sensor-{cfg.radar}"))
+        self.progress = SensorProgress.from_config(cfg)
 
     def _answer_site(self, query) -> None:
         query.reply(keys.radar_site(self.cfg.radar), self._site_bytes)
@@ -104,8 +106,13 @@ class SimulatedRadar:
             )
         wall0 = time.monotonic()
         t0 = getattr(self.scenario, "start_time", None)
+        skip = None if self.progress is None else self.progress.resume_after()
+        if skip is not None:
+            t0 = None  # the first batch not yet published is due at the start instant
         next_status = wall0
         for ev in Simulator(self.scenario, seed=cfg.seed).run():
+            if skip is not None and ev.kind != "site" and ev.time <= skip:
+                continue  # published by the previous run (services.sensors.continuation)
             if ev.kind == "truth":
                 if self._pub_truth is None:
                     continue
@@ -126,6 +133,8 @@ class SimulatedRadar:
                 self._pub_plots.put(ev.message.to_json_bytes(), attachment=wall_stamp(due_ns))
                 self.stats.plots += len(ev.message.time)
                 self.stats.published["plots"] += 1
+                if self.progress is not None:
+                    self.progress.published(ev.message.seq, ev.message.time_end)
             elif ev.kind == "site":
                 if ev.message.to_json_bytes() != self._site_bytes:
                     self.publish_site(ev.message)
@@ -137,6 +146,8 @@ class SimulatedRadar:
                 next_status = now + cfg.status_interval
                 self._status(wall0)
         self._status(wall0)
+        if self.progress is not None:
+            self.progress.write()
         return self.stats
 
     def close(self) -> None:

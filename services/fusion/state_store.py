@@ -1,0 +1,371 @@
+"""Restart with the same picture: the fusion service's state on disk (issue 14 §3).
+
+Two files in the state directory of one fusion id (``--state-dir``, default
+``$XDG_STATE_HOME/skyfuse/fusion-{id}``, i.e. ``~/.local/state/skyfuse/fusion-{id}``):
+
+* ``state.pickle`` — the whole tracker state, written every ``snapshot_interval`` s
+  (default 2 s) and at a clean stop: the track pipeline (the tracker object as it is —
+  tracks, components, existence, ids, the next id — and the feed's picture and cycle
+  counter), the system frame, the radar sites and the reorder buffer's per-radar
+  watermarks and recently seen batch ids (so batches already applied are refused as
+  duplicates after a restart). The tracker is serialised **generically** (``pickle`` of
+  the objects, protocol 5, with a format version and a fingerprint of the tracker
+  configuration), so any tracker whose objects pickle round-trips without a field list
+  to maintain. At start the service resumes from it when it was written less than
+  ``resume_max_age`` s ago (default 60 s), by the same fusion id, with the same tracker
+  configuration and the same configured frame; otherwise it starts empty and says why.
+* ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
+  Before any output is published, the service checks that its tracker's next id is below
+  the persisted ceiling, else it first writes a new one (next id + ``ID_RESERVE``); at
+  start a tracker — resumed or new (the state too old to resume) — numbers from the
+  ceiling. Tracks created after the last snapshot are lost by a ``kill -9``, but their
+  ids are never given again: **track ids are never reused** while this file is younger
+  than ``id_horizon`` (default 30 days). ``epoch`` is +1 at every start (and
+  every standby takeover) and is sent in every ``TrackBatch`` and ``Status``: a consumer
+  sees a restart as a change of ``epoch``.
+
+**Writes are atomic**: a temporary file in the same directory, ``fsync``, ``os.replace``
+over the old file, ``fsync`` of the directory — after ``kill -9`` or a power loss the file
+is the previous or the new snapshot, never a torn one. The service loop only pickles the
+state (consistent: nothing changes it meanwhile); a writer thread writes the bytes.
+
+**Trust assumption**: ``pickle`` executes code while loading, so the state directory must
+be writable only by the account running the service (it is created mode 0700 and files
+0600; a directory or file writable by others is refused). The state is written only by
+this service and read only from its own directory (never from the network).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import pickle
+import stat
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+from skyfuse.services.runtime.state_files import atomic_write, state_home
+
+log = logging.getLogger(__name__)
+
+FORMAT = 1
+"""Version of the layout of ``state.pickle`` (bumped when what is saved changes)."""
+STATE_FILE, IDS_FILE = "state.pickle", "ids.json"
+ID_RESERVE = 1000
+"""Ids reserved by one write of ``ids.json`` (a jump of at most this at a restart)."""
+
+
+def default_state_dir(fusion_id: str) -> Path:
+    """``$XDG_STATE_HOME/skyfuse/fusion-{id}`` (default ``~/.local/state/...``)."""
+    return state_home() / f"fusion-{fusion_id}"
+
+
+def tracker_fingerprint(pipeline) -> str:
+    """SHA-256 of the pipeline's tracker configuration (JSON), to resume only a state
+    made by the same tracker settings."""
+    cfg = getattr(pipeline, "cfg", None)
+    text = cfg.model_dump_json() if hasattr(cfg, "model_dump_json") else repr(cfg)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+@dataclass
+class Ids:
+    """Content of ``ids.json``."""
+
+    next_track_id: int = 1
+    epoch: int = 0
+    written_ns: int = 0
+
+
+class StateStore:
+    """The state directory of one fusion id (see the module docstring)."""
+
+    def __init__(
+        self, directory: Path, fusion_id: str, *, max_age: float, id_horizon: float
+    ) -> None:
+        self.dir = Path(directory)
+        self.fusion_id = fusion_id
+        self.max_age = max_age
+        self.id_horizon = id_horizon
+        self.dir.mkdir(parents=True, exist_ok=True, mode=0o700)
+        self._check_private(self.dir)
+        self.saves = 0
+        self._ids_lock = threading.Lock()
+        self.last_save_s = 0.0
+        self.next_id_floor = 1
+        """Lowest id a new tracker may give (from ``ids.json``, within the horizon)."""
+
+    @staticmethod
+    def _check_private(path: Path) -> None:
+        mode = path.stat().st_mode
+        if mode & (stat.S_IWGRP | stat.S_IWOTH):
+            raise PermissionError(
+                f"state {str(path)!r} is writable by group/others: refused (it holds "
+                "pickled objects; make it owner-only, chmod go-w)"
+            )
+
+    # --- ids -------------------------------------------------------------------------
+    def read_ids(self) -> Ids | None:
+        path = self.dir / IDS_FILE
+        try:
+            d = json.loads(path.read_text())
+            return Ids(int(d["next_track_id"]), int(d["epoch"]), int(d["written_ns"]))
+        except FileNotFoundError:
+            return None
+        except (ValueError, KeyError, TypeError) as e:
+            log.warning("state: %s unreadable (%s): starting ids from 1", path, e)
+            return None
+
+    def write_ids(self, epoch: int, raise_to: int = 0) -> None:
+        """Persist the id ceiling (raised to ``raise_to`` first) and ``epoch``. Under a
+        lock (the snapshot writer thread and the service loop both write): the ceiling
+        on disk never goes down."""
+        with self._ids_lock:
+            self.next_id_floor = max(self.next_id_floor, raise_to)
+            ids = Ids(self.next_id_floor, epoch, time.time_ns())
+            atomic_write(self.dir / IDS_FILE, json.dumps(ids.__dict__).encode())
+
+    def begin_epoch(self) -> Ids:
+        """At start or takeover: the new incarnation (persisted epoch + 1) and the next
+        id floor (the persisted next id if younger than ``id_horizon``)."""
+        old = self.read_ids() or Ids()
+        age = (time.time_ns() - old.written_ns) / 1e9
+        floor = old.next_track_id if age <= self.id_horizon else 1
+        self.next_id_floor = max(1, floor)
+        self.write_ids(old.epoch + 1)
+        return Ids(self.next_id_floor, old.epoch + 1)
+
+    # --- state -----------------------------------------------------------------------
+    def serialise(self, state: dict, epoch: int) -> bytes:
+        """``state`` (a dict of picklable objects) as the bytes of ``state.pickle``."""
+        return pickle.dumps(
+            {"format": FORMAT, "fusion_id": self.fusion_id, "written_ns": time.time_ns(),
+             "epoch": epoch, **state},
+            protocol=5,
+        )  # fmt: skip
+
+    def write(self, blob: bytes, next_track_id: int, epoch: int) -> None:
+        """Write a serialised state and the ids, both atomically (any thread)."""
+        t0 = time.perf_counter()
+        atomic_write(self.dir / STATE_FILE, blob)
+        self.write_ids(epoch, raise_to=next_track_id)
+        self.saves += 1
+        self.last_save_s = time.perf_counter() - t0
+
+    def save(self, state: dict, next_track_id: int, epoch: int) -> None:
+        """Serialise and write ``state`` now."""
+        self.write(self.serialise(state, epoch), next_track_id, epoch)
+
+    def load(self) -> tuple[dict | None, str]:
+        """The saved state if it may be resumed, else ``None``; and why (for the log)."""
+        path = self.dir / STATE_FILE
+        if not path.exists():
+            return None, "no saved state"
+        try:
+            self._check_private(path)
+        except PermissionError as e:
+            return None, str(e)
+        try:
+            with open(path, "rb") as f:
+                saved = pickle.load(f)
+        except Exception as e:  # a state from another version of the code
+            return None, f"saved state unreadable ({type(e).__name__}: {e})"
+        if not isinstance(saved, dict) or saved.get("format") != FORMAT:
+            return None, "saved state has another format version"
+        if saved.get("fusion_id") != self.fusion_id:
+            return None, f"saved state is of fusion id {saved.get('fusion_id')!r}"
+        age = (time.time_ns() - int(saved["written_ns"])) / 1e9
+        if age > self.max_age:
+            return None, f"saved state is {age:.1f} s old (resume_max_age {self.max_age:g} s)"
+        return saved, f"saved state {age:.2f} s old"
+
+
+_LOCK_TYPES = (type(threading.Lock()), type(threading.RLock()))
+
+
+def _without_locks(obj) -> dict:
+    return {k: v for k, v in vars(obj).items() if not isinstance(v, _LOCK_TYPES)}
+
+
+def capture(core) -> dict:
+    """The state of a :class:`~skyfuse.services.fusion.service.FusionCore` to save: its
+    pipeline's attributes as they are (the tracker object, the feed builder's picture,
+    cycle and change-detection state; locks left out), the frame, the known sites and the
+    reorder buffer's per-radar watermarks and seen batch ids."""
+    pipe, buf = core.pipeline, core.buffer
+    state = None
+    if pipe is not None:
+        state = _without_locks(pipe)
+        state["feed"] = _without_locks(pipe.feed)
+    return {
+        "frame": core.frame,
+        "sites": {rid: r.site for rid, r in core.radars.items() if r.site is not None},
+        "reorder": {
+            "radar_time": dict(buf.radar_time),
+            "last_time": buf.last_time,
+            "seen": {rid: list(d) for rid, d in buf._seen.items()},
+        },
+        "pipeline": state,
+        "fingerprint": None if pipe is None else tracker_fingerprint(pipe),
+    }
+
+
+def restore(core, saved: dict) -> str | None:
+    """Put a saved state (:func:`capture`) back into a new ``FusionCore``; ``None`` on
+    success, else why the tracker state was not taken (the sites and watermarks are
+    still restored: batches already applied stay refused as duplicates)."""
+    for site in saved["sites"].values():
+        core.on_site(site, configured=True)
+    buf, rs = core.buffer, saved["reorder"]
+    buf.radar_time.update(rs["radar_time"])
+    buf.last_time = rs["last_time"]
+    for rid, seen in rs["seen"].items():
+        buf._seen.setdefault(rid, deque(maxlen=256)).extend(seen)
+    state, frame = saved["pipeline"], saved["frame"]
+    if state is None:
+        return "no tracker state saved yet"
+    if (
+        core.cfg.frame_lat0 is not None
+        and core.cfg.frame_spec(list(saved["sites"].values())) != frame
+    ):
+        return "the configured frame differs from the saved one"
+    pipe = core._factory(frame)
+    if tracker_fingerprint(pipe) != saved["fingerprint"]:
+        return "the tracker configuration differs from the saved one"
+    feed = state.pop("feed")
+    vars(pipe).update(state)
+    vars(pipe.feed).update(feed)
+    core.pipeline, core.frame = pipe, frame
+    return None
+
+
+def next_track_id(pipeline) -> int:
+    """The id the pipeline's tracker gives next (its ``_next_id`` counter)."""
+    return int(pipeline.tracker._next_id)
+
+
+def numbering_from(factory, store: StateStore):
+    """Wrap a pipeline factory so that a new tracker numbers from ``store``'s floor."""
+
+    def make(frame):
+        pipe = factory(frame)
+        if not hasattr(pipe.tracker, "_next_id"):
+            raise AttributeError("the tracker has no _next_id counter: ids cannot be persisted")
+        pipe.tracker._next_id = max(int(pipe.tracker._next_id), store.next_id_floor)
+        return pipe
+
+    return make
+
+
+class Persistence:
+    """The state of one running ``FusionCore``: resume at start (or at a standby's
+    takeover), a snapshot every ``interval`` s, a last one at a clean stop."""
+
+    def __init__(self, core, store: StateStore, interval: float) -> None:
+        self.core, self.store, self.interval = core, store, interval
+        self._next = 0.0
+        self.resumed = False
+        self._pending: tuple | None = None
+        self._cond = threading.Condition()
+        self._writer: threading.Thread | None = None
+        self._closing = False
+
+    @classmethod
+    def from_config(cls, core) -> Persistence | None:
+        """From the core's ``FusionConfig`` (``None`` with ``snapshot_interval`` off)."""
+        cfg = core.cfg
+        if cfg.snapshot_interval is None:
+            return None
+        store = StateStore(
+            cfg.state_dir or default_state_dir(cfg.fusion_id), cfg.fusion_id,
+            max_age=cfg.resume_max_age, id_horizon=cfg.id_horizon,
+        )  # fmt: skip
+        core._factory = numbering_from(core._factory, store)
+        return cls(core, store, cfg.snapshot_interval)
+
+    def start(self) -> None:
+        """Begin a new epoch and resume the saved state if it may be (logged either way)."""
+        core, store = self.core, self.store
+        ids = store.begin_epoch()
+        core.epoch = ids.epoch
+        saved, why = store.load()
+        if saved is not None:
+            why_not = restore(core, saved)
+            self.resumed = why_not is None
+            why = f"{why}, {'resumed' if self.resumed else 'tracks not resumed: ' + why_not}"
+        if core.pipeline is not None:  # resumed, or created from the configuration
+            tr = core.pipeline.tracker
+            tr._next_id = max(int(tr._next_id), store.next_id_floor)
+        n = 0 if core.pipeline is None else len(core.pipeline.tracker.ids)
+        log.info(
+            "state %s: %s; epoch %d, %d tracks, next track id %d", store.dir, why, ids.epoch,
+            n, store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline),
+        )  # fmt: skip
+        self._next = time.monotonic() + self.interval
+
+    def tick(self, now: float) -> None:
+        """If a snapshot is due: serialise the state here (consistent: the loop is not
+        changing it; ~1.5 ms at 500 tracks) and hand the bytes to the writer thread
+        (the two fsync'd writes, ~25 ms, off the service loop; the newest wins)."""
+        if now < self._next:
+            return
+        self._next = time.monotonic() + self.interval
+        blob, nid, epoch = self._serialised()
+        with self._cond:
+            self._pending = (blob, nid, epoch)
+            self._cond.notify()
+        if self._writer is None:
+            self._writer = threading.Thread(target=self._write_loop, name="state", daemon=True)
+            self._writer.start()
+
+    def _serialised(self) -> tuple[bytes, int, int]:
+        core = self.core
+        nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
+        return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+
+    def _write_loop(self) -> None:
+        while True:
+            with self._cond:
+                while self._pending is None and not self._closing:
+                    self._cond.wait()
+                job, self._pending = self._pending, None
+            if job is None:
+                return
+            self._write(*job)
+
+    def _write(self, blob: bytes, nid: int, epoch: int) -> None:
+        try:
+            self.store.write(blob, nid, epoch)
+        except OSError as e:  # a full disk must not stop the tracking
+            self.core.counters["state_save_errors"] += 1
+            log.error("state: cannot save to %s: %s", self.store.dir, e)
+            return
+        self.core.counters["state_saves"] += 1
+
+    def guard_ids(self) -> None:
+        """Before publishing: if the tracker's next id reached the persisted ceiling,
+        persist a new one (next id + ``ID_RESERVE``), so no published id is given again
+        after a crash."""
+        core, store = self.core, self.store
+        if core.pipeline is None or next_track_id(core.pipeline) < store.next_id_floor:
+            return
+        try:
+            store.write_ids(core.epoch or 0, raise_to=next_track_id(core.pipeline) + ID_RESERVE)
+        except OSError as e:
+            core.counters["state_save_errors"] += 1
+            log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
+
+    def save(self) -> None:
+        """Save now, in this thread (at a clean stop: after the writer thread's last
+        write, so the newest state is the one left on disk)."""
+        if self._writer is not None:
+            with self._cond:
+                self._closing = True
+                self._cond.notify()
+            self._writer.join(timeout=10.0)
+            self._writer, self._closing = None, False
+        self._write(*self._serialised())

@@ -1,0 +1,82 @@
+"""Hot standby under the secure deployment: a ``skyfuse router`` with mutual TLS and the
+policy of ``skyfuse certs``, two ``skyfuse fusion --standby`` processes with the same
+``fusion-main`` certificate and one state directory. The policy must let them see each
+other's election tokens (``fusion/main/active/…``): the second one follows instead of
+publishing too; after ``kill -9`` of the first it takes over (its Status, epoch 2,
+reaches the authorised viewer). Without the rule, the second one would not see the
+first and both would publish."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from skyfuse.schemas import Status, keys
+from skyfuse.services.runtime import security
+from skyfuse.services.runtime.transport import (
+    Inbox,
+    TransportConfig,
+    TransportError,
+    free_port,
+    open_session,
+)
+
+pytestmark = pytest.mark.service
+
+
+def viewer(d, ep: str) -> TransportConfig:
+    return TransportConfig(
+        mode="client", connect=[ep], tls_root_ca=d / "ca.pem",
+        tls_cert=d / "client-viewer.pem", tls_key=d / "client-viewer.key",
+    )  # fmt: skip
+
+
+def wait_for_router(cfg: TransportConfig, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with open_session(cfg):
+                return
+        except TransportError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+def statuses(inbox: Inbox, seconds: float) -> list[Status]:
+    out, deadline = [], time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        item = inbox.get(0.1)
+        if item is not None:
+            out.append(Status.from_json_bytes(item.payload))
+    return out
+
+
+def test_standby_election_passes_the_access_policy(tmp_path, start_skyfuse, until):
+    d = tmp_path / "secure"
+    people = security.principals(["R1"], ["main"], [], ["viewer"])
+    security.write_deployment(d, people, ["localhost", "127.0.0.1"])
+    ep = f"tls/127.0.0.1:{free_port()}"
+    start_skyfuse("router", "--config", str(d / "router.toml"), "--listen", ep, log="router")
+    args = (
+        "fusion", "--config", str(d / "fusion-main.toml"), "--connect", ep, "--standby",
+        "--state-dir", str(tmp_path / "state"), "--status-interval", "0.2",
+    )  # fmt: skip
+    wait_for_router(viewer(d, ep))
+    with open_session(viewer(d, ep)) as session:
+        inbox = Inbox()
+        inbox.subscribe(session, keys.fusion_status("main"), "status")
+        first = start_skyfuse(*args, log="fusion-1")
+        assert until(lambda: inbox.qsize() > 0, 30.0)
+        second = start_skyfuse(*args, log="fusion-2")
+        log2 = tmp_path / "fusion-2.log"
+        assert until(lambda: "standby: instance" in log2.read_text(), 30.0), log2.read_text()
+        before = statuses(inbox, 1.0)
+        assert before and {s.epoch for s in before} == {1}  # only the first one publishes
+        first.kill()
+        first.wait()
+        assert until(lambda: "running" in log2.read_text(), 15.0)
+        after = statuses(inbox, 1.5)
+        assert after and after[-1].epoch == 2 and second.poll() is None
+        print(json.dumps({"epochs_after": sorted({s.epoch for s in after})}))
