@@ -146,6 +146,7 @@ class _DemoRun:
 
     def __init__(self, session, cfg: DemoConfig, sc, listen, out, workdir, stop, live) -> None:
         self.session, self.cfg, self.stop, self.workdir = session, cfg, stop, workdir
+        self.state = Path(tempfile.mkdtemp(prefix="state-", dir=workdir))  # fresh per run
         self.radars = [s.radar_id for s in sc.sites][: cfg.radars]
         self.common = ["--connect", listen, "--no-multicast"]
         f = sc.frame
@@ -192,7 +193,7 @@ class _DemoRun:
 
     def start_services(self) -> bool:
         for c in self.children:
-            c.start(None)  # children inherit the working directory
+            c.start(None, self.state)  # children inherit the working directory
         log.info("demo network on %s; logs in %s", self.listen, self.workdir)
         return self._came_up(["recorder", "fusion"], self.children, "services")
 
@@ -215,7 +216,7 @@ class _DemoRun:
                 ],
                 self.workdir / f"sensor-{r}.log",
             )  # fmt: skip
-            s.start(None)
+            s.start(None, self.state)
             self.sensors.append(s)
         self.children += self.sensors
         names = [f"sensor-{r}" for r in self.radars]

@@ -75,15 +75,21 @@ class Child:
     rc: int | None = None
     stop_s: float | None = None
 
-    def start(self, cwd: Path | None = None) -> None:
+    def start(self, cwd: Path | None = None, state_home: Path | None = None) -> None:
+        """Start the child; ``state_home``: its ``XDG_STATE_HOME`` (the demo gives every
+        run a fresh one, so that a sensor's progress or the fusion's saved picture from a
+        previous demo is never resumed)."""
         self._log = open(self.log_path, "wb")
+        env = python_env()
+        if state_home is not None:
+            env["XDG_STATE_HOME"] = str(state_home)
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", *self.args],
             stdin=subprocess.DEVNULL,
             stdout=self._log,
             stderr=subprocess.STDOUT,
             cwd=cwd,
-            env=python_env(),
+            env=env,
             start_new_session=True,  # a Ctrl-C on the terminal goes to the demo only
         )
 

@@ -78,8 +78,9 @@ class Coverage:
         return {t for t, n in self.count.items() if n >= self.min_detections}
 
 
-def _positions(x: np.ndarray, ix: tuple[int, int, int, int], dt: float) -> np.ndarray:
-    """(n, 2) positions x + vx·dt, y + vy·dt from state columns ``ix`` = (x, vx, y, vy)."""
+def _positions(x: np.ndarray, ix: tuple[int, int, int, int], dt) -> np.ndarray:
+    """(n, 2) positions x + vx·dt, y + vy·dt from state columns ``ix`` = (x, vx, y, vy);
+    ``dt`` (s) a scalar or one per row (tracks of a rebuilt picture have their own times)."""
     return np.column_stack([x[:, ix[0]] + x[:, ix[1]] * dt, x[:, ix[2]] + x[:, ix[3]] * dt])
 
 
@@ -118,7 +119,9 @@ class TruthObserver(Observer):
         ix = tuple(lab.index(n) for n in ("x", "vx", "y", "vy"))
         x = np.array([t.state for t in conf], dtype=float).reshape(len(conf), len(lab))
         ids = np.array([t.track_id for t in conf], dtype=np.int64)
-        self.latest = (tracks.time, ids, x, ix)
+        # a picture rebuilt from the delta feed holds each track at its own last time
+        t_trk = np.array([t.time for t in conf], dtype=np.int64)
+        self.latest = (t_trk, ids, x, ix)
 
     def on_truth(self, truth: Truth) -> None:
         self.has_truth = True

@@ -6,10 +6,11 @@ batch it already published — duplicates that a recorder would store. Instead t
 keeps its progress in ``progress.json`` in its state directory (``--state-dir``, default
 ``$XDG_STATE_HOME/skyfuse/sensor-{radar}``): the last published ``seq`` and ``time_end``,
 a fingerprint of the scenario selection, written atomically at most every
-``PROGRESS_INTERVAL`` s and at the end. At start, when the fingerprint matches and the
-file is younger than ``resume_max_age`` (default 60 s), the sensor skips the batches
-with ``time_end`` up to the saved one and maps the first remaining one to its start
-instant: sequence numbers and times continue. A ``kill -9`` can lose the last
+``PROGRESS_INTERVAL`` s and when stopped; a run that published its whole scenario removes
+it, so only an interrupted run (a stop, a crash) is continued. At start, when the
+fingerprint matches and the file is younger than ``resume_max_age`` (default 60 s), the
+sensor skips the batches with ``time_end`` up to the saved one and maps the first
+remaining one to its start instant: sequence numbers and times continue. A ``kill -9`` can lose the last
 ``PROGRESS_INTERVAL`` of progress, so at most that much is published twice — those
 repeats have the identity ``(radar, seq, time_end, scan)`` of the first copies, which the
 fusion service and the recorder refuse as ``duplicate batch``.
@@ -89,6 +90,17 @@ class SensorProgress:
         self.last = (seq, time_end)
         if time.monotonic() - self._written >= PROGRESS_INTERVAL:
             self.write()
+
+    def finished(self) -> None:
+        """The whole scenario was published: forget the progress, so that the next run of
+        the same selection (e.g. a second ``skyfuse demo``) starts from the beginning."""
+        self.last = None
+        try:
+            self.path.unlink()
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            log.error("cannot remove %s: %s", self.path, e)
 
     def write(self) -> None:
         if self.last is None:

@@ -147,7 +147,10 @@ class SimulatedRadar:
                 self._status(wall0)
         self._status(wall0)
         if self.progress is not None:
-            self.progress.write()
+            if self.stats.interrupted:
+                self.progress.write()  # a restart continues after the last batch
+            else:
+                self.progress.finished()  # the scenario is done: a new run starts afresh
         return self.stats
 
     def close(self) -> None:
