@@ -10,8 +10,8 @@ a fingerprint of the scenario selection, written atomically at most every
 it, so only an interrupted run (a stop, a crash) is continued. At start, when the
 fingerprint matches and the file is younger than ``resume_max_age`` (default 60 s), the
 sensor skips the batches with ``time_end`` up to the saved one and maps the first
-remaining one to its start instant: sequence numbers and times continue. A ``kill -9`` can lose the last
-``PROGRESS_INTERVAL`` of progress, so at most that much is published twice — those
+remaining one to its start instant: sequence numbers and times continue. A ``kill -9``
+can lose the last ``PROGRESS_INTERVAL`` of progress, so at most that much is published twice — those
 repeats have the identity ``(radar, seq, time_end, scan)`` of the first copies, which the
 fusion service and the recorder refuse as ``duplicate batch``.
 """
