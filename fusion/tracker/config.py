@@ -142,6 +142,13 @@ class TrackerConfig(BaseModel):
     coverage_sigma: float = Field(
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
     )
+    blind_share: float = Field(
+        0.05,
+        ge=0.0,
+        lt=1.0,
+        description="A track whose probability of being below the radar's maximum elevation "
+        "is under this is in the cone of silence: it coasts and its max_coast clock restarts",
+    )
 
     # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s

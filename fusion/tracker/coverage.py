@@ -4,6 +4,19 @@ A track whose lazily predicted position x̂ + v̂ dt lies inside the batch's ran
 (:class:`fusion.tracker.measurements.SectorCoverage`) within ``coverage_sigma`` σ, with
 σ² = tr P_pos + tr P_vel dt², is predicted to its illumination time (the sector's sweep
 time at its azimuth) and updated; the others are left untouched. Times in ns.
+
+Detection share (issue 17): a selected track's detection probability in the batch is
+P_D · P_sector · P_range · P_cone (eqs. C2-C4 of :mod:`.measurements`: the probability,
+under its predicted Gaussian, that the track was in the swept sector, in range and
+below the radar's maximum elevation e_max, with the height of its last plot). A missed
+detection where the radar could not see the track then does not erode its existence
+(P_D → 0 gives δ_k → 0 in spec 02 (2.39), and (2.41) ψ_{k|k} → ψ_{k|k−1}), and a track
+whose uncertainty straddles several sectors is not eroded once per sector.
+
+Blind tracks: a track with P_cone below ``blind_share`` is in the cone of silence. It is
+not predicted or updated by that batch (it coasts lazily, as outside the coverage), and
+its ``max_coast`` clock restarts: a known gap, an aircraft in the cone comes out of it,
+unlike one that left the coverage, whose clock keeps running.
 """
 
 from __future__ import annotations
@@ -13,6 +26,50 @@ import numpy as np
 from .measurements import MeasurementBatch
 
 NS = 1e-9
+
+
+def _predicted_positions(
+    batch: MeasurementBatch, x: np.ndarray, t_last: np.ndarray, pos: np.ndarray, vel: np.ndarray
+) -> np.ndarray:
+    """Positions x̂ + v̂ dt (n, len(pos)) of the tracks at the batch time, m."""
+    dt = np.maximum(batch.time_ns - t_last, 0) * NS
+    return x[:, pos] + x[:, vel] * dt[:, None]
+
+
+def detection_share(
+    batch: MeasurementBatch,
+    x: np.ndarray,
+    P: np.ndarray,
+    t_last: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    height: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(P_sector · P_range, P_cone) (n,) of each track at the batch time, eqs. (C2)-(C4)
+    of :mod:`.measurements`, with the per-axis σ of the lazily predicted position
+    (σ² = (tr P_pos + tr P_vel dt²)/2); ones without a coverage."""
+    n = len(t_last)
+    if batch.coverage is None or n == 0:
+        return np.ones(n), np.ones(n)
+    dt = np.maximum(batch.time_ns - t_last, 0) * NS
+    sigma = np.sqrt(0.5 * (P[:, pos, pos].sum(axis=1) + P[:, vel, vel].sum(axis=1) * dt**2))
+    p = _predicted_positions(batch, x, t_last, pos, vel)
+    return batch.coverage.detection_share(p, sigma, height)
+
+
+def track_heights(
+    height: np.ndarray, assigned: np.ndarray, plot_heights: np.ndarray | None
+) -> np.ndarray:
+    """The tracks' heights (n,) after a batch: the height of each track's most likely
+    plot (``assigned`` (n,) plot index, −1 none) where known, else the previous one."""
+    if plot_heights is None or len(plot_heights) == 0:
+        return height
+    rows = np.flatnonzero(assigned >= 0)
+    h = np.asarray(plot_heights, dtype=np.float64)[assigned[rows]]
+    ok = np.isfinite(h)
+    out = height.copy()
+    out[rows[ok]] = h[ok]
+    return out
 
 
 def select_tracks(
@@ -32,7 +89,7 @@ def select_tracks(
         return np.ones(n, bool), np.maximum(t, t_last)
     cov = batch.coverage
     dt = np.maximum(batch.time_ns - t_last, 0) * NS
-    p = x[:, pos] + x[:, vel] * dt[:, None]
+    p = _predicted_positions(batch, x, t_last, pos, vel)
     Ppos = P[:, pos, pos].sum(axis=1)
     Pvel = P[:, vel, vel].sum(axis=1)
     sigma = np.sqrt(Ppos + Pvel * dt**2)

@@ -2,6 +2,29 @@
 and :class:`SectorCoverage` (which predicted positions that radar could have detected).
 
 Positions are in the system frame (metres); covariances in m²; times in integer ns UTC.
+
+The cone of silence: a rotating surveillance radar's antenna does not illuminate targets
+above its maximum elevation e_max, so an aircraft flying over the radar is not detected
+for tens of seconds (issue 17). The elevation of a target at height h above the
+ellipsoid and ground distance ρ from a site at height h_r, on a sphere of the effective
+Earth radius a = k R (the 4/3-Earth model of standard refraction, k = 4/3; the plot
+conversion's ``k_earth``), follows from the positions relative to the sphere's centre,
+target (a + h)(sin(ρ/a), cos(ρ/a)) and site (0, a + h_r):
+
+    e = atan2((a + h) cos(ρ/a) − (a + h_r), (a + h) sin(ρ/a))              (C1)
+
+A position is *in the cone* when e > e_max (:meth:`SectorCoverage.in_cone`).
+
+Detection share (:meth:`SectorCoverage.detection_share`): for a track whose position is
+Gaussian with per-axis σ about the predicted position (ground range ρ, azimuth α,
+elevation e), the probability that the radar could have seen it in this batch, linearised
+in each limit (Φ the standard normal CDF, σ_α = σ/ρ, σ_e = σ |∂e/∂ρ| with
+∂e/∂ρ ≈ −Δh/(ρ² + Δh²), Δh = h − h_r, plus σ_e0 = 0.5° for the height and the antenna
+pattern):
+
+    P_sector = Φ((w − a)/σ_α) − Φ(−a/σ_α),   a = (α − α_start) mod 2π, w the width  (C2)
+    P_range  = Φ((ρ_max − ρ)/σ) − Φ((ρ_min − ρ)/σ)                               (C3)
+    P_cone   = Φ((e_max − e)/σ_e)            (1 where h is unknown or no cone)    (C4)
 """
 
 from __future__ import annotations
@@ -9,8 +32,32 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.special import ndtr
 
 TWO_PI = 2.0 * np.pi
+#: Effective Earth radius k R with k = 4/3 (standard refraction), R = 6,371,008.8 m (mean).
+EFFECTIVE_EARTH_RADIUS = 4.0 / 3.0 * 6_371_008.8
+#: [IMPL] default upper elevation limit of a surveillance radar's antenna, rad (45°: the
+#: usual upper limit of an MSSR antenna's vertical coverage; the Barcelona radar's highest
+#: plots are at 44-46°). A RadarSite field ``max_elevation`` takes precedence.
+DEFAULT_MAX_ELEVATION = np.radians(45.0)
+#: σ_e0 of (C4): elevation spread of the cone's edge (height error, antenna pattern), rad.
+CONE_EDGE_SIGMA = np.radians(0.5)
+
+
+def elevation_angle(
+    ground_range: np.ndarray,
+    height: np.ndarray,
+    site_height: float,
+    earth_radius: float = EFFECTIVE_EARTH_RADIUS,
+) -> np.ndarray:
+    """Elevation (rad) of targets at ``height`` (m) and ``ground_range`` (m) seen from a
+    site at ``site_height`` (m), eq. (C1) of the module docstring."""
+    a = float(earth_radius)
+    rho = np.asarray(ground_range, dtype=np.float64)
+    h = np.asarray(height, dtype=np.float64)
+    ang = rho / a
+    return np.arctan2((a + h) * np.cos(ang) - (a + site_height), (a + h) * np.sin(ang))
 
 
 @dataclass
@@ -20,7 +67,11 @@ class SectorCoverage:
     north of the system frame) between ``time_start`` and ``time_end`` (ns).
 
     ``axes`` are the indices of the (east, north) coordinates in a position vector: (0, 1)
-    for the stereographic/planar frames (x east, y north), (1, 0) for NED (x north)."""
+    for the stereographic/planar frames (x east, y north), (1, 0) for NED (x north).
+
+    ``max_elevation`` (rad; None: no cone of silence) and ``site_height`` (m above the
+    ellipsoid) define the cone of silence (C1); ``earth_radius`` is the effective radius
+    a of (C1), m."""
 
     site: np.ndarray
     min_range: float = 0.0
@@ -30,6 +81,47 @@ class SectorCoverage:
     time_start: int = 0
     time_end: int = 0
     axes: tuple[int, int] = (0, 1)
+    max_elevation: float | None = None
+    site_height: float = 0.0
+    earth_radius: float = EFFECTIVE_EARTH_RADIUS
+
+    def in_cone(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
+        """True where a target at horizontal position ``pos`` (n, ≥2) and ``height`` (n,)
+        m is above the radar's maximum elevation (C1); False where the height is unknown
+        (NaN) or there is no cone. The frame's horizontal distance stands for the ground
+        distance ρ (stereographic scale error below 1e-5 within 50 km of the origin)."""
+        pos = np.atleast_2d(pos)
+        h = np.asarray(height, dtype=np.float64).reshape(-1)
+        if self.max_elevation is None or len(h) == 0:
+            return np.zeros(len(h), bool)
+        r, _ = self._polar(pos)
+        known = np.isfinite(h)
+        e = elevation_angle(r, np.where(known, h, 0.0), self.site_height, self.earth_radius)
+        return known & (e > self.max_elevation)
+
+    def detection_share(
+        self, pos: np.ndarray, sigma: np.ndarray, height: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(P_sector · P_range, P_cone) of (C2)-(C4) for positions ``pos`` (n, ≥2) with
+        per-axis σ ``sigma`` (n,) m and heights ``height`` (n,) m (NaN unknown)."""
+        pos = np.atleast_2d(pos)
+        r, _ = self._polar(pos)
+        s = np.maximum(np.asarray(sigma, dtype=np.float64), 1e-3)
+        share = ndtr((self.max_range - r) / s) - ndtr((self.min_range - r) / s)
+        if self.sector_width < TWO_PI:
+            a = self.sector_fraction(pos) * self.sector_width
+            s_a = s / np.maximum(r, 1.0)
+            share = share * (ndtr((self.sector_width - a) / s_a) - ndtr(-a / s_a))
+        h = np.asarray(height, dtype=np.float64).reshape(-1)
+        cone = np.ones(len(r))
+        known = np.isfinite(h)
+        if self.max_elevation is not None and known.any():
+            hk, rk, sk = h[known], r[known], s[known]
+            e = elevation_angle(rk, hk, self.site_height, self.earth_radius)
+            dh = hk - self.site_height
+            s_e = np.hypot(sk * np.abs(dh) / (rk**2 + dh**2 + 1.0), CONE_EDGE_SIGMA)
+            cone[known] = ndtr((self.max_elevation - e) / s_e)
+        return share, cone
 
     def _polar(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         e = pos[:, self.axes[0]] - self.site[self.axes[0]]
@@ -89,7 +181,9 @@ class MeasurementBatch:
     p_detection: P_D of that sensor; clutter_density: false plots per m² (per m³ in 3-D)
     per scan, scalar or (m,) per plot; coverage: which tracks could have been detected
     (None: every track); plot_times (m,) ns (optional); plot_ids, target_ids (m,)
-    optional, for evaluation only (never used to associate)."""
+    optional, for evaluation only (never used to associate); heights (m,) m above the
+    ellipsoid (the reported flight level of 2-D radars, NaN: unknown; optional), used only
+    for the coverage (the cone of silence of the tracks' last plots)."""
 
     time_ns: int
     radar_id: str
@@ -101,6 +195,7 @@ class MeasurementBatch:
     plot_times: np.ndarray | None = None
     plot_ids: np.ndarray | None = None
     target_ids: np.ndarray | None = None
+    heights: np.ndarray | None = None
     rejected: dict[str, int] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -146,6 +241,9 @@ class MeasurementBatch:
         Rs = np.where(ok[:, None, None], Rs, np.eye(ndim))
         reject(~_positive_definite(Rs), "covariance not positive definite")
 
+        if self.heights is not None and np.shape(self.heights) != (m,):
+            raise ValueError(f"heights has shape {np.shape(self.heights)}: expected ({m},)")
+
         def sel(a):
             return None if a is None else np.asarray(a)[ok]
 
@@ -157,5 +255,6 @@ class MeasurementBatch:
             plot_times=sel(self.plot_times),
             plot_ids=sel(self.plot_ids),
             target_ids=sel(self.target_ids),
+            heights=None if self.heights is None else np.asarray(self.heights, float)[ok],
             rejected=rejected,
         )

@@ -36,7 +36,7 @@ from skyfuse.fusion.models.cv import ConstantVelocity
 from .associators import AssociationProblem
 from .clutter import clutter_density
 from .config import TrackerConfig
-from .coverage import select_tracks
+from .coverage import detection_share, select_tracks, track_heights
 from .density.base import GatedTable, Prediction, TrackDensity
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
@@ -99,7 +99,9 @@ class Tracker:
     """Multi-target tracker over arrays; see the module docstring for one step.
 
     Track arrays (rows aligned with ``self.density``): ids, exist (n, 2) Markov-chain
-    state, t_last (ns), confirmed, updates, radar_mask, last_update (ns)."""
+    state, t_last (ns), confirmed, updates, radar_mask, last_update (ns), height (m, of
+    the last plot, NaN unknown) and coast_from (ns: the last plot or the last batch that
+    found the track in a cone of silence; ``max_coast`` counts from it)."""
 
     def __init__(self, config: TrackerConfig | None = None) -> None:
         self.cfg = cfg = config or TrackerConfig()
@@ -122,6 +124,8 @@ class Tracker:
         self.updates = np.zeros(0, np.int64)
         self.radar_mask = np.zeros(0, np.int64)
         self.last_update = np.zeros(0, np.int64)
+        self.height = np.zeros(0)
+        self.coast_from = np.zeros(0, np.int64)
         self.buffer = PlotBuffer.empty(self.k)
         self.radar_names: list[str] = []
         self._next_id = 1
@@ -172,7 +176,10 @@ class Tracker:
         psi = self.chain.existence(self.chain.predict(self.exist, dt))
         return x, P, psi
 
-    _ARRAYS = ("ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update")
+    _ARRAYS = (
+        "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
+        "height", "coast_from",
+    )  # fmt: skip
 
     def _remove(self, keep: np.ndarray) -> None:
         for name in self._ARRAYS:
@@ -193,6 +200,8 @@ class Tracker:
             "updates": zeros,
             "radar_mask": zeros,
             "last_update": t,
+            "height": np.full(nn, np.nan),
+            "coast_from": t,
         }
         self._next_id += nn
         for name in self._ARRAYS:
@@ -248,20 +257,25 @@ class Tracker:
         inside, t_pred = select_tracks(
             b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma
         )
-        sel = np.flatnonzero(inside)
+        seen, cone = detection_share(b, x, P, self.t_last, self.pos, self.vel, self.height)
+        blind = inside & (cone < self.cfg.blind_share)
+        sel = np.flatnonzero(inside & ~blind)
         stats["tracks_in_coverage"] = len(sel)
+        stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
         pred = self.density.predict(sel, dt)
         exist_pred = self.chain.predict(self.exist[sel], dt)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
-        res = self._associate(b, pred, table, exist_pred[:, 0])
+        res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
         self.density.update(pred, table, res.beta0, res.beta)
         stats.update(res.stats)
         stats.update(getattr(self.density, "stats", {}))
         self.exist[sel] = self.chain.update(exist_pred, res.psi_post)
         self.t_last[sel] = t_pred[sel]
         assigned = self._record_hits(sel, t_pred, res, table, bit)
+        self.height = track_heights(self.height, assigned, b.heights)
+        self.coast_from = np.where(blind, np.maximum(self.coast_from, t_pred), self.coast_from)
         events: list[TrackEventRecord] = []
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
         new = self._initiate(b, self._used_plots(m, table, res))
@@ -272,11 +286,19 @@ class Tracker:
         return self._output(b, assigned, events, stats)
 
     def _associate(
-        self, b: MeasurementBatch, pred: Prediction, table: GatedTable, psi_det: np.ndarray
+        self,
+        b: MeasurementBatch,
+        pred: Prediction,
+        table: GatedTable,
+        psi_det: np.ndarray,
+        share: np.ndarray,
     ) -> AssociationResult:
-        """Clutter density per row, then the configured association part."""
+        """Clutter density per row, then the configured association part; P_D of each
+        row without a gated plot scaled by its detection ``share`` (:mod:`.coverage`; a
+        plot in the gate shows the radar saw where the track is)."""
         cfg = self.cfg
-        pdpg = np.full(len(pred.rows), float(b.p_detection) * self.P_G)
+        share = np.where(np.isin(np.arange(len(share)), table.tp_track), 1.0, share)
+        pdpg = float(b.p_detection) * self.P_G * share
         rho = clutter_density(
             cfg.clutter,
             b.clutter_density,
@@ -408,14 +430,17 @@ class Tracker:
         stats: dict[str, int],
     ) -> np.ndarray:
         """Tracks to end: existence predicted to the batch time below τ_t, or no plot for
-        ``max_coast`` seconds."""
+        ``max_coast`` seconds (counted from the later of the last plot and the last batch
+        that found the track in a cone of silence, :mod:`.coverage`)."""
         cfg = self.cfg
         psi_now = self.chain.existence(
             self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
         )
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
-            coasting = (t_batch - self.last_update) > round(cfg.max_coast / NS)
+            coasting = (t_batch - np.maximum(self.last_update, self.coast_from)) > round(
+                cfg.max_coast / NS
+            )
         term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(

@@ -3,7 +3,11 @@
 The sensor model the tracker needs comes from the radar's :class:`schemas.RadarSite`
 (P_D, nominal clutter density, instrumented range) and the :class:`schemas.PlotBatch`
 (swept sector, sweep times, evaluation ``target_id``); positions and covariances come
-from the conversion. Plots the conversion marked invalid are dropped and counted by
+from the conversion. The coverage carries the radar's cone of silence: the site height
+and its maximum elevation (a ``max_elevation`` field of the site, rad, when the schema
+has one; otherwise :data:`~skyfuse.fusion.tracker.measurements.DEFAULT_MAX_ELEVATION`
+for rotating radars, none for cartesian sensors), and the batch carries the plots'
+reported altitudes as their heights. Plots the conversion marked invalid are dropped and counted by
 reason in ``MeasurementBatch.rejected``.
 """
 
@@ -13,7 +17,11 @@ import re
 from collections import Counter
 
 import numpy as np
-from skyfuse.fusion.tracker.measurements import MeasurementBatch, SectorCoverage
+from skyfuse.fusion.tracker.measurements import (
+    DEFAULT_MAX_ELEVATION,
+    MeasurementBatch,
+    SectorCoverage,
+)
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
 
 _PLOT_PREFIX = re.compile(r"^plot \d+: ")
@@ -56,7 +64,10 @@ def measurement_batch_from(
         sector_width=plot_batch.sector_width,
         time_start=plot_batch.time_start if rotating else plot_batch.time_end,
         time_end=plot_batch.time_end,
+        max_elevation=getattr(site, "max_elevation", DEFAULT_MAX_ELEVATION) if rotating else None,
+        site_height=float(site.alt),
     )
+    alt = plot_batch.column("altitude")
     return MeasurementBatch(
         time_ns=int(plot_batch.time_end),
         radar_id=site.radar_id,
@@ -68,5 +79,6 @@ def measurement_batch_from(
         plot_times=np.asarray(converted.time, dtype=np.int64)[valid],
         plot_ids=np.flatnonzero(valid),
         target_ids=None if tid is None else tid[valid],
+        heights=None if alt is None else np.asarray(alt, dtype=np.float64)[valid],
         rejected=dict(rejected),
     )
