@@ -410,7 +410,8 @@ def retention_table(summary: dict) -> str:
 
 
 def write_figures(summary: dict, out: Path, tag: str) -> list[Path]:
-    """CTT, cumulative confirmed false tracks, RMSE and GOSPA per scan (one PNG each)."""
+    """CTT, cumulative confirmed false tracks, RMSE with its PCRLB floor (dotted, the
+    ``pcrlb_m`` curve of :mod:`fusion.evaluation.bound`) and GOSPA per scan (one PNG each)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -435,6 +436,11 @@ def write_figures(summary: dict, out: Path, tag: str) -> list[Path]:
             y = np.array([np.nan if v is None else v for v in c[key]], float)
             style = "-" if vk.startswith("lm") else "--"
             ax.plot(c["scans"], y, style, color=f"C{i % 10}", lw=1.5, label=vk.replace(":", " N="))
+            if name == "rmse" and "pcrlb_m" in c:
+                f = np.array([np.nan if v is None else v for v in c["pcrlb_m"]], float)
+                ax.plot(c["scans"], f, ":", color=f"C{i % 10}", lw=1.0)
+        if name == "rmse":
+            ax.plot([], [], ":", color="0.3", lw=1.0, label="PCRLB (dotted, same rows)")
         ax.set_xlabel("scan")
         ax.set_ylabel(ylabel)
         ax.set_title(f"{summary['scenario']}, {runs} runs")
