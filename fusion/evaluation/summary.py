@@ -54,6 +54,13 @@ def false_at_confirmation(tracks: TrackHistory, scans: np.ndarray) -> np.ndarray
     return np.cumsum(np.bincount(idx[keep], minlength=len(scans))).astype(np.int64)
 
 
+def _bound(model: dict, scans: np.ndarray) -> np.ndarray:
+    """Position bound B(k), k = 1..len(scans), of ``bound.scenario_bound_model``."""
+    m = model
+    n = max(len(scans), 1)
+    return position_bound_by_age(n, m["period"], m["q"], m["sigma2"], m["p_detection"])
+
+
 def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: float) -> dict:
     """Row (retention keys of ``fusion.metrics.retention.ROW_KEYS`` plus run counts and
     ψ_init) and per-scan curves of one variant. Scans are those of the truth history."""
@@ -73,10 +80,10 @@ def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: floa
     rmse, n_rmse = rmse_confirmed_true(block.tracks, block.truth, scans)
     g = gospa_curves(block.tracks, block.truth, scans, c=exp.gospa_c, p=exp.gospa_p)
     model = scenario_bound_model(exp)
-    ages = position_bound_by_age(
-        max(len(scans), 1), model["period"], model["q"], model["sigma2"], model["p_detection"]
+    floor, floor_targets = pcrlb_curves(block.tracks, block.truth, scans, _bound(model, scans))
+    floor_detected, _ = pcrlb_curves(
+        block.tracks, block.truth, scans, _bound({**model, "p_detection": 1.0}, scans)
     )
-    floor, floor_targets = pcrlb_curves(block.tracks, block.truth, scans, ages)
     runs = len(np.unique(block.runs))
     row.update(
         {
@@ -106,6 +113,7 @@ def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: floa
         "rmse_rows": n_rmse.tolist(),
         "pcrlb_m": _clean(floor),
         "pcrlb_targets_m": _clean(floor_targets),
+        "pcrlb_all_detected_m": _clean(floor_detected),
         "pcrlb_model": model,
         "gospa_m": _clean(g.distance),
         "gospa_localisation": _clean(g.localisation),

@@ -2,7 +2,8 @@
 
 Reference: the thesis-mtt targets fly straight lines (truth q = 0) from scan 1, so the
 floor over all targets is the least-squares line fit with the information reduction
-factor P_D = 0.8: 2σ²(2k − 1)/(k(k + 1))/P_D per axis after k scans, σ² = 25 m²."""
+factor P_D = 0.8: 2σ²(2k − 1)/(k(k + 1))/P_D per axis after k scans, σ² = 25 m²; the
+P_D = 1 floor is P_D times the P_D floor (information scales by P_D)."""
 
 from __future__ import annotations
 
@@ -27,4 +28,8 @@ def test_eval_writes_the_pcrlb_beside_the_rmse(tmp_path):
     assert rows.sum() > 10
     assert all(c["pcrlb_m"][i] is not None for i in np.flatnonzero(rows))
     assert all(c["pcrlb_m"][i] is None for i in np.flatnonzero(~rows))
+    # P_D = 1 floor: with q = 0 and the diffuse prior the information scales by P_D
+    full = np.array([np.nan if v is None else v for v in c["pcrlb_all_detected_m"]])
+    floor = np.array([np.nan if v is None else v for v in c["pcrlb_m"]])
+    assert np.allclose((full / floor)[rows] ** 2, 0.8, rtol=2e-3)
     assert (out / "thesis-mtt-5-rmse.png").stat().st_size > 5000
