@@ -1,6 +1,7 @@
 """Measures of one variant's Monte Carlo histories (spec 03 §4): the retention row, the
-CTT curve, the cumulative confirmed false tracks, the RMSE of confirmed true tracks and
-GOSPA per scan, as plain JSON-ready values (lists with ``None`` for NaN).
+CTT curve, the cumulative confirmed false tracks, the RMSE of confirmed true tracks with
+its posterior Cramér–Rao floor (:mod:`.bound`, spec 04 B.2) and GOSPA per scan, as plain
+JSON-ready values (lists with ``None`` for NaN).
 
 Two counts of confirmed false tracks are reported:
 
@@ -28,6 +29,7 @@ from skyfuse.fusion.metrics.mtt_measures import (
 )
 from skyfuse.fusion.metrics.retention import retention_counts
 
+from .bound import pcrlb_curves, position_bound_by_age, scenario_bound_model
 from .experiment import Experiment, Variant
 from .runner import RunBlock
 
@@ -52,6 +54,13 @@ def false_at_confirmation(tracks: TrackHistory, scans: np.ndarray) -> np.ndarray
     return np.cumsum(np.bincount(idx[keep], minlength=len(scans))).astype(np.int64)
 
 
+def _bound(model: dict, scans: np.ndarray) -> np.ndarray:
+    """Position bound B(k), k = 1..len(scans), of ``bound.scenario_bound_model``."""
+    m = model
+    n = max(len(scans), 1)
+    return position_bound_by_age(n, m["period"], m["q"], m["sigma2"], m["p_detection"])
+
+
 def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: float) -> dict:
     """Row (retention keys of ``fusion.metrics.retention.ROW_KEYS`` plus run counts and
     ψ_init) and per-scan curves of one variant. Scans are those of the truth history."""
@@ -70,6 +79,11 @@ def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: floa
     born = false_at_confirmation(block.tracks, scans)
     rmse, n_rmse = rmse_confirmed_true(block.tracks, block.truth, scans)
     g = gospa_curves(block.tracks, block.truth, scans, c=exp.gospa_c, p=exp.gospa_p)
+    model = scenario_bound_model(exp)
+    floor, floor_targets = pcrlb_curves(block.tracks, block.truth, scans, _bound(model, scans))
+    floor_detected, _ = pcrlb_curves(
+        block.tracks, block.truth, scans, _bound({**model, "p_detection": 1.0}, scans)
+    )
     runs = len(np.unique(block.runs))
     row.update(
         {
@@ -97,6 +111,10 @@ def summarise(block: RunBlock, exp: Experiment, variant: Variant, psi_init: floa
         "false_at_confirmation_cumulative": born.tolist(),
         "rmse_m": _clean(rmse),
         "rmse_rows": n_rmse.tolist(),
+        "pcrlb_m": _clean(floor),
+        "pcrlb_targets_m": _clean(floor_targets),
+        "pcrlb_all_detected_m": _clean(floor_detected),
+        "pcrlb_model": model,
         "gospa_m": _clean(g.distance),
         "gospa_localisation": _clean(g.localisation),
         "gospa_missed": _clean(g.missed),

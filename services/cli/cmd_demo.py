@@ -1,8 +1,9 @@
 """``skyfuse demo [--radars N] [--targets N] [--duration S] [--speed X] [--listen EP]
-[--out FILE.mcap] [--json FILE] [--foxglove]``: run N simulated radars, the fusion service
-and the recorder as separate processes over Zenoh on loopback, show live progress, stop
-everything cleanly and print a summary (plots, confirmed tracks, GOSPA against truth,
-latency, messages recorded) with a PNG of tracks against truth.
+[--out FILE.mcap] [--json FILE] [--foxglove] [--tracker KIND] [--particles N]``: run N
+simulated radars, the fusion service and the recorder as separate processes over Zenoh
+on loopback, show live progress, stop everything cleanly and print a summary (plots,
+confirmed tracks, GOSPA against truth, latency, messages recorded) with a PNG of tracks
+against truth.
 
 While it runs, other programs can join at the ``--listen`` endpoint, e.g.
 ``skyfuse tracks --connect tcp/127.0.0.1:PORT``.
@@ -98,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
             "duration_s": cfg.duration,
             "speed": cfg.speed,
             "targets": cfg.targets,
+            "tracker": cfg.tracker,
+            "particles": cfg.particles,
             "endpoint": listen,
             "logs": str(workdir),
             "png": str(png),
@@ -127,6 +130,19 @@ def scenario_radars(cfg: DemoConfig) -> int:
     return max(cfg.radars, 3)
 
 
+def fusion_arguments(cfg: DemoConfig, frame, common: list[str]) -> list[str]:
+    """``skyfuse fusion`` arguments of the demo's fusion process: the scenario's system
+    frame, the tracker kind and its particles per track (``--particles``, the flag of
+    ``skyfuse fusion`` / ``track`` / ``eval``; used by ipf and lmipf only), then ``common``
+    (the Zenoh connection)."""
+    return [
+        "fusion", "--fusion-id", "demo", "--reorder-wait", str(cfg.reorder_wait),
+        "--frame-kind", frame.kind.value, "--frame-lat0", repr(frame.lat0), "--frame-lon0",
+        repr(frame.lon0), "--tracker", cfg.tracker, "--particles", str(cfg.particles),
+        *common,
+    ]  # fmt: skip
+
+
 def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     """Start, watch and stop the services; return (interrupted, failed service names,
     the children)."""
@@ -149,21 +165,14 @@ class _DemoRun:
         self.state = Path(tempfile.mkdtemp(prefix="state-", dir=workdir))  # fresh per run
         self.radars = [s.radar_id for s in sc.sites][: cfg.radars]
         self.common = ["--connect", listen, "--no-multicast"]
-        f = sc.frame
         self.recorder = Child(
             "recorder",
             ["record", "--out", str(out), "--stats", str(workdir / "recorder.json"), *self.common],
             workdir / "recorder.log",
         )
         self.fusion = Child(
-            "fusion",
-            [
-                "fusion", "--fusion-id", "demo", "--reorder-wait", str(cfg.reorder_wait),
-                "--frame-kind", f.kind.value, "--frame-lat0", repr(f.lat0), "--frame-lon0",
-                repr(f.lon0), "--tracker", cfg.tracker, *self.common,
-            ],
-            workdir / "fusion.log",
-        )  # fmt: skip
+            "fusion", fusion_arguments(cfg, sc.frame, self.common), workdir / "fusion.log"
+        )
         self.inbox = Inbox(capacity=10_000)
         for key, tag in (
             (f"{keys.PREFIX}/fusion/*/status", "status"),

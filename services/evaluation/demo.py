@@ -56,6 +56,11 @@ class DemoConfig(BaseModel):
     foxglove_port: int = Field(8765, ge=1, le=65535, description="Foxglove WebSocket port")
     reorder_wait: float = Field(0.5, ge=0, le=10, description="Fusion reorder wait, s")
     tracker: str = Field("lmits", description="Tracker kind for the fusion service")
+    # the same flag, default and bounds as fusion.tracker.TrackerConfig.particles (not
+    # imported here: the tracker's import would slow every ``skyfuse demo --help``)
+    particles: int = Field(
+        1000, ge=1, le=1_000_000, description="ipf/lmipf: particles per track N (source 1000)"
+    )
     gospa_c: float = Field(2000.0, gt=0, description="GOSPA cut-off c, m")
     drain_timeout: float = Field(
         60.0, gt=0, le=3600, description="How long to let the fusion service catch up, s"

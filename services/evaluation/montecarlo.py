@@ -410,7 +410,9 @@ def retention_table(summary: dict) -> str:
 
 
 def write_figures(summary: dict, out: Path, tag: str) -> list[Path]:
-    """CTT, cumulative confirmed false tracks, RMSE and GOSPA per scan (one PNG each)."""
+    """CTT, cumulative confirmed false tracks, RMSE with its PCRLB floors (dotted: the
+    ``pcrlb_m`` curve of :mod:`fusion.evaluation.bound` per variant; dash-dot grey:
+    ``pcrlb_all_detected_m`` of the first variant) and GOSPA per scan (one PNG each)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -435,6 +437,15 @@ def write_figures(summary: dict, out: Path, tag: str) -> list[Path]:
             y = np.array([np.nan if v is None else v for v in c[key]], float)
             style = "-" if vk.startswith("lm") else "--"
             ax.plot(c["scans"], y, style, color=f"C{i % 10}", lw=1.5, label=vk.replace(":", " N="))
+            if name == "rmse" and "pcrlb_m" in c:
+                f = np.array([np.nan if v is None else v for v in c["pcrlb_m"]], float)
+                ax.plot(c["scans"], f, ":", color=f"C{i % 10}", lw=1.0)
+        if name == "rmse" and summary["curves"]:
+            c = next(iter(summary["curves"].values()))
+            ax.plot([], [], ":", color="0.3", lw=1.0, label="PCRLB, P_D factor (dotted)")
+            if "pcrlb_all_detected_m" in c:
+                f = np.array([np.nan if v is None else v for v in c["pcrlb_all_detected_m"]])
+                ax.plot(c["scans"], f, "-.", color="0.5", lw=0.8, label="PCRLB, P_D = 1")
         ax.set_xlabel("scan")
         ax.set_ylabel(ylabel)
         ax.set_title(f"{summary['scenario']}, {runs} runs")
