@@ -69,10 +69,13 @@ class TrackTable:
 
     @classmethod
     def from_output(cls, out: TrackerOutput, rows: np.ndarray) -> TrackTable:
+        """The rows ``rows`` of a tracker output, predicted to its time (only those rows:
+        ``TrackerOutput.predicted``)."""
+        x, P, psi = out.predicted(rows)
         return cls(
             out.ids[rows], np.full(len(rows), out.time_ns, np.int64), out.last_update_ns[rows],
-            out.confirmed[rows], np.clip(out.existence[rows], 0.0, 1.0), out.updates[rows],
-            out.radar_mask[rows], out.states[rows], out.covariances[rows],
+            out.confirmed[rows], np.clip(psi, 0.0, 1.0), out.updates[rows],
+            out.radar_mask[rows], x, P,
         )  # fmt: skip
 
     def __len__(self) -> int:

@@ -34,7 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from skyfuse.fusion.association.gating import gate, gate_probability
+from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
@@ -43,7 +43,7 @@ from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
 from ..components import history_groups, prune_indices
-from .base import GatedTable
+from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 
 
@@ -306,7 +306,7 @@ class IMMMixtureDensity:
         S = 0.5 * (S + np.swapaxes(S, -1, -2))
         log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
         mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
-        p_pair = mix / gate_probability(g, k)
+        p_pair = mix / gate_probability_of(float(g), k)
         tp_track, tp_plot, p_track, row = track_table(pred.loc, pc, pp, pred.comp.w, p_pair, m)
         return IMMTable(tp_track, tp_plot, p_track, pc, pp, nu, S, log_n, p_pair, row, R, uid)
 
