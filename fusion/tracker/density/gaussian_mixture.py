@@ -174,7 +174,7 @@ class GaussianMixtureDensity:
         inside = np.zeros(len(self), bool)
         inside[pred.rows] = True
         others = np.flatnonzero(~inside[self.mix.track])
-        self.mix = comp.Mixture.concat([self.mix.take(others), kept])
+        self.mix = self.mix.replace_tracks(others, kept)
         self.stats = {
             "gated_pairs": len(table.pairs),  # (component, plot) pairs
             "components_merged": len(merged),

@@ -42,7 +42,7 @@ from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_ro
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
-from ..components import history_groups, prune_indices
+from ..components import history_groups, prune_indices, take_concat
 from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 
@@ -102,6 +102,17 @@ class IMMComponents:
             self.mu[idx],
             [a[idx] for a in self.x],
             [a[idx] for a in self.P],
+        )
+
+    def replace_tracks(self, others: np.ndarray, new: IMMComponents) -> IMMComponents:
+        """The components ``others`` followed by ``new``, one copy of the kept ones."""
+        r = len(self.x)
+        return IMMComponents(
+            *(take_concat(getattr(self, k), others, getattr(new, k)) for k in ("track", "w")),
+            take_concat(self.hist, others, new.hist),
+            take_concat(self.mu, others, new.mu),
+            [take_concat(self.x[j], others, new.x[j]) for j in range(r)],
+            [take_concat(self.P[j], others, new.P[j]) for j in range(r)],
         )
 
     @staticmethod
@@ -368,8 +379,7 @@ class IMMMixtureDensity:
         kept.w = w
         inside = np.zeros(len(self), bool)
         inside[pred.rows] = True
-        others = self.comp.take(np.flatnonzero(~inside[self.comp.track]))
-        self.comp = IMMComponents.concat([others, kept])
+        self.comp = self.comp.replace_tracks(np.flatnonzero(~inside[self.comp.track]), kept)
         self.stats = {
             "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
             "components_merged": len(merged),
