@@ -49,7 +49,9 @@ def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_
     rows, plot = rows[ok], plot[ok]
     z = z[ok]
     vi = np.asarray(velocity_index)[:2]
-    x, P, _ = out.predicted(rows)
+    # TrackerOutput predicts only the rows asked for; a plain record gives its arrays
+    predicted = getattr(out, "predicted", None)
+    x, P = predicted(rows)[:2] if predicted else (out.states[rows], out.covariances[rows])
     return (
         est.observe_plots(
             converted.radar_id,
