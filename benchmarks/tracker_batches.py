@@ -10,8 +10,8 @@ registration on, publish confirmed). The first ``--warmup`` s of simulated time 
 the tracks and are not timed.
 
 Per timed batch the stages are timed in CPU time of this process (``time.process_time``,
-so that other jobs on a shared machine inflate the figures less than wall time would): ``convert`` (polar →
-system frame, ``TrackPipeline._convert``), ``track`` (``Tracker.step`` plus the
+so that other jobs on a shared machine inflate the figures less than wall time would):
+``convert`` (polar → system frame, ``TrackPipeline._convert``), ``track`` (``Tracker.step`` plus the
 registration observation, ``TrackPipeline._track``), ``feed`` (``FeedBuilder.record`` +
 ``delta`` + ``to_json_bytes``: the delta message of the batch). Reported: plots/s over
 the timed batches (plots / sum of the stages' CPU time), ms per batch by stage (mean and median),
