@@ -49,6 +49,9 @@ def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_
     rows, plot = rows[ok], plot[ok]
     z = z[ok]
     vi = np.asarray(velocity_index)[:2]
+    # TrackerOutput predicts only the rows asked for; a plain record gives its arrays
+    predicted = getattr(out, "predicted", None)
+    x, P = predicted(rows)[:2] if predicted else (out.states[rows], out.covariances[rows])
     return (
         est.observe_plots(
             converted.radar_id,
@@ -58,8 +61,8 @@ def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_
             converted.R[plot],
             converted.polar_jacobian[plot],
             converted.slant_range[plot],
-            out.states[rows][:, vi],
-            out.covariances[rows][:, vi][:, :, vi],
+            x[:, vi],
+            P[:, vi][:, :, vi],
             converted.bias,
         )
         if len(rows)

@@ -62,6 +62,32 @@ class TrackEventRecord:
 
 
 @dataclass
+class OutputPrediction:
+    """The track estimates x (n, d), P (n, d, d) and existence-chain states (n, 2) at
+    their times ``t_last`` (n,) ns after one step (copies), predicted on demand to
+    ``time_ns`` with the output model (CV, spec 02 5.4) and the existence chain (5.3):
+    only the rows a consumer asks for are predicted."""
+
+    time_ns: int
+    x: np.ndarray
+    P: np.ndarray
+    t_last: np.ndarray
+    exist: np.ndarray
+    model: ConstantVelocity
+    chain: ExistenceChain
+
+    def rows(self, idx: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, P, ψ) of the rows ``idx`` predicted to ``time_ns`` (not stored)."""
+        x, P = self.x[idx], self.P[idx]
+        if len(x) == 0:
+            return x, P, np.zeros(0)
+        dt = np.maximum(self.time_ns - self.t_last[idx], 0) * NS
+        x, P = predict(x, P, self.model.F(dt), self.model.Q(dt))
+        psi = self.chain.existence(self.chain.predict(self.exist[idx], dt))
+        return x, P, psi
+
+
+@dataclass
 class TrackerOutput:
     """All live tracks after one batch, predicted to ``time_ns`` (arrays over tracks).
 
@@ -69,14 +95,17 @@ class TrackerOutput:
     updates (n,) scans with a plot, radar_mask (n,) bit i = ``radar_names[i]`` updated the
     track, last_update_ns (n,), assigned_plot (n,) index of the most likely plot of this
     batch for the track (−1: none or not in coverage), events, stats, and the validated
-    batch (its ``target_ids`` serve evaluation)."""
+    batch (its ``target_ids`` serve evaluation).
+
+    ``states``, ``covariances`` and ``existence`` are predicted from ``prediction`` on
+    first access (all rows at once); :meth:`predicted` predicts only some rows (the
+    feed's changed tracks, the registration's assigned tracks), so a batch that changes
+    few of many tracks does not predict them all."""
 
     time_ns: int
     radar_id: str
     ids: np.ndarray
-    states: np.ndarray
-    covariances: np.ndarray
-    existence: np.ndarray
+    prediction: OutputPrediction
     confirmed: np.ndarray
     updates: np.ndarray
     radar_mask: np.ndarray
@@ -86,9 +115,33 @@ class TrackerOutput:
     events: list[TrackEventRecord] = field(default_factory=list)
     stats: dict[str, int] = field(default_factory=dict)
     batch: MeasurementBatch | None = None
+    _all: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    def _predicted_all(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._all is None:
+            self._all = self.prediction.rows(slice(None))
+        return self._all
+
+    @property
+    def states(self) -> np.ndarray:
+        return self._predicted_all()[0]
+
+    @property
+    def covariances(self) -> np.ndarray:
+        return self._predicted_all()[1]
+
+    @property
+    def existence(self) -> np.ndarray:
+        return self._predicted_all()[2]
+
+    def predicted(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(states, covariances, existence) of ``rows`` only, at ``time_ns``."""
+        if self._all is not None:
+            return tuple(a[rows] for a in self._all)
+        return self.prediction.rows(np.asarray(rows, dtype=np.int64))
 
     def radars_of(self, i: int) -> list[str]:
         m = int(self.radar_mask[i])
@@ -165,16 +218,6 @@ class Tracker:
                 raise ValueError(f"radar {radar_id!r}: at most 63 radars per tracker")
             self.radar_names.append(radar_id)
         return 1 << self.radar_names.index(radar_id)
-
-    def _predict_out(self, t_ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Track estimates and existence predicted (not stored) to ``t_ns``."""
-        x, P = self.estimates()
-        if self.n == 0:
-            return x, P, np.zeros(0)
-        dt = np.maximum(t_ns - self.t_last, 0) * NS
-        x, P = predict(x, P, self.model.F(dt), self.model.Q(dt))
-        psi = self.chain.existence(self.chain.predict(self.exist, dt))
-        return x, P, psi
 
     _ARRAYS = (
         "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
@@ -507,14 +550,15 @@ class Tracker:
         stats: dict[str, int],
     ) -> TrackerOutput:
         t_batch = int(b.time_ns)
-        x, P, psi = self._predict_out(t_batch)
+        x, P = self.estimates()
+        snapshot = OutputPrediction(
+            t_batch, x, P, self.t_last.copy(), self.exist.copy(), self.model, self.chain
+        )
         return TrackerOutput(
             time_ns=t_batch,
             radar_id=b.radar_id,
             ids=self.ids.copy(),
-            states=x,
-            covariances=P,
-            existence=psi,
+            prediction=snapshot,
             confirmed=self.confirmed.copy(),
             updates=self.updates.copy(),
             radar_mask=self.radar_mask.copy(),

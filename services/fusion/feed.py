@@ -69,10 +69,13 @@ class TrackTable:
 
     @classmethod
     def from_output(cls, out: TrackerOutput, rows: np.ndarray) -> TrackTable:
+        """The rows ``rows`` of a tracker output, predicted to its time (only those rows:
+        ``TrackerOutput.predicted``)."""
+        x, P, psi = out.predicted(rows)
         return cls(
             out.ids[rows], np.full(len(rows), out.time_ns, np.int64), out.last_update_ns[rows],
-            out.confirmed[rows], np.clip(out.existence[rows], 0.0, 1.0), out.updates[rows],
-            out.radar_mask[rows], out.states[rows], out.covariances[rows],
+            out.confirmed[rows], np.clip(psi, 0.0, 1.0), out.updates[rows],
+            out.radar_mask[rows], x, P,
         )  # fmt: skip
 
     def __len__(self) -> int:
@@ -235,14 +238,15 @@ class FeedBuilder:
         _, last = np.unique(table.ids[::-1], return_index=True)
         table = table.take(np.sort(len(table) - 1 - last))
         final = self._known[0]
-        table = table.take(np.flatnonzero(np.isin(table.ids, final)))
+        table = table.take(np.flatnonzero(_member(final, table.ids)))
         table, bad = self._checked(table.with_geodetic(self.frame, self.ndim))
         if len(bad):  # not publishable now: out of the picture until it changes again
-            keep = ~np.isin(self._known[0], bad)
+            keep = ~_member(bad, self._known[0])
             self._known = tuple(a[keep] for a in self._known)
             final = self._known[0]
-        removed = self.picture.ids[~np.isin(self.picture.ids, final)]
-        keep = ~np.isin(self.picture.ids, np.union1d(removed, table.ids))
+        alive = _member(final, self.picture.ids)
+        removed = self.picture.ids[~alive]
+        keep = alive & ~_member(table.ids, self.picture.ids)
         picture = TrackTable.concat([self.picture.take(np.flatnonzero(keep)), table])
         with self._lock:  # the snapshot is read from another thread
             self.picture, self._pic_last = picture, self._last
@@ -300,11 +304,28 @@ class FeedBuilder:
         return FeedMessage(header, table, removed.astype(np.int64), out.radar_names, self.ndim)
 
 
+def _sorting(keys: np.ndarray) -> np.ndarray | None:
+    """The order that sorts ``keys``, or None when they are already strictly increasing
+    (the tracker's ids are: new tracks get larger ids and removals keep the order)."""
+    if len(keys) < 2 or bool((keys[1:] > keys[:-1]).all()):
+        return None
+    return np.argsort(keys, kind="stable")
+
+
+def _member(keys: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Whether each of ``ids`` is in ``keys`` (binary search; ``np.isin`` without
+    sorting the concatenation of both every cycle)."""
+    return _lookup(keys, ids)[1]
+
+
 def _lookup(keys: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Index into ``keys`` of each of ``ids`` and whether it is there (binary search)."""
     if not len(keys):
         return np.zeros(len(ids), np.int64), np.zeros(len(ids), bool)
-    order = np.argsort(keys, kind="stable")
+    order = _sorting(keys)
+    if order is None:
+        pos = np.minimum(np.searchsorted(keys, ids), len(keys) - 1)
+        return pos, keys[pos] == ids
     pos = np.minimum(np.searchsorted(keys[order], ids), len(keys) - 1)
     idx = order[pos]
     return idx, keys[idx] == ids

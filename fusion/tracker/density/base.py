@@ -30,9 +30,19 @@ with Singer N-scan memory; one Gaussian = IPDA) and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from skyfuse.fusion.association.gating import gate_probability
+
+
+@lru_cache(maxsize=32)
+def gate_probability_of(g: float, k: int) -> float:
+    """P_G = P(χ²_k ≤ g) (4.17) for the gate threshold ``g`` in ``k`` dimensions,
+    computed once per (g, k): every batch gates with the same threshold, and the χ²
+    cdf costs more than the rest of a small batch's table."""
+    return float(gate_probability(g, k))
 
 
 @dataclass

@@ -20,13 +20,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from skyfuse.fusion.association.gating import GatedPairs, gate, gate_probability
+from skyfuse.fusion.association.gating import GatedPairs, gate
 from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.filters.moment_matching import moment_match
 
 from .. import components as comp
 from ..its import component_update
-from .base import GatedTable, Prediction
+from .base import GatedTable, Prediction, gate_probability_of
 
 
 class MixturePrediction(Prediction):
@@ -146,7 +146,7 @@ class GaussianMixtureDensity:
         uid = self._next_uid + np.arange(m, dtype=np.int64)
         self._next_uid += m
         pairs = gate(pred.y, pred.HPH, z, R, g)
-        p_pair = np.exp(pairs.log_pdf) / gate_probability(g, z.shape[1])
+        p_pair = np.exp(pairs.log_pdf) / gate_probability_of(float(g), z.shape[1])
         tp_track, tp_plot, p_track, row = track_table(
             pred.loc, pairs.state, pairs.plot, pred.mix.w, p_pair, m
         )
@@ -174,7 +174,7 @@ class GaussianMixtureDensity:
         inside = np.zeros(len(self), bool)
         inside[pred.rows] = True
         others = np.flatnonzero(~inside[self.mix.track])
-        self.mix = comp.Mixture.concat([self.mix.take(others), kept])
+        self.mix = self.mix.replace_tracks(others, kept)
         self.stats = {
             "gated_pairs": len(table.pairs),  # (component, plot) pairs
             "components_merged": len(merged),

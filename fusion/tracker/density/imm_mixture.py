@@ -34,7 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from skyfuse.fusion.association.gating import gate, gate_probability
+from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
@@ -42,8 +42,8 @@ from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_ro
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
-from ..components import history_groups, prune_indices
-from .base import GatedTable
+from ..components import history_groups, prune_indices, take_concat
+from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 
 
@@ -102,6 +102,17 @@ class IMMComponents:
             self.mu[idx],
             [a[idx] for a in self.x],
             [a[idx] for a in self.P],
+        )
+
+    def replace_tracks(self, others: np.ndarray, new: IMMComponents) -> IMMComponents:
+        """The components ``others`` followed by ``new``, one copy of the kept ones."""
+        r = len(self.x)
+        return IMMComponents(
+            *(take_concat(getattr(self, k), others, getattr(new, k)) for k in ("track", "w")),
+            take_concat(self.hist, others, new.hist),
+            take_concat(self.mu, others, new.mu),
+            [take_concat(self.x[j], others, new.x[j]) for j in range(r)],
+            [take_concat(self.P[j], others, new.P[j]) for j in range(r)],
         )
 
     @staticmethod
@@ -306,7 +317,7 @@ class IMMMixtureDensity:
         S = 0.5 * (S + np.swapaxes(S, -1, -2))
         log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
         mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
-        p_pair = mix / gate_probability(g, k)
+        p_pair = mix / gate_probability_of(float(g), k)
         tp_track, tp_plot, p_track, row = track_table(pred.loc, pc, pp, pred.comp.w, p_pair, m)
         return IMMTable(tp_track, tp_plot, p_track, pc, pp, nu, S, log_n, p_pair, row, R, uid)
 
@@ -368,8 +379,7 @@ class IMMMixtureDensity:
         kept.w = w
         inside = np.zeros(len(self), bool)
         inside[pred.rows] = True
-        others = self.comp.take(np.flatnonzero(~inside[self.comp.track]))
-        self.comp = IMMComponents.concat([others, kept])
+        self.comp = self.comp.replace_tracks(np.flatnonzero(~inside[self.comp.track]), kept)
         self.stats = {
             "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
             "components_merged": len(merged),
