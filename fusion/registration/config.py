@@ -53,6 +53,12 @@ class RegistrationConfig(BaseModel):
     q: float = Field(25.0, ge=0, description="Target acceleration variance, m²/s⁴ (pairing)")
     p_gate: float = Field(0.999, gt=0.5, lt=1.0, description="Residual gate probability")
     confirmed_only: bool = Field(True, description="Use only confirmed tracks")
+    apply_sigma: float = Field(
+        3.0,
+        ge=0,
+        description="Correct a component only once its estimate exceeds this many σ of its "
+        "own uncertainty (0: correct by every estimate); an unbiased radar is left alone",
+    )
     capacity: int = Field(20_000, ge=16, description="Bound on stored plots awaiting a pair")
 
     @field_validator("components")

@@ -88,7 +88,12 @@ class RegistrationEstimator:
         """The correction to pass to ``convert_plots(bias=…)``; None when ``off``."""
         if self.mode is RegistrationMode.OFF:
             return None
-        return SensorBias.from_vector(self.filter.bias(self.radar_index(radar_id)))
+        i = self.radar_index(radar_id)
+        b = self.filter.bias(i)
+        # a component statistically indistinguishable from 0 is not applied: the noise
+        # of an early or unobservable estimate (e.g. a time offset) must not move plots
+        significant = np.abs(b) > self.cfg.apply_sigma * self.filter.sigma(i)
+        return SensorBias.from_vector(np.where(significant, b, 0.0))
 
     def observe_plots(
         self,

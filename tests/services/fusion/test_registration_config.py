@@ -45,7 +45,7 @@ def _batch(t_end: int) -> MeasurementBatch:
 
 
 def test_link_correction_and_time_shift():
-    link = RegistrationLink(RegistrationConfig(reference=["A"]))
+    link = RegistrationLink(RegistrationConfig(reference=["A"], apply_sigma=0.0))
     a, b = make_site("A", 45.0, 20.0), make_site("B", 45.5, 20.5)
     assert link.correction(a) is None and link.correction(b) is None  # estimates are 0
     # give B an estimate as the filter would hold it (state in units of the prior σ)
@@ -67,3 +67,17 @@ def test_link_correction_and_time_shift():
     assert link.correction(b) is None
     link.estimator.set_mode("frozen")
     assert link.correction(b) == corr
+
+
+def test_link_applies_only_significant_components():
+    """Default apply_sigma = 3: a component within 3σ of 0 is not applied (the prior σ is
+    the filter's σ here, state in units of it), one beyond 3σ is."""
+    link = RegistrationLink(RegistrationConfig(reference=["A"]))
+    a, b = make_site("A", 45.0, 20.0), make_site("B", 45.5, 20.5)
+    assert link.correction(a) is None and link.correction(b) is None  # both registered
+    f = link.estimator.filter
+    i = link.estimator.radar_ids.index("B")
+    f.s[4 * i : 4 * i + 4] = np.array([3.5, 0.5, 0.0, 2.9])
+    corr = link.correction(b)
+    assert math.isclose(corr.azimuth, 3.5 * math.radians(0.5))
+    assert corr.range == 0.0 and corr.time == 0.0
