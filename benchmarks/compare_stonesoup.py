@@ -12,7 +12,7 @@ Both trackers consume the SAME plots, generated once by skyfuse's simulator
   area 100× smaller, i.e. 100× the clutter density of ``cartesian``;
 * ``manoeuvring``: the motion model matters. Targets at 150-250 m/s in a 60 km × 60 km
   plane seen by the cartesian sensor; each flies straight 8-15 s, turns by 60-120° at
-  2-4 g, flies straight 8-15 s, turns back by 60-120° at 2-4 g and flies straight to the
+  2-3 g, flies straight 8-15 s, turns back by 60-120° at 2-3 g and flies straight to the
   end. skyfuse runs its IMM (``motion = imm-cv-ct``, the service default) and, as a
   reference, CV; Stone Soup 1.9.1 has no IMM, so it runs its best comparable model, a
   Singer KF (``Singer`` per axis, τ = ``--ss-singer-tau``, σ_m = ``--ss-singer-sigma-m``:
@@ -150,8 +150,9 @@ def _crossing_traffic(rng: np.random.Generator, n: int, side: float, duration: f
 
 def _manoeuvring_traffic(rng: np.random.Generator, n: int, side: float, duration: float):
     """n targets (150-250 m/s, random headings, starting in the central fifth of the
-    square): straight 8-15 s, a 60-120° turn at 2-4 g, straight 8-15 s, a 60-120° turn the
-    other way at 2-4 g, straight to the end."""
+    square): straight 8-15 s, a 60-120° turn at 2-3 g, straight 8-15 s, a 60-120° turn the
+    other way at 2-3 g, straight to the end (the civil-aircraft turns the IMM defaults are
+    tuned for, issue 11)."""
     builders = []
     for _ in range(n):
         p = rng.uniform(0.4 * side, 0.6 * side, 2)
@@ -161,7 +162,7 @@ def _manoeuvring_traffic(rng: np.random.Generator, n: int, side: float, duration
         sign = rng.choice([-1.0, 1.0])
         for turn in (sign, -sign):
             b.straight(rng.uniform(8.0, 15.0))
-            b.turn_by(turn * np.radians(rng.uniform(60.0, 120.0)), rng.uniform(2.0, 4.0))
+            b.turn_by(turn * np.radians(rng.uniform(60.0, 120.0)), rng.uniform(2.0, 3.0))
         b.straight(duration + 1.0)
         builders.append(b)
     return TargetSet.from_builders(builders)
@@ -515,6 +516,7 @@ PAIRINGS = {
     "manoeuvring": [("gnn:imm-cv-ct", "gnn", "IMM-GNN vs GNN + Singer KF"),
                     ("jipda:imm-cv-ct", "jpda", "IMM-JIPDA vs JPDA + Singer KF"),
                     ("lmits:imm-cv-ct", "jpda", "IMM-LM-ITS N=3 vs JPDA + Singer KF"),
+                    ("jipda:imm-cv-singer", "jpda", "IMM-JIPDA (CV+Singer) vs JPDA + Singer KF"),
                     ("lmits", "jpda", "LM-ITS N=3 CV vs JPDA + Singer KF")],
     "polar": [("gnn", "gnn", "GNN + EKF (polar)"), ("jipda", "gnn", "JIPDA vs GNN + EKF"),
               ("lmits", "gnn", "LM-ITS N=3 vs GNN + EKF")],
