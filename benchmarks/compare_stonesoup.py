@@ -10,6 +10,13 @@ Both trackers consume the SAME plots, generated once by skyfuse's simulator
   cross at mid-run at 20-60°, passing within 0-150 m of each other, in a 20 km × 20 km
   plane seen by the cartesian sensor. The same ``--clutter`` plots per scan fall on an
   area 100× smaller, i.e. 100× the clutter density of ``cartesian``;
+* ``manoeuvring``: the motion model matters. Targets at 150-250 m/s in a 60 km × 60 km
+  plane seen by the cartesian sensor; each flies straight 8-15 s, turns by 60-120° at
+  2-3 g, flies straight 8-15 s, turns back by 60-120° at 2-3 g and flies straight to the
+  end. skyfuse runs its IMM (``motion = imm-cv-ct``, the service default) and, as a
+  reference, CV; Stone Soup 1.9.1 has no IMM, so it runs its best comparable model, a
+  Singer KF (``Singer`` per axis, τ = ``--ss-singer-tau``, σ_m = ``--ss-singer-sigma-m``:
+  q = 2σ_m²/τ);
 * ``polar``: the same kind of traffic seen by one rotating 2d radar at the plane origin
   (σ_r = 30 m, σ_θ = 1.5 mrad, P_D = 0.9, T = 4 s, 150 km) with uniform clutter over its
   disc; every plot carries its own beam-crossing time.
@@ -99,7 +106,8 @@ class Setup:
     q: float
     gospa_c: float
     scenario: Scenario = field(repr=False)
-    case: str = ""  # the benchmark case: cartesian | crossing | polar
+    case: str = ""  # the benchmark case: cartesian | crossing | manoeuvring | polar
+    ss_singer: tuple[float, float] = (10.0, 20.0)  # manoeuvring: Stone Soup's (τ s, σ_m m/s²)
 
     def __post_init__(self) -> None:
         self.case = self.case or self.kind
@@ -140,20 +148,43 @@ def _crossing_traffic(rng: np.random.Generator, n: int, side: float, duration: f
     return TargetSet.from_builders(builders)
 
 
+def _manoeuvring_traffic(rng: np.random.Generator, n: int, side: float, duration: float):
+    """n targets (150-250 m/s, random headings, starting in the central fifth of the
+    square): straight 8-15 s, a 60-120° turn at 2-3 g, straight 8-15 s, a 60-120° turn the
+    other way at 2-3 g, straight to the end (the civil-aircraft turns the IMM defaults are
+    tuned for, issue 11)."""
+    builders = []
+    for _ in range(n):
+        p = rng.uniform(0.4 * side, 0.6 * side, 2)
+        head = rng.uniform(0.0, 2.0 * np.pi)
+        v = rng.uniform(150.0, 250.0) * np.array([np.sin(head), np.cos(head)])
+        b = TrajectoryBuilder(0.0, (p[0], p[1], 0.0), (v[0], v[1], 0.0))
+        sign = rng.choice([-1.0, 1.0])
+        for turn in (sign, -sign):
+            b.straight(rng.uniform(8.0, 15.0))
+            b.turn_by(turn * np.radians(rng.uniform(60.0, 120.0)), rng.uniform(2.0, 3.0))
+        b.straight(duration + 1.0)
+        builders.append(b)
+    return TargetSet.from_builders(builders)
+
+
 def build_setup(kind: str, n_targets: int, clutter: float, scans: int, seed: int) -> Setup:
-    """The cartesian, crossing or polar benchmark scenario (see the module docstring)."""
+    """The cartesian, crossing, manoeuvring or polar benchmark scenario (see the module
+    docstring)."""
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7, n_targets)))
     frame = FrameSpec(kind=FrameKind.PLANAR, lat0=LAT0, lon0=LON0)
     plane = Stereographic(LAT0, LON0)
     case = kind
-    if kind in ("cartesian", "crossing"):
+    if kind in ("cartesian", "crossing", "manoeuvring"):
         period, sigma, q, c = 1.0, 25.0, 1.0, 250.0
-        side = 200_000.0 if kind == "cartesian" else 20_000.0
+        side = {"cartesian": 200_000.0, "crossing": 20_000.0, "manoeuvring": 60_000.0}[kind]
         duration = scans * period
         if kind == "cartesian":
             targets = _traffic(rng, n_targets, side / 2, 0.35 * side, duration)
-        else:
+        elif kind == "crossing":
             targets = _crossing_traffic(rng, n_targets, side, duration)
+        else:
+            targets = _manoeuvring_traffic(rng, n_targets, side, duration)
         kind = "cartesian"
         site = RadarSite(
             radar_id="sensor", name="cartesian sensor", lat=LAT0, lon=LON0, alt=0.0,
@@ -187,9 +218,11 @@ def build_setup(kind: str, n_targets: int, clutter: float, scans: int, seed: int
         sensors = [SensorConfig(site=site, phase=0.0, clutter_max_altitude=0.0)]
         sig = (sr, sa)
     else:
-        raise ValueError(f"kind = {kind!r}: must be 'cartesian', 'crossing' or 'polar'")
+        raise ValueError(
+            f"kind = {kind!r}: must be 'cartesian', 'crossing', 'manoeuvring' or 'polar'"
+        )
     scenario = Scenario(
-        name=f"bench-{kind}", description=f"{n_targets} straight targets, {kind} plots",
+        name=f"bench-{case}", description=f"{n_targets} {case} targets, {kind} plots",
         sites=[site], frame=frame, duration=duration, start_time=DEFAULT_START_TIME,
         n_targets=n_targets, params={"targets": n_targets, "clutter": clutter},
         targets=targets, sensors=sensors, plane=plane, truth_period=period, seed=seed,
@@ -256,15 +289,17 @@ def prepare(setup: Setup, ss: dict, time_bin: float = 0.0) -> list[ScanInput]:
 
 # ------------------------------------------------------------------------------ skyfuse
 def skyfuse_config(setup: Setup, kind: str) -> TrackerConfig:
-    """skyfuse settings: the defaults, with the benchmark's noise and scan period.
+    """skyfuse settings: the defaults, with the benchmark's noise and scan period;
+    ``kind`` is a tracker kind or ``KIND:MOTION`` (default motion here: cv).
 
     skyfuse's CV model is the discrete white-noise acceleration one, Q = q [[T⁴/4, T³/2],
     [T³/2, T²]]; Stone Soup's the continuous one, Q = q [[T³/3, T²/2], [T²/2, T]]. skyfuse
     gets q/T so that both have the same velocity variance per scan (identical at T = 1 s;
     at T = 4 s the same q would give skyfuse 4× Stone Soup's process noise)."""
+    tracker, _, motion = kind.partition(":")
     return TrackerConfig(
-        tracker=kind,
-        motion="cv",
+        tracker=tracker,
+        motion=motion or "cv",
         depth=3,
         q=setup.q / setup.period,
         p_gate=GATE_P,
@@ -299,6 +334,8 @@ def stonesoup_models(setup: Setup) -> dict:
         ConstantVelocity,
     )
 
+    if setup.case == "manoeuvring":
+        return _stonesoup_singer_models(setup)
     trans = CombinedLinearGaussianTransitionModel(
         [ConstantVelocity(setup.q), ConstantVelocity(setup.q)]
     )
@@ -310,7 +347,32 @@ def stonesoup_models(setup: Setup) -> dict:
         mm = CartesianToBearingRange(
             ndim_state=4, mapping=(0, 2), noise_covar=np.diag([sa**2, sr**2])
         )
-    return {"transition_model": trans, "measurement_model": mm}
+    return {
+        "transition_model": trans,
+        "measurement_model": mm,
+        "state_index": (0, 1, 2, 3),
+        "prior_var": (1e8, 150.0**2, 1e8, 150.0**2),
+    }
+
+
+def _stonesoup_singer_models(setup: Setup) -> dict:
+    """Stone Soup's Singer KF per axis, state [x, vx, ax, y, vy, ay]: damping 1/τ and
+    noise diffusion q = 2σ_m²/τ, so that the stationary acceleration variance q/(2/τ) is
+    σ_m² (Singer 1970)."""
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, Singer
+
+    tau, sigma_m = setup.ss_singer
+    axis = Singer(noise_diff_coeff=2.0 * sigma_m**2 / tau, damping_coeff=1.0 / tau)
+    s = setup.sigma[0]
+    return {
+        "transition_model": CombinedLinearGaussianTransitionModel([axis, axis]),
+        "measurement_model": LinearGaussian(
+            ndim_state=6, mapping=(0, 3), noise_covar=np.diag([s**2, s**2])
+        ),
+        "state_index": (0, 1, 3, 4),
+        "prior_var": (1e8, 150.0**2, sigma_m**2, 1e8, 150.0**2, sigma_m**2),
+    }
 
 
 class _Detections:
@@ -342,7 +404,8 @@ def stonesoup_tracker(setup: Setup, ss: dict, kind: str, scans: list[ScanInput])
     updater = (KalmanUpdater if setup.kind == "cartesian" else ExtendedKalmanUpdater)(mm)
     # prior: position from the first plot (large variance so the plot takes over),
     # speed unknown up to ~300 m/s
-    prior = GaussianState(np.zeros((4, 1)), np.diag([1e8, 150.0**2, 1e8, 150.0**2]))
+    prior_var = ss["prior_var"]
+    prior = GaussianState(np.zeros((len(prior_var), 1)), np.diag(prior_var))
     init_hyp = DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=GATE_D)
     initiator = MultiMeasurementInitiator(
         prior_state=prior,
@@ -389,6 +452,7 @@ def run_stonesoup(
     """Per-scan ms and per-scan (n, 4) track states predicted to the scan end."""
     tracker = stonesoup_tracker(setup, ss, kind, scans)
     F = ss["transition_model"]
+    index = list(ss["state_index"])  # → [x, vx, y, vy]
     it = iter(tracker)
     ms, est = [], []
     for s in scans:
@@ -401,7 +465,8 @@ def run_stonesoup(
             st = tr.state
             lag = (t_end - st.timestamp).total_seconds()
             x = np.asarray(st.state_vector, dtype=float).ravel()
-            rows.append(F.matrix(time_interval=dt.timedelta(seconds=lag)) @ x if lag else x)
+            x = F.matrix(time_interval=dt.timedelta(seconds=lag)) @ x if lag else x
+            rows.append(x[index])
         est.append(np.array(rows).reshape(-1, 4))
     return ms, est
 
@@ -448,6 +513,11 @@ PAIRINGS = {
                   ("lmits", "jpda", "LM-ITS N=3 vs JPDA + KF")],
     "crossing": [("gnn", "gnn", "GNN + KF"), ("jipda", "jpda", "JIPDA vs JPDA + KF"),
                  ("lmits", "jpda", "LM-ITS N=3 vs JPDA + KF")],
+    "manoeuvring": [("gnn:imm-cv-ct", "gnn", "IMM-GNN vs GNN + Singer KF"),
+                    ("jipda:imm-cv-ct", "jpda", "IMM-JIPDA vs JPDA + Singer KF"),
+                    ("lmits:imm-cv-ct", "jpda", "IMM-LM-ITS N=3 vs JPDA + Singer KF"),
+                    ("jipda:imm-cv-singer", "jpda", "IMM-JIPDA (CV+Singer) vs JPDA + Singer KF"),
+                    ("lmits", "jpda", "LM-ITS N=3 CV vs JPDA + Singer KF")],
     "polar": [("gnn", "gnn", "GNN + EKF (polar)"), ("jipda", "gnn", "JIPDA vs GNN + EKF"),
               ("lmits", "gnn", "LM-ITS N=3 vs GNN + EKF")],
 }  # fmt: skip
@@ -531,10 +601,13 @@ def markdown_table(paths: list[Path]) -> str:
     for path in paths:
         for c in json.loads(Path(path).read_text())["cases"]:
             sf, ss = c["skyfuse"], c["stonesoup"]
-            ss_name = names[ss["tracker"]] + (" EKF" if c["scenario"] == "polar" else " KF")
+            model = {"polar": " EKF", "manoeuvring": " Singer KF"}.get(c["scenario"], " KF")
+            ss_name = names[ss["tracker"]] + model
+            sf_kind, _, motion = sf["tracker"].partition(":")
             lines.append(
                 f"| {c['scenario']} | {c['targets']} | {c['plots_per_scan']:.0f} "
-                f"| {names[sf['tracker']]} | {ss_name} | {sf['ms_per_scan']:.1f} "
+                f"| {names[sf_kind]}{' ' + motion if motion else ''} | {ss_name} "
+                f"| {sf['ms_per_scan']:.1f} "
                 f"| {ss['ms_per_scan']:.0f} | ×{c['speedup']:.0f} | {g(sf)} | {g(ss)} |"
             )
     return "\n".join(lines)
@@ -586,7 +659,16 @@ def main(argv: list[str] | None = None) -> int:
         "--scenarios",
         nargs="+",
         default=["cartesian", "polar"],
-        choices=["cartesian", "crossing", "polar"],
+        choices=["cartesian", "crossing", "manoeuvring", "polar"],
+    )
+    ap.add_argument(
+        "--ss-singer-tau", type=float, default=10.0, help="manoeuvring: Stone Soup Singer τ, s"
+    )
+    ap.add_argument(
+        "--ss-singer-sigma-m",
+        type=float,
+        default=20.0,
+        help="manoeuvring: Stone Soup Singer σ_m, m/s² (default 20)",
     )
     ap.add_argument("--repeats", type=int, default=3, help="skyfuse repetitions (median)")
     ap.add_argument(
@@ -632,6 +714,9 @@ def main(argv: list[str] | None = None) -> int:
                 "gate_probability": GATE_P,
                 "clutter_per_scan": args.clutter,
                 "stonesoup_polar_time_bin_s": args.ss_time_bin,
+                "manoeuvring": "skyfuse KIND:imm-cv-ct (TrackerConfig IMM defaults) and lmits "
+                "cv; Stone Soup Singer KF per axis, tau = "
+                f"{args.ss_singer_tau} s, sigma_m = {args.ss_singer_sigma_m} m/s^2",
                 "process_noise": "Stone Soup ConstantVelocity(q = 1) per axis; skyfuse "
                 "q = 1/T (same velocity variance per scan)",
                 "gospa": "Stone Soup GOSPAMetric, p = 1, alpha = 2, c = 250 m (cartesian), "
@@ -653,6 +738,7 @@ def main(argv: list[str] | None = None) -> int:
         for n in args.targets:
             clutter = float(args.clutter)
             setup = build_setup(kind, n, clutter, args.scans, args.seed)
+            setup.ss_singer = (args.ss_singer_tau, args.ss_singer_sigma_m)
             ss_rep = args.ss_repeats
             if ss_rep is None:
                 # Stone Soup costs ≈20 ms per target per scan on cartesian plots and

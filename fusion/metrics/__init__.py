@@ -10,4 +10,6 @@ positions, covariances and labels per scan.
 * ``mtt_measures``: CTT rate, cumulative confirmed false tracks, RMSE of confirmed true tracks.
 * ``retention``: the retention table (spec 03 §4, thesis §7.2.1).
 * ``label_metrics``: measures for recordings whose truth is only plot labels (Mode-S).
+* ``turn_phase``: truth samples in a turn or in straight flight (turn rate from velocities),
+  RMSE per phase.
 """

@@ -10,7 +10,9 @@
   Svensson, "Generalized optimal sub-pattern assignment metric", FUSION 2017: order p,
   cut-off c, α = 2, with the track-switch term of García-Fernández et al. 2020), the share
   of target samples with a confirmed track within c (truth coverage) and the RMSE of
-  those tracks' positions.
+  those tracks' positions, also split into truth samples in a turn and in straight flight
+  (``position_rmse_by_phase``: turn rate from consecutive truth velocities,
+  :mod:`skyfuse.fusion.metrics.turn_phase`).
 * :class:`LabelObserver` — per-plot rows (time, label, track, confirmed) scored by
   :func:`skyfuse.fusion.metrics.label_metrics.label_metrics`: completeness, track-id
   changes per aircraft, confirmed false tracks per hour, time to confirm. The label is
@@ -101,6 +103,8 @@ class TruthObserver(Observer):
         self.samples: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         self.truth_ids: set[int] = set()
         self.has_truth = False
+        self._last_vel: dict[int, tuple[int, float, float]] = {}
+        self.turning: list[np.ndarray] = []
 
     def start(self, frame) -> None:
         self.frame = frame
@@ -145,6 +149,23 @@ class TruthObserver(Observer):
             dtype=bool,
         )[keep]
         self.samples.append((ids[keep], pos, trk_ids, est, settled))
+        self.turning.append(self._turn_flags(truth)[keep])
+
+    def _turn_flags(self, truth: Truth) -> np.ndarray:
+        """(n,) bool: each truth target turns at ≥ 0.5 °/s since its previous truth sample
+        (:mod:`skyfuse.fusion.metrics.turn_phase`)."""
+        from skyfuse.fusion.metrics.turn_phase import in_turn, turn_rate
+
+        n = len(truth.target_id)
+        if not n or len(truth.vel_east) != n:
+            return np.zeros(n, dtype=bool)
+        prev = [self._last_vel.get(int(i), (truth.time, 0.0, 0.0)) for i in truth.target_id]
+        v_prev = np.array([p[1:] for p in prev], dtype=float).reshape(n, 2)
+        dt = (truth.time - np.array([p[0] for p in prev], dtype=np.int64)) * 1e-9
+        v = np.column_stack([truth.vel_east, truth.vel_north])
+        for i, ve, vn in zip(truth.target_id, truth.vel_east, truth.vel_north):
+            self._last_vel[int(i)] = (truth.time, float(ve), float(vn))
+        return in_turn(turn_rate(v_prev, v, dt))
 
     def summary(self) -> dict:
         if not self.has_truth:
@@ -162,13 +183,16 @@ class TruthObserver(Observer):
         g = gospa_over_time(
             t_ids, t_pos, e_ids, e_pos, c=self.c, p=self.p, switch_penalty=self.switch_penalty
         )
+        from skyfuse.fusion.metrics.turn_phase import phase_rmse
+
         hit = [a >= 0 for a in g.assigned_track]
-        sq = []
+        sq, turn = [], []
         for k, h in enumerate(hit):
             if h.any():
                 row = {int(i): j for j, i in enumerate(e_ids[k].tolist())}
                 j = [row[int(i)] for i in g.assigned_track[k][h]]
                 sq.append(((t_pos[k][h] - e_pos[k][j]) ** 2).sum(1))
+                turn.append(self.turning[k][h])
         n = sum(len(h) for h in hit)
         n_settled = sum(int(s.sum()) for s in settled)
         confirmed = {int(i) for k, h in enumerate(hit) for i in t_ids[k][h].tolist()}
@@ -183,6 +207,9 @@ class TruthObserver(Observer):
             if n_settled
             else None,
             "position_rmse_m": json_number(np.sqrt(np.mean(np.concatenate(sq))), 1) if sq else None,
+            "position_rmse_by_phase": phase_rmse(np.concatenate(sq), np.concatenate(turn))
+            if sq
+            else None,
             "targets_confirmed": len(confirmed & self.coverage.detectable()),
             "gospa": {
                 "c_m": self.c,
