@@ -222,33 +222,40 @@ class VariantRunner:
             trk.delete_tracks(trk.ids)
         trk.buffer = PlotBuffer.empty(trk.k)
         self.next_run = run + 1
-        nrow = sum(len(a) for a in rows["id"])
-        ng = sum(len(a) for a in g_rows["id"])
-        m = np.array(merged, dtype=np.int64).reshape(-1, 2)
-        return RunBlock(
-            tracks=TrackHistory(
-                run=np.full(nrow, run, np.int64),
-                scan=np.concatenate(rows["scan"]),
-                track_id=np.concatenate(rows["id"]).astype(np.int64),
-                confirmed=np.concatenate(rows["conf"]).astype(bool),
-                label=np.concatenate(rows["label"]),
-                position=np.concatenate(rows["pos"]).reshape(nrow, 2),
-                existence=np.concatenate(rows["psi"]),
-            ),
-            truth=TruthHistory(
-                run=np.full(ng, run, np.int64),
-                scan=np.concatenate(g_rows["scan"]),
-                target_id=np.concatenate(g_rows["id"]),
-                position=np.concatenate(g_rows["pos"]).reshape(ng, 2),
-            ),
-            merged_run=np.full(len(m), run, np.int64),
-            merged_track_id=m[:, 0],
-            merged_scan=m[:, 1],
-            cpu_s=cpu,
-            runs=np.array([run], np.int64),
-            carried=np.array([carried], np.int64),
-        )
+        return _run_block(run, rows, g_rows, merged, cpu, carried)
 
     def run_many(self, runs: range | list[int]) -> RunBlock:
         """Runs in order, as one block."""
         return RunBlock.concat([self.run(r) for r in runs])
+
+
+def _run_block(
+    run: int, rows: dict, g_rows: dict, merged: list, cpu: float, carried: int
+) -> RunBlock:
+    """The histories of one run (per-scan arrays of :meth:`VariantRunner.run`) as a block."""
+    nrow = sum(len(a) for a in rows["id"])
+    ng = sum(len(a) for a in g_rows["id"])
+    m = np.array(merged, dtype=np.int64).reshape(-1, 2)
+    return RunBlock(
+        tracks=TrackHistory(
+            run=np.full(nrow, run, np.int64),
+            scan=np.concatenate(rows["scan"]),
+            track_id=np.concatenate(rows["id"]).astype(np.int64),
+            confirmed=np.concatenate(rows["conf"]).astype(bool),
+            label=np.concatenate(rows["label"]),
+            position=np.concatenate(rows["pos"]).reshape(nrow, 2),
+            existence=np.concatenate(rows["psi"]),
+        ),
+        truth=TruthHistory(
+            run=np.full(ng, run, np.int64),
+            scan=np.concatenate(g_rows["scan"]),
+            target_id=np.concatenate(g_rows["id"]),
+            position=np.concatenate(g_rows["pos"]).reshape(ng, 2),
+        ),
+        merged_run=np.full(len(m), run, np.int64),
+        merged_track_id=m[:, 0],
+        merged_scan=m[:, 1],
+        cpu_s=cpu,
+        runs=np.array([run], np.int64),
+        carried=np.array([carried], np.int64),
+    )
