@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, keys
 from skyfuse.services.recording.mcap_io import RecordingWriter
-from skyfuse.services.runtime.transport import TransportConfig
+from skyfuse.services.runtime.transport import TransportConfig, TransportError, open_session
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root."""
@@ -141,3 +141,16 @@ BIASED_REGIONAL = (
 )  # fmt: skip
 """``skyfuse simulate`` arguments of a small regional recording, three radars (LYBE,
 LYVR, LRTR) of which two biased, for the registration tests (``simulated_recording``)."""
+
+
+def wait_for_router(cfg: TransportConfig, timeout: float = 30.0) -> None:
+    """Until a client session to the router opens (the router process is starting)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with open_session(cfg):
+                return
+        except TransportError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)

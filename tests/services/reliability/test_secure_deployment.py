@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from service_support import wait_for_router
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, Status, TrackBatch, keys
 from skyfuse.services.runtime import security
 from skyfuse.services.runtime.transport import (
@@ -87,19 +88,6 @@ def tracks_snapshot(certs: Path, cn: str, ep: str, where: str = "ok"):
            "--json", "--mode", "client", "--connect", ep, "--tls-root-ca", str(certs / "ok/ca.pem"),
            "--tls-cert", str(d / f"{cn}.pem"), "--tls-key", str(d / f"{cn}.key")]  # fmt: skip
     return subprocess.run(cmd, capture_output=True, timeout=60)
-
-
-def wait_for_router(cfg: TransportConfig, timeout: float = 30.0) -> None:
-    """Until a client session to the router opens (the router process is starting)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with open_session(cfg):
-                return
-        except TransportError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.2)
 
 
 def hostile_sessions(certs: Path, ep: str):

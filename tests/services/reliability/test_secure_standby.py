@@ -12,12 +12,12 @@ import json
 import time
 
 import pytest
+from service_support import wait_for_router
 from skyfuse.schemas import Status, keys
 from skyfuse.services.runtime import security
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportConfig,
-    TransportError,
     free_port,
     open_session,
 )
@@ -30,18 +30,6 @@ def viewer(d, ep: str) -> TransportConfig:
         mode="client", connect=[ep], tls_root_ca=d / "ca.pem",
         tls_cert=d / "client-viewer.pem", tls_key=d / "client-viewer.key",
     )  # fmt: skip
-
-
-def wait_for_router(cfg: TransportConfig, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with open_session(cfg):
-                return
-        except TransportError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.2)
 
 
 def statuses(inbox: Inbox, seconds: float) -> list[Status]:
