@@ -75,6 +75,8 @@ def test_kill_9_leaves_a_readable_file_and_a_restart_does_not_overwrite(tmp_path
         assert seqs == list(range(200))  # nothing lost before the last flush
         digest = hashlib.sha256(out.read_bytes()).hexdigest()
 
+        time.sleep(0.3)
+        status.drain()  # the killed recorder's last Status must not count for the new one
         rec2 = start_skyfuse(*args, log="rec2")
         assert wait_for_tokens(s, [service_alive_key("recorder")], 20.0) == []
         for k in range(200, 250):
