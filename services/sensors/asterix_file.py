@@ -76,14 +76,8 @@ class AsterixRecordingSensor:
         t0 = self.batches[0].time_end if self.batches else 0
         for batch in self.batches:
             due_ns = start_ns + int((batch.time_end - t0) / cfg.speed)
-            delay = (due_ns - time.time_ns()) / 1e9
-            if delay > 0 and stop.wait(delay):
-                fleet.stats.interrupted = True
+            if not fleet.stats.wait_until(due_ns, stop):
                 break
-            if stop.is_set():
-                fleet.stats.interrupted = True
-                break
-            fleet.stats.late_s = max(fleet.stats.late_s, -delay)
             fleet.plots(batch, due_ns)
             now = time.monotonic()
             if now >= next_status:

@@ -150,3 +150,13 @@ class SensorStats:
     late_s: float = 0.0
     """Worst lateness of a publication behind its due wall-clock time, s."""
     interrupted: bool = False
+
+    def wait_until(self, due_ns: int, stop) -> bool:
+        """Sleep until the wall-clock instant ``due_ns`` (or until ``stop`` is set); record
+        the lateness when already past it. ``False`` (and ``interrupted``) if stopped."""
+        delay = (due_ns - time.time_ns()) / 1e9
+        if (delay > 0 and stop.wait(delay)) or stop.is_set():
+            self.interrupted = True
+            return False
+        self.late_s = max(self.late_s, -delay)
+        return True

@@ -121,14 +121,8 @@ class SimulatedRadar:
             if t0 is None:
                 t0 = ev.time
             due_ns = start_ns + int((ev.time - t0) / cfg.speed)
-            delay = (due_ns - time.time_ns()) / 1e9
-            if delay > 0 and stop.wait(delay):
-                self.stats.interrupted = True
+            if not self.stats.wait_until(due_ns, stop):
                 break
-            if stop.is_set():
-                self.stats.interrupted = True
-                break
-            self.stats.late_s = max(self.stats.late_s, -delay)
             if ev.kind == "plots":
                 self._pub_plots.put(ev.message.to_json_bytes(), attachment=wall_stamp(due_ns))
                 self.stats.plots += len(ev.message.time)
