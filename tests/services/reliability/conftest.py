@@ -9,20 +9,10 @@ import socket
 import struct
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
-
-
-def wait_until(pred, timeout: float = 10.0, step: float = 0.05) -> bool:
-    """Poll ``pred`` until true or ``timeout`` s; the final value."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(step)
-    return bool(pred())
+from service_support import wait_for
 
 
 def _socket_inodes(pid: int | str) -> set[int]:
@@ -82,7 +72,7 @@ def listening():
 @pytest.fixture
 def until():
     """``until(pred, timeout)``: poll until ``pred()`` is true; its final value."""
-    return wait_until
+    return wait_for
 
 
 @pytest.fixture
