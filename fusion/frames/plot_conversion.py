@@ -25,6 +25,7 @@ registration estimator (:mod:`fusion.registration`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -89,24 +90,28 @@ class ConvertedPlots:
         """Plots kept by the near-radar projection (a counter for the service Status)."""
         return 0 if self.near_radar is None else int(self.near_radar.sum())
 
+    def take(self, idx: np.ndarray) -> ConvertedPlots:
+        """The plots ``idx`` (every per-plot field alike; the batch-level ones kept)."""
+
+        def rows(a):
+            return None if a is None else a[idx]
+
+        return dataclasses.replace(
+            self,
+            z=self.z[idx],
+            R=self.R[idx],
+            time=self.time[idx],
+            valid=self.valid[idx],
+            reasons=[self.reasons[i] for i in idx],
+            notes=[self.notes[i] for i in idx] if self.notes else [],
+            polar_jacobian=rows(self.polar_jacobian),
+            slant_range=rows(self.slant_range),
+            near_radar=rows(self.near_radar),
+        )
+
     def select_valid(self) -> ConvertedPlots:
         """Only the valid plots (reasons/notes filtered alike)."""
-        idx = np.flatnonzero(self.valid)
-        return ConvertedPlots(
-            self.z[idx],
-            self.R[idx],
-            self.time[idx],
-            self.valid[idx],
-            [self.reasons[i] for i in idx],
-            self.site_position,
-            self.radar_id,
-            self.ndim,
-            [self.notes[i] for i in idx] if self.notes else [],
-            None if self.polar_jacobian is None else self.polar_jacobian[idx],
-            None if self.slant_range is None else self.slant_range[idx],
-            self.bias,
-            None if self.near_radar is None else self.near_radar[idx],
-        )
+        return self.take(np.flatnonzero(self.valid))
 
 
 def convert_plots(

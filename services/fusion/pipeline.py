@@ -222,14 +222,8 @@ def _concat(first: PlotBatch, batches: list[PlotBatch], cols: tuple[str, ...]) -
 
 def _slice(conv: ConvertedPlots, lo: int, hi: int) -> ConvertedPlots:
     """Rows ``lo:hi`` of a conversion (reasons renumbered from 0, as for that batch)."""
-    reasons = [_renumber(r, lo) for r in conv.reasons[lo:hi]]
-    fields = {f.name: getattr(conv, f.name) for f in dataclasses.fields(conv)}
-    for k in ("z", "R", "time", "valid"):
-        fields[k] = fields[k][lo:hi]
-    fields["reasons"] = reasons
-    if isinstance(fields.get("notes"), list):
-        fields["notes"] = fields["notes"][lo:hi]
-    return ConvertedPlots(**fields)
+    part = conv.take(np.arange(lo, hi))
+    return dataclasses.replace(part, reasons=[_renumber(r, lo) for r in part.reasons])
 
 
 def _renumber(reason: str, offset: int) -> str:

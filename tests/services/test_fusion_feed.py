@@ -157,3 +157,24 @@ def test_bulk_path_counts_a_bad_batch_and_applies_the_others(scenario):
     assert [b for b, _ in failed] == [group[2]]
     assert isinstance(failed[0][1], ValueError)
     assert msg.header["batches"] == 5
+
+
+def test_bulk_conversion_splits_every_per_plot_field(scenario):
+    """The plots of one radar's batches converted at once and split back are, field by
+    field, the conversion of each batch alone (the per-plot arrays the registration and the
+    near-radar counter read included)."""
+    from skyfuse.fusion.registration import RegistrationConfig
+
+    sites, batches, frame = scenario
+    pipe = TrackPipeline(frame, TrackerConfig(), registration=RegistrationConfig(mode="frozen"))
+    one_radar = [b for b in batches if b.radar_id == batches[0].radar_id][:6]
+    items = [(sites[b.radar_id], b) for b in one_radar]
+    for (site, b), got in zip(items, pipe._convert_all(items)):
+        want = pipe._convert(site, b)
+        assert len(got) == len(b)
+        for name in ("z", "R", "time", "valid", "polar_jacobian", "slant_range", "near_radar"):
+            a, e = getattr(got, name), getattr(want, name)
+            assert (a is None) == (e is None), name
+            if a is not None:
+                np.testing.assert_array_equal(a, e, err_msg=name)
+        assert got.reasons == want.reasons
