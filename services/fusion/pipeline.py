@@ -91,8 +91,10 @@ class TrackPipeline:
         )
 
     def _track(self, converted, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
-        corr = self.registration.correction(site)
-        mb = self.registration.shift_times(measurement_batch_from(converted, site, batch), corr)
+        # the batch times move by the time offset of the correction its plots were converted
+        # with (``converted.bias``), not by a second look-up of the estimate
+        mb = measurement_batch_from(converted, site, batch)
+        mb = self.registration.shift_times(mb, converted.bias)
         out = self.tracker.step(mb)
         self.registration.after(out, converted, self.tracker.vel)
         for k, v in out.batch.rejected.items():
