@@ -22,6 +22,7 @@ from .tracks import (
     TrackEvent,
     TrackEventKind,
     TrackPicture,
+    TrackPictures,
     TrackStatus,
 )
 from .truth import RadarBias, Truth
@@ -69,6 +70,7 @@ __all__ = [
     "TrackEvent",
     "TrackEventKind",
     "TrackPicture",
+    "TrackPictures",
     "TrackStatus",
     "Truth",
     "WireModel",

@@ -208,3 +208,33 @@ class TrackPicture:
         return self.header.model_copy(
             update={"kind": FeedKind.FULL, "tracks": tracks, "removed": [], "batches": 0}
         )
+
+
+class TrackPictures:
+    """One :class:`TrackPicture` per fusion id, for a consumer of ``fusion/*/tracks``;
+    at most ``max_ids`` ids (a bound against invented ids), ``latest`` the last updated."""
+
+    def __init__(self, max_ids: int) -> None:
+        self.max_ids = max_ids
+        self.by_id: dict[str, TrackPicture] = {}
+        self.last: str | None = None
+
+    def get(self, fusion_id: str) -> TrackPicture | None:
+        """The picture of ``fusion_id`` (made on first sight); ``None`` beyond the bound."""
+        pic = self.by_id.get(fusion_id)
+        if pic is None and len(self.by_id) < self.max_ids:
+            pic = self.by_id[fusion_id] = TrackPicture()
+        return pic
+
+    def apply(self, batch: TrackBatch) -> bool:
+        """Apply ``batch`` to its fusion id's picture; ``False`` beyond the bound or for an
+        old delta."""
+        pic = self.get(batch.fusion_id)
+        if pic is None:
+            return False
+        self.last = batch.fusion_id
+        return pic.apply(batch)
+
+    def latest(self) -> TrackBatch | None:
+        """The picture last updated, as a full TrackBatch."""
+        return None if self.last is None else self.by_id[self.last].batch()

@@ -20,7 +20,7 @@ import sys
 import time
 
 from pydantic import BaseModel, Field, ValidationError
-from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPicture, TrackStatus, keys
+from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPictures, TrackStatus, keys
 from skyfuse.services.cli.config import (
     ConfigError,
     add_json_argument,
@@ -156,35 +156,13 @@ def _snapshot(session, key: str, cfg: TracksConfig, out) -> int:
     return EXIT_OK
 
 
-class Pictures:
-    """One rebuilt picture per fusion id (at most ``MAX`` ids), and the latest updated."""
-
-    MAX = 32
-
-    def __init__(self) -> None:
-        self.by_id: dict[str, TrackPicture] = {}
-        self.last: str | None = None
-
-    def apply(self, msg: TrackBatch) -> None:
-        pic = self.by_id.get(msg.fusion_id)
-        if pic is None:
-            if len(self.by_id) >= self.MAX:
-                return
-            pic = self.by_id[msg.fusion_id] = TrackPicture()
-        pic.apply(msg)
-        self.last = msg.fusion_id
-
-    def latest(self) -> TrackBatch | None:
-        return None if self.last is None else self.by_id[self.last].batch()
-
-
 def _follow(session, base: str, cfg: TracksConfig, stop: StopFlag, out) -> int:
     inbox = Inbox(capacity=10_000)
     inbox.subscribe(session, f"{base}/tracks", "tracks")
     inbox.subscribe(session, f"{base}/events", "events")
     t0 = time.monotonic()
     batches = 0
-    pictures = Pictures()  # the feed's deltas and fulls rebuilt, per fusion id
+    pictures = TrackPictures(32)  # the feed's deltas and fulls rebuilt, per fusion id
     if not cfg.json_lines:  # joined late: start from the snapshots
         for _, payload in query(session, f"{base}/snapshot", timeout=2.0):
             try:

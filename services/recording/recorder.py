@@ -54,6 +54,7 @@ from skyfuse.schemas import (
     RadarSite,
     TrackBatch,
     TrackPicture,
+    TrackPictures,
     TrackStatus,
     Truth,
     keys,
@@ -227,7 +228,7 @@ class Recorder:
         self.files: list[Path] = []
         self.counts: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
-        self._pictures: dict[str, TrackPicture] = {}
+        self._pictures = TrackPictures(_MAX_FEEDS)
         self.messages = 0
         self.bytes = 0
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
@@ -475,10 +476,7 @@ class Recorder:
         ``_MAX_FEEDS`` fusion ids; beyond, counted and not drawn)."""
         pic = self._pictures.get(fusion_id)
         if pic is None:
-            if len(self._pictures) >= _MAX_FEEDS:
-                self.rejected["foxglove: too many fusion ids"] += 1
-                return None
-            pic = self._pictures[fusion_id] = TrackPicture()
+            self.rejected["foxglove: too many fusion ids"] += 1
         return pic
 
     def summary(self) -> dict:
