@@ -25,7 +25,12 @@ The computation is :mod:`fusion.evaluation`; this module schedules it:
   scaled to that many runs
   (15 per 500 multi-target, 20 per 500 single-target, ± 10 %, at least ± 0.5), counting
   the tracks that were false when they reached confirmation (see
-  :mod:`fusion.evaluation.summary`).
+  :mod:`fusion.evaluation.summary`). Each evaluation goes through the run cache (same
+  directories and blocks as the runs), so an interrupted calibration continues where it
+  stopped and the runs at the calibrated ψ_init are read back, not run again; a
+  calibration file already there (e.g. from fewer runs) gives the starting ψ_init per
+  variant, searched with a narrower bracket (:data:`WARM_FACTOR`), and each variant is
+  saved to it as it finishes.
 """
 
 from __future__ import annotations
@@ -111,11 +116,23 @@ def _block_task(exp_json: str, key: str, psi: float, start: int, stop: int, stat
     return key, start, stop, block.to_arrays(), pickle.dumps(runner)
 
 
-def false_track_count(exp: Experiment, variant: Variant, psi: float, runs: int) -> int:
+def false_track_count(
+    exp: Experiment,
+    variant: Variant,
+    psi: float,
+    runs: int,
+    cache: Path | None = None,
+    block: int = 10,
+) -> int:
     """Tracks false at confirmation (``fusion.evaluation.summary.false_at_confirmation``)
-    in the first ``runs`` runs of ``variant`` with ψ_init = ``psi``."""
-    block = VariantRunner(exp, variant, psi).run_many(range(runs))
-    cf = false_at_confirmation(block.tracks, np.unique(block.truth.scan))
+    in the first ``runs`` runs of ``variant`` with ψ_init = ``psi``; with a ``cache`` the
+    runs go through the same cached blocks as :func:`run_experiment` (an evaluation at a ψ
+    already run is read back, and the final run at the calibrated ψ reuses it)."""
+    if cache is None:
+        result = VariantRunner(exp, variant, psi).run_many(range(runs))
+    else:
+        result = run_variant_cached(exp, variant, psi, runs, cache, block)
+    cf = false_at_confirmation(result.tracks, np.unique(result.truth.scan))
     return int(cf[-1]) if len(cf) else 0
 
 
@@ -125,14 +142,21 @@ def calibration_target(exp: Experiment, runs: int) -> tuple[float, float]:
     return target, max(0.1 * target, 0.5)
 
 
-def _calibrate_task(exp_json: str, key: str, runs: int, psi0: float):
+def _calibrate_task(
+    exp_json: str, key: str, runs: int, psi0: float, factor: float, cache: str | None, block: int
+):
     exp = Experiment.model_validate_json(exp_json)
     variant = Variant.from_key(key)
     target, tol = calibration_target(exp, runs)
+    where = Path(cache) if cache is not None else None
     res = calibrate_psi_init(
-        lambda psi: false_track_count(exp, variant, psi, runs), target, tol, psi0=psi0
+        lambda psi: false_track_count(exp, variant, psi, runs, where, block),
+        target,
+        tol,
+        psi0=psi0,
+        factor=factor,
     )
-    return key, res.as_dict()
+    return key, {**res.as_dict(), "runs": runs}
 
 
 # --------------------------------------------------------------------------------------
@@ -266,6 +290,53 @@ def _variant_dir(cache: Path, exp: Experiment, v: Variant, psi: float) -> Path:
     return cache / f"{exp.scenario}-{experiment_key(exp)}" / f"{v.tracker}-N{v.depth}-psi{psi:.6g}"
 
 
+def _load_cached_blocks(
+    vdir: Path, runs: int, block: int
+) -> tuple[list[RunBlock], int, bytes | None]:
+    """The complete cached blocks of runs 0, 1, … in ``vdir`` (a block's histories and the
+    runner state after it): (blocks, first run not cached, that state or None)."""
+    vdir.mkdir(parents=True, exist_ok=True)
+    blocks: list[RunBlock] = []
+    start, state = 0, None
+    while start < runs:
+        stop = min(start + block, runs)
+        f, s = vdir / f"runs-{start:06d}-{stop:06d}.npz", vdir / f"state-{stop:06d}.pkl"
+        if not (f.exists() and s.exists()):
+            break
+        with np.load(f) as a:
+            blocks.append(RunBlock.from_arrays(dict(a)))
+        state = s.read_bytes()
+        start = stop
+    return blocks, start, state
+
+
+def _save_block(vdir: Path, start: int, stop: int, arrays: dict, state: bytes) -> None:
+    """Write one block's histories, then (atomically) the runner state after it: a block
+    counts as cached only when both exist."""
+    np.savez_compressed(vdir / f"runs-{start:06d}-{stop:06d}.npz", **arrays)
+    tmp = vdir / f"state-{stop:06d}.pkl.tmp"
+    tmp.write_bytes(state)
+    tmp.replace(vdir / f"state-{stop:06d}.pkl")
+
+
+def run_variant_cached(
+    exp: Experiment, variant: Variant, psi: float, runs: int, cache: Path, block: int = 10
+) -> RunBlock:
+    """Runs 0 … ``runs`` − 1 of one variant in this process, block by block through the
+    cache of :func:`run_experiment` (same directories and block boundaries, so the
+    results are the same numbers and each one is computed once)."""
+    exp_json = exp.model_dump_json()
+    vdir = _variant_dir(cache, exp, variant, psi)
+    blocks, start, state = _load_cached_blocks(vdir, runs, block)
+    while start < runs:
+        stop = min(start + block, runs)
+        _, _, _, arrays, state = _block_task(exp_json, variant.key, psi, start, stop, state)
+        _save_block(vdir, start, stop, arrays, state)
+        blocks.append(RunBlock.from_arrays(arrays))
+        start = stop
+    return RunBlock.concat(blocks)
+
+
 def run_experiment(
     exp: Experiment,
     psi: dict[str, float],
@@ -283,18 +354,10 @@ def run_experiment(
         start, state = 0, None
         if cache is not None:
             vdir = _variant_dir(cache, exp, v, psi[v.key])
-            vdir.mkdir(parents=True, exist_ok=True)
-            while start < exp.runs:
-                stop = min(start + block, exp.runs)
-                f = vdir / f"runs-{start:06d}-{stop:06d}.npz"
-                s = vdir / f"state-{stop:06d}.pkl"
-                if not (f.exists() and s.exists()):
-                    break
-                with np.load(f) as a:
-                    parts[v.key].append(RunBlock.from_arrays(dict(a)))
-                state = s.read_bytes()
-                advance(stop - start)
-                start = stop
+            loaded, start, state = _load_cached_blocks(vdir, exp.runs, block)
+            parts[v.key].extend(loaded)
+            for first in range(0, start, block):
+                advance(min(block, start - first))
         if start < exp.runs:
             tasks.append((exp_json, v.key, psi[v.key], start, min(start + block, exp.runs), state))
 
@@ -303,11 +366,7 @@ def run_experiment(
         v = Variant.from_key(key)
         parts[key].append(RunBlock.from_arrays(arrays))
         if cache is not None:
-            vdir = _variant_dir(cache, exp, v, psi[key])
-            np.savez_compressed(vdir / f"runs-{start:06d}-{stop:06d}.npz", **arrays)
-            tmp = vdir / f"state-{stop:06d}.pkl.tmp"
-            tmp.write_bytes(state)
-            tmp.replace(vdir / f"state-{stop:06d}.pkl")
+            _save_block(_variant_dir(cache, exp, v, psi[key]), start, stop, arrays, state)
         advance(stop - start)
         if stop < exp.runs:
             return [(exp_json, key, psi[key], stop, min(stop + block, exp.runs), state)]
@@ -317,21 +376,52 @@ def run_experiment(
     return {k: RunBlock.concat(sorted(p, key=lambda b: int(b.runs[0]))) for k, p in parts.items()}
 
 
+#: Bracketing factor of a calibration that starts from an earlier calibrated ψ_init (at
+#: 100 runs the sampling error of ψ_init is about ×/÷ 1.66 at b ≈ 1, see
+#: :func:`fusion.evaluation.calibration.sampling_interval`), and from the default ψ_init.
+WARM_FACTOR, COLD_FACTOR = 2.0, 4.0
+
+
 def calibrate(
-    exp: Experiment, runs: int, workers: int | Engine = 1, advance: Advance | None = None
+    exp: Experiment,
+    runs: int,
+    workers: int | Engine = 1,
+    advance: Advance | None = None,
+    *,
+    start: dict[str, float] | None = None,
+    cache: Path | None = None,
+    block: int = 10,
+    on_result: Callable[[str, dict], None] | None = None,
 ) -> dict[str, dict]:
-    """Calibrated ψ_init per variant key (``Calibration.as_dict`` entries)."""
+    """Calibrated ψ_init per variant key (``Calibration.as_dict`` entries).
+
+    ``start``: ψ_init to start from per key (an earlier calibration, searched with the
+    narrower :data:`WARM_FACTOR`); ``cache``: evaluations go through the run cache (a
+    repeated or interrupted calibration re-reads what it evaluated, and the experiment's
+    runs at the calibrated ψ are read back instead of run again) — not with a remote Dask
+    scheduler, whose workers may not see this machine's directory; ``on_result(key,
+    value)`` is called as each variant finishes (to save it)."""
     advance = advance or (lambda n=1: None)
+    start = start or {}
     exp_json = exp.model_dump_json()
+    engine = _engine(workers)
+    where = None if cache is None or engine.scheduler is not None else str(cache)
     out: dict[str, dict] = {}
-    tasks = [(exp_json, v.key, runs, exp.psi_for(v)) for v in exp.variants()]
+    tasks = []
+    for v in exp.variants():
+        psi0 = start.get(v.key)
+        factor = WARM_FACTOR if psi0 is not None else COLD_FACTOR
+        psi0 = min(max(psi0, 1e-6), 0.5) if psi0 is not None else exp.psi_for(v)
+        tasks.append((exp_json, v.key, runs, psi0, factor, where, block))
 
     def done(result):
         out[result[0]] = result[1]
+        if on_result is not None:
+            on_result(*result)
         advance(1)
         return []
 
-    _engine(workers).map(_calibrate_task, tasks, done)
+    engine.map(_calibrate_task, tasks, done)
     return {v.key: out[v.key] for v in exp.variants()}
 
 
@@ -524,11 +614,29 @@ def run_tracker_eval(args) -> int:
         return _tracker_eval(args, cfg, engine)
 
 
+def warm_start(path: Path | None, exp: Experiment) -> dict[str, float]:
+    """ψ_init per variant key of an earlier calibration of the same scenario at ``path``
+    (any run count, possibly older settings), to start a calibration from; empty when
+    there is none. Only the starting point of the search: the result is searched to the
+    tolerance on this experiment's runs whatever it starts from."""
+    if path is None or not path.exists():
+        return {}
+    try:
+        return {k: float(c["psi_init"]) for k, c in load_calibration(path, exp).items()}
+    except (ValueError, TypeError, KeyError, json.JSONDecodeError):
+        return {}
+
+
 def _calibration(
-    cfg: TrackerEvalConfig, exp: Experiment, engine: Engine, cal_path: Path | None
+    cfg: TrackerEvalConfig,
+    exp: Experiment,
+    engine: Engine,
+    cal_path: Path | None,
+    cache: Path | None = None,
 ) -> dict[str, dict]:
-    """ψ_init per variant key: calibrated (``--calibrate``, saved to ``cal_path``), read
-    from ``cal_path`` if it exists, else empty (the experiment's ψ_init)."""
+    """ψ_init per variant key: calibrated (``--calibrate``, each variant saved to
+    ``cal_path`` as it finishes, starting from the ψ_init already there), read from
+    ``cal_path`` if it exists, else empty (the experiment's ψ_init)."""
     from skyfuse.services.cli.config import ConfigError
     from skyfuse.services.cli.progress import progress_bar
 
@@ -537,9 +645,19 @@ def _calibration(
     if cfg.calibrate:
         runs_c = cfg.calibration_runs or exp.runs
         target, tol = calibration_target(exp, runs_c)
-        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks")
+        start = warm_start(cal_path, exp)
+        print(f"calibrating ψ_init on {runs_c} runs: {target:.2f} ± {tol:.2f} false tracks"
+              + (f" (from the ψ_init in {cal_path})" if start else ""))  # fmt: skip
+
+        def save(key: str, value: dict) -> None:
+            if cal_path is not None:
+                save_calibration(cal_path, exp, runs_c, {key: value})
+
         with progress_bar("calibration", len(variants), enabled=cfg.progress) as advance:
-            calibration = calibrate(exp, runs_c, engine, advance)
+            calibration = calibrate(
+                exp, runs_c, engine, advance, start=start, cache=cache, block=cfg.block,
+                on_result=save,
+            )  # fmt: skip
         for k, c in calibration.items():
             note = "" if c["converged"] else ", NOT converged"
             ci = c.get("psi_interval_95")
@@ -596,7 +714,7 @@ def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
     )
     cal_path = cfg.calibration_file or (out / "calibration.json" if out is not None else None)
     t_cal = time.perf_counter()
-    calibration = _calibration(cfg, exp, engine, cal_path)
+    calibration = _calibration(cfg, exp, engine, cal_path, cache)
     t_cal = time.perf_counter() - t_cal
     total = exp.runs * len(variants)
     with progress_bar(f"eval {tag}", total, enabled=cfg.progress) as advance:

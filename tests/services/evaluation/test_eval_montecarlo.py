@@ -241,3 +241,43 @@ def test_thesis_experiments_read_v_k_as_the_initiation_region():
     assert slow.tracker_config(v).clutter_volume == pytest.approx(math.pi * 30.0**2)
     gate = _small().model_copy(update={"tracker_settings": {"clutter_volume": 1e-9}})
     assert gate.tracker_config(v).clutter_volume == 1e-9
+
+
+def test_calibration_through_the_cache_is_reused_by_the_runs_and_a_warm_restart(
+    tmp_path, monkeypatch
+):
+    from skyfuse.services.evaluation import montecarlo
+
+    exp = Experiment(scenario="thesis-mtt-5", trackers=["its"], depths=[1], runs=4, seed=4)
+    calls = []
+    real = montecarlo._block_task
+
+    def counting(*args):
+        calls.append(args[3:5])
+        return real(*args)
+
+    monkeypatch.setattr(montecarlo, "_block_task", counting)
+    plain = montecarlo.calibrate(exp, 4)
+    n_plain = len(calls)
+    calls.clear()
+    cached = montecarlo.calibrate(exp, 4, cache=tmp_path, block=2)
+    # the same search (the cache changes where runs are kept, not their numbers) ...
+    assert cached["its:1"]["evaluations"] == plain["its:1"]["evaluations"]
+    assert n_plain == 0 and len(calls) == 2 * len(plain["its:1"]["evaluations"])
+    calls.clear()
+    # ... the experiment's runs at the calibrated ψ are read back, not run again ...
+    summary = evaluate(exp, cache=tmp_path, block=2, calibration=cached)
+    assert calls == []
+    fresh = evaluate(exp, calibration=cached)
+    assert _strip(summary) == _strip(fresh)
+    # ... an interrupted or repeated calibration re-reads what it evaluated ...
+    calls.clear()
+    assert montecarlo.calibrate(exp, 4, cache=tmp_path, block=2) == cached and calls == []
+    # ... and one started from the calibrated ψ evaluates there first (read back), then
+    # runs only the ψ not evaluated before
+    psi = cached["its:1"]["psi_init"]
+    again = montecarlo.calibrate(exp, 4, start={"its:1": psi}, cache=tmp_path, block=2)
+    assert again["its:1"]["evaluations"][0] == [psi, cached["its:1"]["false_tracks"]]
+    seen = {p for p, _ in cached["its:1"]["evaluations"]}
+    new = [p for p, _ in again["its:1"]["evaluations"] if p not in seen]
+    assert len(calls) == 2 * len(new)
