@@ -17,7 +17,7 @@ fusion's resident memory (VmRSS, start of the level and maximum), feed message c
 (delta/full), and the load average.
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
-        [--targets 1000] [--radars 4] [--reorder-wait 0.2] [--json out.json]
+        [--targets 1000] [--radars 6] [--reorder-wait 0.2] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -276,7 +276,7 @@ def main() -> None:
     ap.add_argument("--rates", default="2000,5000,20000")
     ap.add_argument("--seconds", type=float, default=10.0, help="wall seconds per level")
     ap.add_argument("--targets", type=int, default=1000)
-    ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 or 4")
+    ap.add_argument("--radars", type=int, default=6, help="regional scenario: 3 to 6 radars")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")

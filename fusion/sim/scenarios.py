@@ -376,13 +376,19 @@ _REGIONAL_RADARS = (
                    70.0, 0.0030, 220_000.0, 0.61),
     _RegionalRadar("NOVISAD", "Novi Sad", 45.2671, 19.8335, 100.0, "3d", 12.0,
                    50.0, 0.0020, 200_000.0, 0.83),
+    # two more for a six-radar network (issue 13): Osijek and Szeged airports
+    _RegionalRadar("LDOS", "Osijek", 45.4627, 18.8103, 110.0, "3d", 6.0,
+                   45.0, 0.0018, 200_000.0, 0.12),
+    _RegionalRadar("LHUD", "Szeged", 46.2467, 20.0911, 104.0, "2d", 5.0,
+                   60.0, 0.0025, 200_000.0, 0.49),
 )  # fmt: skip
 
 _REGIONAL_PARAMS = {
     "radars": Param(
         4,
-        "number of radars (LYBE 3d 4 s, LYVR 2d 8 s, LRTR 2d 10 s, NOVISAD 3d 12 s)",
-        in_range(3, 4),
+        "number of radars, the first N of LYBE 3d 4 s, LYVR 2d 8 s, LRTR 2d 10 s, NOVISAD "
+        "3d 12 s, LDOS 3d 6 s, LHUD 2d 5 s",
+        in_range(3, 6),
     ),
     "p_detection": Param(0.9, "detection probability of every radar", probability),
     "clutter_density": Param(
@@ -582,7 +588,8 @@ SCENARIO_SPECS: dict[str, _Spec] = {
         {**_CROSS_PARAMS, **bias_parameters(["radar"])}, _build_crossing, 72.0, 2,
     ),
     "regional": _Spec(
-        "4 real radar sites (Belgrade, Vršac, Timișoara, Novi Sad), mixed 2d/3d, air traffic",
+        "4 real radar sites (Belgrade, Vršac, Timișoara, Novi Sad; up to 6 with Osijek, "
+        "Szeged), mixed 2d/3d, air traffic",
         {**_REGIONAL_PARAMS, **bias_parameters([r.radar_id for r in _REGIONAL_RADARS])},
         _build_regional, 300.0, 40,
     ),

@@ -252,3 +252,20 @@ def test_run_for_one_radar_gives_the_same_batches_as_the_full_run():
     assert [e.message.to_json_bytes() for e in one] == [e.message.to_json_bytes() for e in want]
     with pytest.raises(ValueError, match="XXXX"):
         list(Simulator(sc).run(["XXXX"]))
+
+
+def test_regional_scenario_takes_up_to_six_radars_at_their_scan_periods():
+    """Six radars (issue 13's network): every radar scans at its own period, so over 60 s
+    a radar makes ⌊60 / T⌋ (± 1 for its phase) revolutions; seven are refused."""
+
+    sc = build_scenario("regional", seed=3, duration=60.0, targets=20, radars=6)
+    ids = [s.site.radar_id for s in sc.sensors]
+    assert ids == ["LYBE", "LYVR", "LRTR", "NOVISAD", "LDOS", "LHUD"]
+    scans: dict[str, int] = {}
+    for s in Simulator(sc).scans():
+        scans[s.radar_id] = scans.get(s.radar_id, 0) + 1
+    for sensor in sc.sensors:
+        expected = 60.0 / sensor.site.scan_period
+        assert abs(scans[sensor.site.radar_id] - expected) <= 1.0
+    with pytest.raises(ValueError, match="radars"):
+        build_scenario("regional", seed=3, duration=60.0, targets=20, radars=7)
