@@ -7,7 +7,7 @@ numbers of §3-§4).
 Notation (system frame, metres and m/s; times in seconds): the track was last updated at
 t_k with the prior x̂(k|k−1), P(k|k−1) and posterior x̂(k|k), P(k|k); a plot z(τ) with
 covariance R(τ) and t_{k−1} ≤ τ < t_k arrives late. Δ = t_k − τ > 0 (the *lag*), F(τ, k)
-the backward transition (F(−Δ) of a linear model; the Jacobian of f(·, −Δ) of a
+the backward transition (F(Δ)⁻¹ of a linear model; the Jacobian of f(·, −Δ) of a
 nonlinear one, with the backward flow f(·, −Δ) for the mean) and Q(k, τ) = Q(Δ) the
 process noise covariance over [τ, t_k].
 
@@ -62,14 +62,25 @@ NS = 1e-9
 
 def backward(model, x: np.ndarray, lag: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(f(x, −Δ) (n, d), F(τ, k) (n, d, d), Q(Δ) (n, d, d)) of n states x over lags
-    ``lag`` (n,) s > 0: the backward flow of a nonlinear model (``model.transition``,
-    Jacobian at x) or F(−Δ) x of a linear one; Q(Δ) = the forward noise over the lag."""
+    ``lag`` (n,) s > 0: the backward flow of a nonlinear model (``model.transition`` with
+    −Δ, Jacobian at x) or F(Δ)⁻¹ x of a linear one (the inverse of the forward transition,
+    so no model needs to accept negative intervals); Q(Δ) = the forward noise over the
+    lag."""
     lag = np.asarray(lag, dtype=np.float64)
     if getattr(model, "nonlinear", False):
         xb, Fb = model.transition(x, -lag)
         return xb, Fb, model.Q(lag, x)
-    Fb = model.F(-lag)
+    Fb = np.linalg.inv(model.F(lag))
     return np.einsum("nij,nj->ni", Fb, x), Fb, model.Q(lag)
+
+
+def _positive_definite(A: np.ndarray) -> np.ndarray:
+    """(n,) whether each symmetric (n, d, d) matrix is finite and positive definite."""
+    ok = np.isfinite(A).all(axis=(1, 2))
+    out = np.zeros(len(A), bool)
+    if ok.any():
+        out[ok] = np.linalg.eigvalsh(_sym(A[ok])).min(axis=1) > 0.0
+    return out
 
 
 def _sym(A: np.ndarray) -> np.ndarray:
@@ -95,6 +106,8 @@ def noise_terms(
     Pvv = Q.copy()
     corr = np.zeros_like(x)
     rows = np.flatnonzero(known)
+    if len(rows):  # A1 needs P(k|k−1) and P(k|k) positive definite (and finite)
+        rows = rows[_positive_definite(P_prior[rows]) & _positive_definite(P[rows])]
     if len(rows):
         Pp_inv = np.linalg.inv(P_prior[rows])
         Qr = Q[rows]
@@ -175,16 +188,34 @@ class LastStep:
         return len(self.ids)
 
     def record(self, ids: np.ndarray, t: np.ndarray, x: list, P: list, live: np.ndarray) -> None:
-        """Store the priors of tracks ``ids`` updated at ``t``; forget the tracks not in
-        ``live`` (the tracker's ids): the store never outgrows the tracks."""
+        """Store the priors of tracks ``ids`` (unique) updated at ``t``: in place for the
+        ids stored, appended (in id order) for the others; the ids no longer ``live``
+        (the tracker's ids) are forgotten once the store exceeds 2 × live + 64 entries,
+        so it stays bounded by the tracks."""
         ids = np.asarray(ids, dtype=np.int64)
-        old = np.flatnonzero(np.isin(self.ids, live) & ~np.isin(self.ids, ids))
-        all_ids = np.concatenate([self.ids[old], ids])
+        t = np.asarray(t, dtype=np.int64)
+        pos = np.minimum(np.searchsorted(self.ids, ids), max(len(self.ids) - 1, 0))
+        have = (self.ids[pos] == ids) if len(self.ids) else np.zeros(len(ids), bool)
+        p = pos[have]
+        self.t[p] = t[have]
+        for j in range(len(self.x)):
+            self.x[j][p], self.P[j][p] = x[j][have], P[j][have]
+        if (~have).any():
+            new = ~have
+            self._merge(ids[new], t[new], [a[new] for a in x], [a[new] for a in P])
+        if len(self.ids) > 2 * len(live) + 64:
+            keep = np.isin(self.ids, live)
+            self.ids, self.t = self.ids[keep], self.t[keep]
+            self.x = [a[keep] for a in self.x]
+            self.P = [a[keep] for a in self.P]
+
+    def _merge(self, ids: np.ndarray, t: np.ndarray, x: list, P: list) -> None:
+        all_ids = np.concatenate([self.ids, ids])
         order = np.argsort(all_ids, kind="stable")
         self.ids = all_ids[order]
-        self.t = np.concatenate([self.t[old], np.asarray(t, dtype=np.int64)])[order]
-        self.x = [np.concatenate([a[old], b])[order] for a, b in zip(self.x, x)]
-        self.P = [np.concatenate([a[old], b])[order] for a, b in zip(self.P, P)]
+        self.t = np.concatenate([self.t, t])[order]
+        self.x = [np.concatenate([a, b])[order] for a, b in zip(self.x, x)]
+        self.P = [np.concatenate([a, b])[order] for a, b in zip(self.P, P)]
 
     def lookup(self, ids: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, list, list]:
         """(known (s,), x[j] (s, d_j), P[j]) of tracks ``ids`` whose stored step is the

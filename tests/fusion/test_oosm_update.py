@@ -122,3 +122,43 @@ def test_posterior_covariance_is_consistent(lag_steps, with_prior):
     assert nees.mean() <= hi
     if lag_steps == 1 and with_prior:
         assert nees.mean() >= lo
+
+
+def test_last_step_store_matches_a_dict_and_stays_bounded():
+    """LastStep against a plain dict over random record calls with tracks dying."""
+    from skyfuse.fusion.tracker.oosm import LastStep
+
+    rng = np.random.default_rng(2)
+    store, ref, live, next_id = LastStep.empty([2]), {}, np.arange(1, 11), 11
+    for step in range(300):
+        if rng.random() < 0.3:  # some tracks die, new ones start
+            live = np.concatenate([live[rng.random(len(live)) > 0.2], [next_id, next_id + 1]])
+            next_id += 2
+        ids = np.sort(rng.choice(live, size=min(len(live), 4), replace=False))
+        x = rng.normal(size=(len(ids), 2))
+        P = np.einsum("ni,nj->nij", x, x) + np.eye(2)
+        store.record(ids, np.full(len(ids), step), [x], [P], live)
+        ref.update({int(i): (step, x[k]) for k, i in enumerate(ids)})
+        assert len(store) <= 2 * len(live) + 64
+    known, xs, _ = store.lookup(live, np.array([ref.get(int(i), (-1,))[0] for i in live]))
+    for k, i in enumerate(live):
+        assert known[k] == (int(i) in ref)
+        if known[k]:
+            np.testing.assert_array_equal(xs[0][k], ref[int(i)][1])
+    # a different time: not this track's last step
+    assert not store.lookup(live[:1], np.array([10**6]))[0].any()
+
+
+def test_singular_or_nan_prior_falls_back_without_error():
+    """A singular or non-finite stored prior gives the independent-noise retrodiction."""
+    model = ContinuousCV()
+    x = np.array([[0.0, 100.0, 0.0, 50.0]] * 3)
+    P = np.repeat(np.diag([100.0, 10.0, 100.0, 10.0])[None], 3, axis=0)
+    Pp = P.copy()
+    Pp[0] = 0.0
+    Pp[1, 0, 0] = np.nan
+    lag = np.full(3, 0.5)
+    got = retrodict(model, x, P, lag, x, Pp, np.array([True, True, False]))
+    ref = retrodict(model, x, P, lag)
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a, b)
