@@ -48,7 +48,8 @@ class OutOfSequence:
         self.last = LastStep.empty(mode_dims(density) if supported(density) else [1])
 
     def late_times(self, b, x: np.ndarray, t_last: np.ndarray, pos, vel) -> np.ndarray:
-        """Illumination time (n,) ns of every track by batch ``b``, not clipped at t_last."""
+        """Illumination time (n,) ns of tracks x (n, d) at t_last (n,) by batch ``b``, not
+        clipped at t_last (:func:`~.coverage.select_tracks` clips it)."""
         n = len(t_last)
         t = np.full(n, int(b.time_ns), dtype=np.int64)
         cov = b.coverage
@@ -59,7 +60,8 @@ class OutOfSequence:
 
     def split(self, tracker, b, sel: np.ndarray, x: np.ndarray, stats: dict):
         """(ordinary rows, late rows, τ (n,) ns) of the tracks ``sel`` in coverage."""
-        t_tau = self.late_times(b, x, tracker.t_last, tracker.pos, tracker.vel)
+        t_tau = np.full(tracker.n, int(b.time_ns), dtype=np.int64)
+        t_tau[sel] = self.late_times(b, x[sel], tracker.t_last[sel], tracker.pos, tracker.vel)
         late_mask = t_tau[sel] < tracker.t_last[sel]
         if not late_mask.any():
             return sel, sel[:0], t_tau

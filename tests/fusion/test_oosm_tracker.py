@@ -102,3 +102,43 @@ def test_late_batch_is_counted_and_keeps_the_track_time():
             np.testing.assert_array_equal(tr.t_last, before)
             assert out.time_ns == round((t + 2.0) * NS)
     assert tr.totals["oosm_plots"] == sum(b[1] == "B" for b in batches)
+
+
+def _sweep_case(oosm: bool, in_order: bool) -> np.ndarray:
+    """A track at t = 0; radar S sweeps 360° over 0-4 s (batch time 4 s) and sees the
+    target east of it at ≈ 1 s; radar A (no coverage) plots it at 2 s. Returns the
+    track's state at its time after both batches."""
+    from skyfuse.fusion.tracker import SectorCoverage
+
+    def pos(t):
+        return np.array([20_000.0, 200.0 * t - 200.0])
+
+    x0 = np.array([20_000.0, 0.0, -200.0, 200.0])
+    cov = SectorCoverage(np.zeros(2), 0.0, 100_000.0, 0.0, 2 * np.pi, 0, 4 * NS)
+    t_s = cov.illumination_time(pos(1.0)[None])[0]
+    za = pos(2.0) + np.array([60.0, -80.0])
+    zs = pos(t_s / NS) + np.array([-90.0, 70.0])
+    a = MeasurementBatch(2 * NS, "A", za[None], R, 1.0, 1e-12)
+    s = MeasurementBatch(4 * NS, "S", zs[None], R, 1.0, 1e-12, coverage=cov)
+    cfg = TrackerConfig(
+        tracker="ipda", motion="cv", q=0.01, initiation="none", oosm=oosm, clutter="known"
+    )
+    tr = Tracker(cfg)
+    tr.add_track(x0, np.diag([300.0**2, 30.0**2] * 2), 0, existence=0.9, confirmed=True)
+    outs = [tr.step(b) for b in ((s, a) if in_order else (a, s))]
+    if oosm and not in_order:
+        assert outs[1].stats["oosm_tracks"] == 1  # batch time 4 s > t_k = 2 s, but τ ≈ 1 s
+        assert tr.t_last[0] == 2 * NS
+    return tr.estimates()[0][0]
+
+
+def test_sector_sweep_uses_the_illumination_time():
+    """A sweep batch newer than the track but that saw it before the track's last update
+    takes the OOSM update at the illumination time: the same state as the plots in time
+    order (to 1 m with the piecewise-constant CV model at q = 0.01), unlike applying it at
+    the track's time."""
+    ref = _sweep_case(True, in_order=True)
+    got = _sweep_case(True, in_order=False)
+    off = _sweep_case(False, in_order=False)
+    assert np.abs(got - ref)[[0, 2]].max() < 1.0, (got, ref)
+    assert np.abs(off - ref)[[0, 2]].max() > 20.0, (off, ref)
