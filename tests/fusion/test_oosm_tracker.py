@@ -142,3 +142,14 @@ def test_sector_sweep_uses_the_illumination_time():
     off = _sweep_case(False, in_order=False)
     assert np.abs(got - ref)[[0, 2]].max() < 1.0, (got, ref)
     assert np.abs(off - ref)[[0, 2]].max() > 20.0, (off, ref)
+
+
+def test_particle_tracker_counts_late_plots_as_unsupported():
+    """ipf has no OOSM update: a late batch is applied at the track's time and counted."""
+    cfg = TrackerConfig(tracker="ipf", particles=200, initiation="none", clutter="known")
+    tr = Tracker(cfg)
+    tr.add_track([1000.0, 180, 2000, -90], np.diag([300.0**2, 30.0**2] * 2), 0, 0.9, True)
+    tr.step(MeasurementBatch(4 * NS, "A", truth(4.0)[None], R, 1.0, 1e-12))
+    out = tr.step(MeasurementBatch(2 * NS, "B", truth(2.0)[None], R, 1.0, 1e-12))
+    assert out.stats["oosm_unsupported"] == 1 and "oosm_tracks" not in out.stats
+    assert out.time_ns == 4 * NS and len(out) == 1
