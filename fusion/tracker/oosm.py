@@ -1,8 +1,8 @@
 """Out-of-sequence measurement (OOSM) update: a plot older than a track's current time
 updates the track's *current* state, through the retrodiction of the track to the plot
 time (Y. Bar-Shalom, "Update with out-of-sequence measurements in tracking: exact
-solution", IEEE TAES 38(3), 2002, algorithm A1; referred to as [BS02] with its equation
-numbers of §3-§4).
+solution", IEEE TAES 38(3), 2002, algorithm A1, referred to as [BS02]; the steps below
+are numbered (O1)-(O5) here).
 
 Notation (system frame, metres and m/s; times in seconds): the track was last updated at
 t_k with the prior x̂(k|k−1), P(k|k−1) and posterior x̂(k|k), P(k|k); a plot z(τ) with
@@ -15,22 +15,23 @@ A1 needs the last step's innovation ν(k), its covariance S(k) and P(k|k−1). T
 written here in terms of the last prior and posterior only, by the Kalman identities
 K ν = x̂(k|k) − x̂(k|k−1), Hᵀ S⁻¹ = P⁻¹(k|k−1) K and I − K H = P(k|k) P⁻¹(k|k−1):
 
-* retrodicted state (A1 step 1, [BS02] eq. 3.8):
+* (O1) retrodicted state:
   x̂(τ|k) = F(τ, k) [x̂(k|k) − Q P⁻¹(k|k−1) (x̂(k|k) − x̂(k|k−1))];
-* noise covariances (eq. 3.10-3.11): P_vv = Q − Q Hᵀ S⁻¹ H Q
+* (O2) noise covariances given Z^k: P_vv = Q − Q Hᵀ S⁻¹ H Q
   = Q − Q P⁻¹(k|k−1) (P(k|k−1) − P(k|k)) P⁻¹(k|k−1) Q,
   P_xv = Q − P(k|k−1) Hᵀ S⁻¹ H Q = P(k|k) P⁻¹(k|k−1) Q;
-* retrodicted covariance (eq. 3.9): P(τ|k) = F(τ,k) [P(k|k) + P_vv − P_xv − P_xvᵀ] F(τ,k)ᵀ;
-* cross covariance (eq. 4.2): P_xz = [P(k|k) − P_xv] F(τ, k)ᵀ H(τ)ᵀ;
-* OOSM update (eq. 4.3-4.6): S(τ) = H P(τ|k) Hᵀ + R(τ), W = P_xz S(τ)⁻¹,
+* (O3) retrodicted covariance: P(τ|k) = F(τ,k) [P(k|k) + P_vv − P_xv − P_xvᵀ] F(τ,k)ᵀ;
+* (O4) cross covariance: P_xz = [P(k|k) − P_xv] F(τ, k)ᵀ H(τ)ᵀ;
+* (O5) OOSM update: S(τ) = H P(τ|k) Hᵀ + R(τ), W = P_xz S(τ)⁻¹,
   x̂(k|τ) = x̂(k|k) + W (z(τ) − H x̂(τ|k)),  P(k|τ) = P(k|k) − W S(τ) Wᵀ.
 
 For one Kalman filter and one-step lag (τ after the previous update) this is exact: the
 posterior equals the one of processing the plots in time order (tested). Beyond one step
 (the plot older than the last two updates) the same equations use the last step's
-information only: the approximate "A1 applied to multi-lag" of Bar-Shalom, Chen and
-Mallick (2004) (their Al1 would store the information since τ), exact again when the
-steps in between had no plot (their K = 0).
+information only, an approximation: the exact multi-lag solution (Bar-Shalom, Chen and
+Mallick, "One-step solution for the multistep out-of-sequence-measurement problem in
+tracking", IEEE TAES 40(1), 2004, algorithm Al1) needs the information accumulated since
+τ, which is not stored. Monte Carlo NEES two steps behind stays consistent (tested).
 
 **Without a stored last step** (a new or resumed track, or a density without the
 memory), the track's posterior is retrodicted with the process noise taken independent
@@ -99,7 +100,7 @@ def noise_terms(
     P_prior: np.ndarray,
     known: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(P_xv, P_vv, Q P⁻¹(k|k−1) (x̂(k|k) − x̂(k|k−1))) per state (A1, eq. 3.8-3.11 in the
+    """(P_xv, P_vv, Q P⁻¹(k|k−1) (x̂(k|k) − x̂(k|k−1))) per state (O1-O2 in the
     prior/posterior form of the module docstring); the independent-noise fallback
     (0, Q, 0) where ``known`` is False or the A1 conditional noise covariance is not PSD."""
     Pxv = np.zeros_like(P)
@@ -134,7 +135,7 @@ def retrodict(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Retrodiction of n posteriors x (n, d), P (n, d, d) at t_k over ``lag`` (n,) s:
     (x̂(τ|k) (n, d), P(τ|k) (n, d, d), C = [P(k|k) − P_xv] F(τ, k)ᵀ (n, d, d)), so that
-    P_xz = C Hᵀ (eq. 3.8-3.9, 4.2). ``x_prior``, ``P_prior`` (n, d(, d)): the last step's
+    P_xz = C Hᵀ (O1-O4). ``x_prior``, ``P_prior`` (n, d(, d)): the last step's
     prior, used where ``known`` (n,) is True (default: everywhere it is given)."""
     n = len(x)
     if x_prior is None or P_prior is None:
@@ -154,7 +155,7 @@ def retrodict(
 def oosm_update(
     x: np.ndarray, P: np.ndarray, C: np.ndarray, H: np.ndarray, nu: np.ndarray, S: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """x̂(k|τ), P(k|τ) (eq. 4.3-4.6) of n current states x (n, d), P (n, d, d) with
+    """x̂(k|τ), P(k|τ) (O5) of n current states x (n, d), P (n, d, d) with
     cross terms C (n, d, d) (:func:`retrodict`), measurement matrix H (k, d), late-plot
     innovations ν = z(τ) − H x̂(τ|k) (n, k) and their covariances S(τ) (n, k, k)."""
     Pxz = C @ H.T

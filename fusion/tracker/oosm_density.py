@@ -5,8 +5,8 @@ the track densities, vectorised over tracks × components (× modes):
   c is retrodicted with the CV model from its own posterior (x̂^c, P^c) and the track's
   last prior; the late plots are gated and weighed by the density's ``likelihoods`` on
   the retrodicted components (p^c_i = N(z_i; H x̂^c(τ|k), S^c_i(τ)) / P_G); the children
-  are the ITS ones of 5.12-5.15 with the Kalman update replaced by the OOSM update (eq.
-  4.3-4.6): the "no plot" child keeps x̂^c, P^c with weight β₀ ξ^c, the child of plot i
+  are the ITS ones of 5.12-5.15 with the Kalman update replaced by the OOSM update ((O5)
+  of :mod:`.oosm`): the "no plot" child keeps x̂^c, P^c with weight β₀ ξ^c, the child of plot i
   is x̂^c(k|τ), P^c(k|τ) with weight β_i ξ^c p^c_i / p^τ_i; then the density's own
   Singer merge, pruning and estimate (``store_children``). The late plot enters the plot
   history as one more scan.
