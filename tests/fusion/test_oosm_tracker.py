@@ -86,11 +86,15 @@ def test_late_batches_improve_the_track(motion):
     assert rms["oosm"] < rms["off"], rms
 
 
-def test_late_batch_is_counted_and_keeps_the_track_time():
-    """The late batch goes through the OOSM pass (counted) and leaves t_k unchanged."""
+@pytest.mark.parametrize(
+    "kind,motion", [("ipda", "cv"), ("lmits", "cv"), ("jits", "imm-cv-ct"), ("gnn", "cv")]
+)
+def test_late_batch_is_counted_and_keeps_the_track_time(kind, motion):
+    """The late batch goes through the OOSM pass of every association part (counted) and
+    leaves t_k unchanged."""
     rng = np.random.default_rng(5)
     batches = _batches(rng, 6)
-    cfg = TrackerConfig(tracker="ipda", motion="cv", q=1.0, initiation="none", clutter="known")
+    cfg = TrackerConfig(tracker=kind, motion=motion, q=1.0, initiation="none", clutter="known")
     tr = Tracker(cfg)
     tr.add_track([1000.0, 180, 2000, -90], np.diag([300.0**2, 30.0**2] * 2), 0, 0.9, True)
     for t, radar, z in batches:
