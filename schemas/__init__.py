@@ -12,7 +12,7 @@ from .base import SCHEMA_VERSION, WireModel
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
-from .status import Backlog, LatencyStats, RadarHealth, Status
+from .status import Backlog, LatencyStats, LateStats, RadarHealth, Status
 from .tracks import (
     FeedKind,
     FrameKind,
@@ -56,6 +56,7 @@ __all__ = [
     "FeedKind",
     "FrameKind",
     "FrameSpec",
+    "LateStats",
     "LatencyStats",
     "PlotBatch",
     "RadarBias",

@@ -50,6 +50,31 @@ class Backlog(WireModel):
     )
 
 
+class LateStats(WireModel):
+    """Batches behind the service time (a lagging radar, a slow link), fusion only: those
+    within ``max_lateness`` are applied, their plots through the tracker's out-of-sequence
+    update (retrodiction, Bar-Shalom A1: docs/tracker.md "Out-of-sequence plots")."""
+
+    max_lateness_s: float = Field(0.0, ge=0.0, description="Configured bound, s")
+    batches_late: int = Field(0, ge=0, description="Late batches applied")
+    batches_too_late: int = Field(0, ge=0, description="Batches refused as too late")
+    batches_oosm: int = Field(
+        0, ge=0, description="Batches whose plots updated at least one track by the OOSM update"
+    )
+    plots_oosm: int = Field(0, ge=0, description="Late plots gated by retrodicted tracks")
+    track_updates_oosm: int = Field(0, ge=0, description="(track, late batch) OOSM updates")
+    hits_oosm: int = Field(0, ge=0, description="OOSM updates whose most likely plot was late")
+    no_prior_oosm: int = Field(
+        0,
+        ge=0,
+        description="OOSM updates of tracks without a stored last step (the independent-noise "
+        "retrodiction)",
+    )
+    unsupported: int = Field(
+        0, ge=0, description="Late track updates applied at the track's time (particle trackers)"
+    )
+
+
 class Status(WireModel):
     service: str = Field(description="Service kind: sensor, fusion, recorder, replay")
     service_id: str = Field(pattern=ID_PATTERN)
@@ -66,6 +91,7 @@ class Status(WireModel):
     tracks_total: int | None = Field(None, ge=0)
     backlog: Backlog | None = None
     message: str = ""
+    late: LateStats | None = Field(None, description="Fusion: late batches and the OOSM update")
     registration: RegistrationStatus | None = Field(
         None, description="Fusion: online sensor-registration estimates (issue 17)"
     )

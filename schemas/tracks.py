@@ -119,7 +119,11 @@ class TrackBatch(WireModel):
         description="Incarnation of the fusion service: +1 at every (re)start or standby "
         "takeover; a change means a restart (cycles continue when the state was resumed)",
     )
-    time: int = Field(ge=0, description="Time of the cycle (the applied batch's time_end), ns UTC")
+    time: int = Field(
+        ge=0,
+        description="Time of the cycle: the newest batch time applied (a late batch does not "
+        "move it back; the tracks are predicted to it), ns UTC",
+    )
     kind: FeedKind = Field(FeedKind.FULL, description="delta (changed tracks) or full picture")
     frame: FrameSpec
     state_labels: list[str] = Field(description="Names of the state components, e.g. x, vx, y, vy")

@@ -100,6 +100,11 @@ class TrackerConfig(BaseModel):
         1e-3, ge=0.0, lt=1.0, description="Delete components with weight ξ below this"
     )
     max_components: int = Field(30, ge=1, description="Cap on mixture components per track")
+    oosm: bool = Field(
+        True,
+        description="Out-of-sequence update of plots older than a track's time (retrodiction, "
+        "Bar-Shalom 2002 A1, fusion/tracker/oosm.py); off: applied at the track's time",
+    )
     jipda_max_events: int = Field(
         5000, ge=1, description="Largest cluster event count enumerated exactly by JIPDA/JITS"
     )

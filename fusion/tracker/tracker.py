@@ -43,6 +43,7 @@ from .initiation import PlotBuffer, one_point, pair_plots, two_point
 from .ipda import AssociationResult
 from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
 from .measurements import MeasurementBatch
+from .oosm_pass import OutOfSequence
 from .registry import ASSOCIATIONS, make_density
 
 NS = 1e-9
@@ -170,6 +171,9 @@ class Tracker:
         self.chain = self._make_chain(cfg)
         self.density: TrackDensity = make_density(cfg)
         self.associate = ASSOCIATIONS[cfg.association]
+        self.oosm = OutOfSequence(self.density, cfg.oosm)
+        self.newest_ns = 0
+        """The newest batch time applied, ns: outputs never go back in time."""
         self.ids = np.zeros(0, np.int64)
         self.exist = np.zeros((0, 2))
         self.t_last = np.zeros(0, np.int64)
@@ -304,6 +308,7 @@ class Tracker:
         blind = inside & (cone < self.cfg.blind_share)
         sel = np.flatnonzero(inside & ~blind)
         stats["tracks_in_coverage"] = len(sel)
+        sel, late, t_tau = self.oosm.split(self, b, sel, x, stats)  # plots older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
         pred = self.density.predict(sel, dt)
@@ -312,16 +317,23 @@ class Tracker:
         stats["gated_pairs"] = len(table.tp_track)
         res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
         self.density.update(pred, table, res.beta0, res.beta)
+        self.oosm.record(self, sel, t_pred, pred)
         stats.update(res.stats)
         stats.update(getattr(self.density, "stats", {}))
         self.exist[sel] = self.chain.update(exist_pred, res.psi_post)
         self.t_last[sel] = t_pred[sel]
         assigned = self._record_hits(sel, t_pred, res, table, bit)
+        used = self._used_plots(m, table, res)
+        if len(late):
+            assigned, used = self.oosm.apply(
+                self, b, late, t_tau, seen * cone, bit, assigned, used, stats
+            )
+            sel = np.union1d(sel, late)
         self.height = track_heights(self.height, assigned, b.heights)
         self.coast_from = np.where(blind, np.maximum(self.coast_from, t_pred), self.coast_from)
         events: list[TrackEventRecord] = []
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
-        new = self._initiate(b, self._used_plots(m, table, res))
+        new = self._initiate(b, used)
         assigned = np.concatenate([assigned, np.full(new, -1, dtype=np.int64)])
         stats["initiated"] = new
         for k_, v in stats.items():
@@ -549,13 +561,16 @@ class Tracker:
         events: list[TrackEventRecord],
         stats: dict[str, int],
     ) -> TrackerOutput:
-        t_batch = int(b.time_ns)
+        # a late batch (older than the newest one) does not move the output back in time:
+        # the tracks are predicted to the newest time (never backwards)
+        t_out = max(int(b.time_ns), self.newest_ns)
+        self.newest_ns = t_out
         x, P = self.estimates()
         snapshot = OutputPrediction(
-            t_batch, x, P, self.t_last.copy(), self.exist.copy(), self.model, self.chain
+            t_out, x, P, self.t_last.copy(), self.exist.copy(), self.model, self.chain
         )
         return TrackerOutput(
-            time_ns=t_batch,
+            time_ns=t_out,
             radar_id=b.radar_id,
             ids=self.ids.copy(),
             prediction=snapshot,

@@ -235,6 +235,8 @@ class _Run:
         step = Step(msg, site, out, (time.perf_counter() - t0) * 1e3, self.pipeline)
         self.counts["batches"] += 1
         self.counts["plots"] += len(msg)
+        if out.stats.get("oosm_tracks"):  # older than tracks it found: the OOSM update
+            self.counts["batches applied out of sequence (OOSM)"] += 1
         for o in self.obs:
             o.on_step(step)
 

@@ -10,6 +10,7 @@ The same code path serves the live fusion service and the offline ``skyfuse trac
 from __future__ import annotations
 
 import dataclasses
+from collections import Counter
 
 import numpy as np
 from skyfuse.fusion.frames import SystemFrame, convert_plots
@@ -68,6 +69,9 @@ class TrackPipeline:
         self.debias = debias
         self.assumed_altitude = assumed_altitude
         self.rejected: dict[str, int] = {}
+        self.oosm: Counter[str] = Counter()
+        """Late plots applied by the tracker's out-of-sequence update (fusion.tracker.oosm):
+        batches, plots, track updates, hits, updates without the stored last step."""
         self.registration = RegistrationLink(registration)
         self.feed = FeedBuilder(
             self.frame, self.cfg.ndim, list(self.tracker.model.labels), fusion_id, publish
@@ -96,10 +100,23 @@ class TrackPipeline:
         mb = measurement_batch_from(converted, site, batch)
         mb = self.registration.shift_times(mb, converted.bias)
         out = self.tracker.step(mb)
+        self._count_oosm(out.stats)
         self.registration.after(out, converted, self.tracker.vel)
         for k, v in out.batch.rejected.items():
             self.rejected[k] = self.rejected.get(k, 0) + v
         return out
+
+    def _count_oosm(self, stats: dict[str, int]) -> None:
+        """Add one step's out-of-sequence figures to :attr:`oosm`."""
+        tracks = stats.get("oosm_tracks", 0)
+        if tracks:
+            self.oosm["batches"] += 1
+            self.oosm["plots"] += stats["oosm_plots"]
+            self.oosm["track_updates"] += tracks
+            self.oosm["hits"] += stats["oosm_hits"]
+            self.oosm["no_prior"] += tracks - stats["oosm_prior_known"]
+        if stats.get("oosm_unsupported", 0):
+            self.oosm["unsupported"] += stats["oosm_unsupported"]
 
     def process(self, site: RadarSite, batch: PlotBatch) -> tuple[FeedMessage, list[TrackEvent]]:
         """One batch: its delta message and events."""

@@ -17,9 +17,11 @@ service's time:
   lagging radar, a slow link) is released marked ``late`` — at once, without the hold,
   since holding cannot put it back in order and would hold back every other radar's
   batches queued behind it (a lagging radar never delays the others); the tracker applies
-  it at its current time (per-track prediction intervals are clipped at 0: a track never
-  goes back in time, so a late plot meets the track's newer state; the displacement is at
-  most speed × lateness). A batch further behind is refused (``too late``).
+  its plots to the tracks that are ahead of them by the out-of-sequence update
+  (retrodiction of each track to the plot time and Bar-Shalom's A1 update of its current
+  state, :mod:`fusion.tracker.oosm`), so a late plot is weighed against where the track
+  was at the plot time, not its newer state. A batch further behind is refused
+  (``too late``): the bound keeps the retrodiction short and the buffer's memory bounded.
 * **Clock offset.** Every received batch gives a sample ``time_end − receive time``
   (radar clock ahead = positive, including the network delay); the per-radar estimate
   :meth:`clock_offset` is the median of the last ``offset_samples`` samples, in seconds.

@@ -14,8 +14,11 @@ its arrival, and batches are applied in the order of ``(time_end, arrival)``. Ea
 has its own watermark: only a batch earlier than its own radar's last applied one is *out
 of sequence*. A batch further ahead of this host's clock than ``future_tolerance`` is
 refused (``time in the future``) and never moves the service time; a batch up to
-``max_lateness`` behind the service time (a lagging radar) is applied at the tracker's
-current time (``counters["batches_late_applied"]``), an older one refused (``too late``).
+``max_lateness`` behind the service time (a lagging radar) is applied
+(``counters["batches_late_applied"]``): the tracks it finds ahead of its time take its
+plots through the out-of-sequence update (retrodiction to the plot time, Bar-Shalom's
+A1, :mod:`fusion.tracker.oosm`; counted in ``Status.late``), and the feed's time stays
+at the newest batch time; an older batch is refused (``too late``).
 A batch seen twice (same radar, seq and time_end) is counted as a duplicate.
 
 **Sites.** A radar's site comes from its ``RadarSite`` messages or from the
@@ -46,6 +49,7 @@ from skyfuse.schemas import (
     FrameKind,
     FrameSpec,
     LatencyStats,
+    LateStats,
     PlotBatch,
     RadarHealth,
     RadarSite,
@@ -142,7 +146,7 @@ class FusionConfig(BaseModel):
         ge=0.0,
         le=600.0,
         description="Apply batches up to this far behind the service time (late radars, "
-        "applied at the tracker's current time), refuse older ones, s",
+        "through the tracker's out-of-sequence update), refuse older ones, s",
     )
     site_tolerance: float | None = Field(
         100.0,
@@ -587,6 +591,22 @@ class FusionCore:
             count=int(a.size), p50=float(p50), p90=float(p90), p99=float(p99), max=float(a.max())
         )
 
+    def late_stats(self) -> LateStats:
+        """Late batches applied / refused and the tracker's out-of-sequence updates
+        (``TrackPipeline.oosm``)."""
+        oosm = getattr(self.pipeline, "oosm", None) or {}
+        return LateStats(
+            max_lateness_s=self.cfg.max_lateness,
+            batches_late=self.counters["batches_late_applied"],
+            batches_too_late=self.rejected["too late"],
+            batches_oosm=oosm.get("batches", 0),
+            plots_oosm=oosm.get("plots", 0),
+            track_updates_oosm=oosm.get("track_updates", 0),
+            hits_oosm=oosm.get("hits", 0),
+            no_prior_oosm=oosm.get("no_prior", 0),
+            unsupported=oosm.get("unsupported", 0),
+        )
+
     def _plot_rejections(self) -> dict[str, int]:
         """Plots the conversion rejected, by reason with the numbers masked (``#``) so
         that the reasons form a small set."""
@@ -632,6 +652,7 @@ class FusionCore:
             ],
             latency_ms=self.latency_stats(),
             backlog=self.backlog(now),
+            late=self.late_stats(),
             tracks_confirmed=confirmed,
             tracks_total=total,
             message=self._status_message(),

@@ -169,21 +169,27 @@ class GaussianMixtureDensity:
             table.R,
             table.uid,
         )
+        self.store_children(pred.rows, children, len(table.pairs))
+
+    def store_children(self, rows: np.ndarray, children: comp.Mixture, pairs: int) -> None:
+        """Singer merge and pruning of the updated components ``children`` of the tracks
+        ``rows`` (sorted), which replace their components; track estimates (4.66-4.68).
+        Also the out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`)."""
         merged = comp.singer_merge(children)
         kept = comp.prune(merged, self.prune_threshold, self.max_components, len(self))
         inside = np.zeros(len(self), bool)
-        inside[pred.rows] = True
+        inside[rows] = True
         others = np.flatnonzero(~inside[self.mix.track])
         self.mix = self.mix.replace_tracks(others, kept)
         self.stats = {
-            "gated_pairs": len(table.pairs),  # (component, plot) pairs
+            "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
             "components": len(self.mix),
         }
-        loc = np.searchsorted(pred.rows, kept.track)
-        _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(pred.rows))
-        self.x[pred.rows] = x
-        self.P[pred.rows] = P
+        loc = np.searchsorted(rows, kept.track)
+        _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(rows))
+        self.x[rows] = x
+        self.P[rows] = P
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[rows].copy(), self.P[rows].copy()

@@ -370,6 +370,12 @@ class IMMMixtureDensity:
         self, pred: IMMPrediction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
     ) -> None:
         children = self._children(pred, table, beta0, beta)
+        self.store_children(pred.rows, children, len(table.pair_comp))
+
+    def store_children(self, rows: np.ndarray, children: IMMComponents, pairs: int) -> None:
+        """Merge and prune the updated components ``children`` of the tracks ``rows``
+        (sorted), which replace their components; track estimates (eq. 20-21). Also the
+        out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`)."""
         children = children.take(np.flatnonzero(children.w > 0.0))
         merged = self._merge(children)
         keep, w = prune_indices(
@@ -378,16 +384,16 @@ class IMMMixtureDensity:
         kept = merged.take(keep)
         kept.w = w
         inside = np.zeros(len(self), bool)
-        inside[pred.rows] = True
+        inside[rows] = True
         self.comp = self.comp.replace_tracks(np.flatnonzero(~inside[self.comp.track]), kept)
         self.stats = {
-            "gated_pairs": len(table.pair_comp),  # (component, plot) pairs
+            "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
             "components": len(self.comp),
         }
-        x, P = self._track_estimates(kept, np.searchsorted(pred.rows, kept.track), len(pred))
-        self.x[pred.rows] = x
-        self.P[pred.rows] = P
+        x, P = self._track_estimates(kept, np.searchsorted(rows, kept.track), len(rows))
+        self.x[rows] = x
+        self.P[rows] = P
 
     def _track_estimates(
         self, comp: IMMComponents, loc: np.ndarray, ngroups: int
