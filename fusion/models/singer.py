@@ -51,7 +51,8 @@ def singer_axis_F(t: np.ndarray, alpha: float) -> np.ndarray:
     F = np.zeros((t.size, 3, 3))
     F[:, 0, 0] = F[:, 1, 1] = 1.0
     F[:, 0, 1] = t
-    F[:, 0, 2] = np.where(x < 1e-4, t * t / 2 - alpha * t**3 / 6, (x - 1 + e) / alpha**2)
+    small = np.abs(x) < 1e-4  # series near 0 (either sign: F(-Δ) retrodicts)
+    F[:, 0, 2] = np.where(small, t * t / 2 - alpha * t**3 / 6, (x - 1 + e) / alpha**2)
     F[:, 1, 2] = -np.expm1(-x) / alpha
     F[:, 2, 2] = e
     return F

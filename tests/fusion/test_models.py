@@ -162,3 +162,19 @@ def test_cv_common_format_has_zero_acceleration():
     xb, Pb = from_common(cv, xc, Pc)
     np.testing.assert_array_equal(xb, x)
     np.testing.assert_array_equal(Pb, P)
+
+
+def test_singer_transition_backwards_is_the_inverse_and_the_matrix_exponential():
+    """F(−Δ) = F(Δ)⁻¹ = expm(−A Δ) for Singer's A = [[0,1,0],[0,0,1],[0,0,−α]] (closed
+    form of an LTI system; retrodiction uses negative Δ)."""
+    from skyfuse.fusion.models.singer import singer_axis_F
+
+    alpha = 0.1
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -alpha]])
+    dt = np.array([-12.0, -4.0, -0.5, -1e-4, 1e-4, 4.0])
+    F = singer_axis_F(dt, alpha)
+    for k, d in enumerate(dt):
+        np.testing.assert_allclose(F[k], expm(A * d), rtol=1e-9, atol=1e-12)
+    back = singer_axis_F(-dt, alpha)
+    for k in range(dt.size):
+        np.testing.assert_allclose(F[k] @ back[k], np.eye(3), atol=1e-10)
