@@ -3,17 +3,20 @@
 Two files in the state directory of one fusion id (``--state-dir``, default
 ``$XDG_STATE_HOME/skyfuse/fusion-{id}``, i.e. ``~/.local/state/skyfuse/fusion-{id}``):
 
-* ``state.pickle`` — the whole tracker state, written every ``snapshot_interval`` s
+* ``state.npz`` — the whole tracker state, written every ``snapshot_interval`` s
   (default 2 s) and at a clean stop: the track pipeline (the tracker object as it is —
   tracks, components, existence, ids, the next id — and the feed's picture and cycle
   counter), the system frame, the radar sites and the reorder buffer's per-radar
   watermarks and recently seen batch ids (so batches already applied are refused as
-  duplicates after a restart). The tracker is serialised **generically** (``pickle`` of
-  the objects, protocol 5, with a format version and a fingerprint of the tracker
-  configuration), so any tracker whose objects pickle round-trips without a field list
-  to maintain. At start the service resumes from it when it was written less than
-  ``resume_max_age`` s ago (default 60 s), by the same fusion id, with the same tracker
-  configuration and the same configured frame; otherwise it starts empty and says why.
+  duplicates after a restart). The tracker is serialised **generically** by
+  :mod:`~skyfuse.services.fusion.state_codec` (a JSON manifest + NumPy arrays, every
+  object's attributes as they are, only allow-listed types rebuilt: reading it cannot
+  execute code), with a format version and a fingerprint of the tracker configuration.
+  At start the service resumes from it when it was written less than ``resume_max_age``
+  s ago (default 60 s), by the same fusion id, with the same tracker configuration and
+  the same configured frame, and its arrays are consistent (one row per track);
+  otherwise it starts empty and says why. The same blob is what a standby on another
+  host receives on ``fusion/{id}/state`` (:mod:`~skyfuse.services.fusion.standby`).
 * ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
   Before any output is published, the service checks that its tracker's next id is below
   the persisted ceiling, else it first writes a new one (next id + ``ID_RESERVE``); at
@@ -29,10 +32,10 @@ over the old file, ``fsync`` of the directory — after ``kill -9`` or a power l
 is the previous or the new snapshot, never a torn one. The service loop only pickles the
 state (consistent: nothing changes it meanwhile); a writer thread writes the bytes.
 
-**Trust assumption**: ``pickle`` executes code while loading, so the state directory must
-be writable only by the account running the service (it is created mode 0700 and files
-0600; a directory or file writable by others is refused). The state is written only by
-this service and read only from its own directory (never from the network).
+**Trust**: reading a snapshot never executes code (no pickle); a malformed or hostile
+blob is refused with a reason (``state_codec.REASONS``). The state directory is still
+created owner-only (0700, files 0600) and a directory writable by others is refused:
+whoever can write it can replace the picture.
 """
 
 from __future__ import annotations
@@ -40,7 +43,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import pickle
 import stat
 import threading
 import time
@@ -48,13 +50,16 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from skyfuse.services.fusion import state_codec
+from skyfuse.services.fusion.state_codec import StateRejected
 from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
-FORMAT = 1
-"""Version of the layout of ``state.pickle`` (bumped when what is saved changes)."""
-STATE_FILE, IDS_FILE = "state.pickle", "ids.json"
+FORMAT = 2
+"""Version of what a snapshot holds (1: the pickle of earlier versions)."""
+STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
 """Ids reserved by one write of ``ids.json`` (a jump of at most this at a restart)."""
 
@@ -104,8 +109,8 @@ class StateStore:
         mode = path.stat().st_mode
         if mode & (stat.S_IWGRP | stat.S_IWOTH):
             raise PermissionError(
-                f"state {str(path)!r} is writable by group/others: refused (it holds "
-                "pickled objects; make it owner-only, chmod go-w)"
+                f"state {str(path)!r} is writable by group/others: refused (whoever "
+                "writes it sets the picture; make it owner-only, chmod go-w)"
             )
 
     # --- ids -------------------------------------------------------------------------
@@ -141,11 +146,11 @@ class StateStore:
 
     # --- state -----------------------------------------------------------------------
     def serialise(self, state: dict, epoch: int) -> bytes:
-        """``state`` (a dict of picklable objects) as the bytes of ``state.pickle``."""
-        return pickle.dumps(
+        """``state`` (a dict of allow-listed objects, :func:`capture`) as one blob
+        (:func:`state_codec.dumps`), with the id ceiling persisted when it was made."""
+        return state_codec.dumps(
             {"format": FORMAT, "fusion_id": self.fusion_id, "written_ns": time.time_ns(),
-             "epoch": epoch, **state},
-            protocol=5,
+             "epoch": epoch, "id_ceiling": self.next_id_floor, **state},
         )  # fmt: skip
 
     def write(self, blob: bytes, next_track_id: int, epoch: int) -> None:
@@ -167,21 +172,44 @@ class StateStore:
             return None, "no saved state"
         try:
             self._check_private(path)
-        except PermissionError as e:
+            blob = path.read_bytes()
+        except (PermissionError, OSError) as e:
             return None, str(e)
+        saved, why = self.check(blob)
+        return saved, why if saved is None else f"saved state {why}"
+
+    def check(self, blob: bytes, max_bytes: int = 256_000_000) -> tuple[dict | None, str]:
+        """Decode a snapshot blob (file or network) and check that it may be resumed:
+        ``(state, "N s old")`` or ``(None, why not)``; never raises."""
         try:
-            with open(path, "rb") as f:
-                saved = pickle.load(f)
-        except Exception as e:  # a state from another version of the code
-            return None, f"saved state unreadable ({type(e).__name__}: {e})"
-        if not isinstance(saved, dict) or saved.get("format") != FORMAT:
-            return None, "saved state has another format version"
-        if saved.get("fusion_id") != self.fusion_id:
-            return None, f"saved state is of fusion id {saved.get('fusion_id')!r}"
-        age = (time.time_ns() - int(saved["written_ns"])) / 1e9
+            saved = state_codec.loads(blob, max_bytes=max_bytes)
+        except StateRejected as e:
+            return None, f"saved state refused ({e})"
+        why = _header_problem(saved, self.fusion_id)
+        if why is not None:
+            return None, why
+        age = (time.time_ns() - saved["written_ns"]) / 1e9
         if age > self.max_age:
             return None, f"saved state is {age:.1f} s old (resume_max_age {self.max_age:g} s)"
-        return saved, f"saved state {age:.2f} s old"
+        return saved, f"{age:.2f} s old"
+
+
+_PARTS = {"frame": object, "sites": dict, "reorder": dict, "pipeline": (dict, type(None))}
+
+
+def _header_problem(saved, fusion_id: str) -> str | None:
+    """Why a decoded snapshot is not one of this fusion id's (``None``: it is)."""
+    if type(saved) is not dict or saved.get("format") != FORMAT:
+        return "saved state has another format version"
+    if saved.get("fusion_id") != fusion_id:
+        return f"saved state is of fusion id {str(saved.get('fusion_id'))[:40]!r}"
+    for name in ("written_ns", "epoch", "id_ceiling"):
+        if type(saved.get(name)) is not int:
+            return f"saved state has no integer {name}"
+    for name, kind in _PARTS.items():
+        if not isinstance(saved.get(name), kind):
+            return f"saved state has no {name}"
+    return None
 
 
 _LOCK_TYPES = (type(threading.Lock()), type(threading.RLock()))
@@ -217,7 +245,12 @@ def capture(core) -> dict:
 def restore(core, saved: dict) -> str | None:
     """Put a saved state (:func:`capture`) back into a new ``FusionCore``; ``None`` on
     success, else why the tracker state was not taken (the sites and watermarks are
-    still restored: batches already applied stay refused as duplicates)."""
+    still restored when well-formed: batches already applied stay refused as
+    duplicates). A state whose parts have other types, or whose arrays do not have one
+    row per track, is refused (``state inconsistent: …``) and changes nothing."""
+    why = _parts_problem(saved)
+    if why is not None:
+        return f"state inconsistent: {why}"
     for site in saved["sites"].values():
         core.on_site(site, configured=True)
     buf, rs = core.buffer, saved["reorder"]
@@ -236,10 +269,61 @@ def restore(core, saved: dict) -> str | None:
     pipe = core._factory(frame)
     if tracker_fingerprint(pipe) != saved["fingerprint"]:
         return "the tracker configuration differs from the saved one"
+    if type(state.get("tracker")) is not type(pipe.tracker) or type(state.get("feed")) is not dict:
+        return "state inconsistent: the tracker or feed has another type"
     feed = state.pop("feed")
     vars(pipe).update(state)
     vars(pipe.feed).update(feed)
+    why = track_rows_problem(pipe)
+    if why is not None:
+        return f"state inconsistent: {why}"
     core.pipeline, core.frame = pipe, frame
+    return None
+
+
+def _parts_problem(saved: dict) -> str | None:
+    """Why the sites / reorder parts of a decoded snapshot cannot be applied."""
+    sites, rs = saved["sites"], saved["reorder"]
+    if not all(type(s).__name__ == "RadarSite" and k == s.radar_id for k, s in sites.items()):
+        return "sites"
+    if type(saved["frame"]).__name__ != "FrameSpec":
+        return "frame"
+    try:
+        ok = (
+            all(type(k) is str and type(v) is int for k, v in rs["radar_time"].items())
+            and (rs["last_time"] is None or type(rs["last_time"]) is int)
+            and all(type(k) is str and type(v) is list for k, v in rs["seen"].items())
+        )
+    except (KeyError, AttributeError, TypeError):
+        ok = False
+    return None if ok else "reorder watermarks"
+
+
+TRACK_ROWS = (
+    "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update", "height",
+    "coast_from",
+)  # fmt: skip
+"""The tracker's per-track arrays (one row per track, the order of ``ids``)."""
+
+
+def track_rows_problem(pipe) -> str | None:
+    """Why a restored pipeline's track arrays are inconsistent (``None``: they are not):
+    every per-track array and the density have ``len(ids)`` rows, and the picture can be
+    computed from them."""
+    tr = pipe.tracker
+    if not isinstance(tr.ids, np.ndarray) or tr.ids.ndim != 1:
+        return "track ids"
+    n = len(tr.ids)
+    for name in TRACK_ROWS:
+        a = getattr(tr, name, None)
+        if a is not None and (not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != n):
+            return f"tracker.{name} has {getattr(a, 'shape', None)} rows for {n} tracks"
+    try:
+        if len(tr.density) != n:
+            return f"the density has {len(tr.density)} tracks for {n}"
+        pipe.snapshot()
+    except Exception as e:  # arrays of wrong shapes deeper inside the density
+        return f"picture not computable ({type(e).__name__})"
     return None
 
 
