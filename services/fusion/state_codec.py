@@ -57,6 +57,9 @@ REASONS = (
     "bad array",
     "bad value",
     "too deep",
+    "other fusion id",
+    "malformed header",
+    "too old",
 )
 """Every reason a blob is refused for (bounded vocabulary, counted by the callers)."""
 

@@ -134,15 +134,20 @@ class StateStore:
             ids = Ids(self.next_id_floor, epoch, time.time_ns())
             atomic_write(self.dir / IDS_FILE, json.dumps(ids.__dict__).encode())
 
-    def begin_epoch(self) -> Ids:
+    def begin_epoch(self, received: dict | None = None) -> Ids:
         """At start or takeover: the new incarnation (persisted epoch + 1) and the next
-        id floor (the persisted next id if younger than ``id_horizon``)."""
+        id floor (the persisted next id if younger than ``id_horizon``). ``received``: a
+        snapshot of the active instance (a standby on another host): its epoch and id
+        ceiling count too, so neither goes back."""
         old = self.read_ids() or Ids()
         age = (time.time_ns() - old.written_ns) / 1e9
         floor = old.next_track_id if age <= self.id_horizon else 1
+        epoch = old.epoch
+        if received is not None:
+            floor, epoch = max(floor, received["id_ceiling"]), max(epoch, received["epoch"])
         self.next_id_floor = max(1, floor)
-        self.write_ids(old.epoch + 1)
-        return Ids(self.next_id_floor, old.epoch + 1)
+        self.write_ids(epoch + 1)
+        return Ids(self.next_id_floor, epoch + 1)
 
     # --- state -----------------------------------------------------------------------
     def serialise(self, state: dict, epoch: int) -> bytes:
@@ -175,41 +180,46 @@ class StateStore:
             blob = path.read_bytes()
         except (PermissionError, OSError) as e:
             return None, str(e)
-        saved, why = self.check(blob)
-        return saved, why if saved is None else f"saved state {why}"
-
-    def check(self, blob: bytes, max_bytes: int = 256_000_000) -> tuple[dict | None, str]:
-        """Decode a snapshot blob (file or network) and check that it may be resumed:
-        ``(state, "N s old")`` or ``(None, why not)``; never raises."""
         try:
-            saved = state_codec.loads(blob, max_bytes=max_bytes)
+            saved = self.check(blob)
         except StateRejected as e:
             return None, f"saved state refused ({e})"
-        why = _header_problem(saved, self.fusion_id)
-        if why is not None:
-            return None, why
-        age = (time.time_ns() - saved["written_ns"]) / 1e9
-        if age > self.max_age:
-            return None, f"saved state is {age:.1f} s old (resume_max_age {self.max_age:g} s)"
-        return saved, f"{age:.2f} s old"
+        return saved, f"saved state {age_s(saved):.2f} s old"
+
+    def check(self, blob: bytes, max_bytes: int = 256_000_000) -> dict:
+        """Decode a snapshot blob (file or network) and check that it may be resumed;
+        :class:`StateRejected` (a reason of :data:`state_codec.REASONS` or ``other
+        fusion id``, ``malformed header``, ``too old``) if not. Runs no code of the
+        blob."""
+        saved = state_codec.loads(blob, max_bytes=max_bytes)
+        _check_header(saved, self.fusion_id)
+        if age_s(saved) > self.max_age:
+            raise StateRejected(
+                "too old", f"{age_s(saved):.1f} s (resume_max_age {self.max_age:g} s)"
+            )
+        return saved
+
+
+def age_s(saved: dict) -> float:
+    """Age of a decoded snapshot, s (wall clock)."""
+    return (time.time_ns() - saved["written_ns"]) / 1e9
 
 
 _PARTS = {"frame": object, "sites": dict, "reorder": dict, "pipeline": (dict, type(None))}
 
 
-def _header_problem(saved, fusion_id: str) -> str | None:
-    """Why a decoded snapshot is not one of this fusion id's (``None``: it is)."""
+def _check_header(saved, fusion_id: str) -> None:
+    """Refuse a decoded snapshot that is not one of this fusion id's."""
     if type(saved) is not dict or saved.get("format") != FORMAT:
-        return "saved state has another format version"
+        raise StateRejected("format version", "another snapshot layout")
     if saved.get("fusion_id") != fusion_id:
-        return f"saved state is of fusion id {str(saved.get('fusion_id'))[:40]!r}"
+        raise StateRejected("other fusion id", str(saved.get("fusion_id"))[:40])
     for name in ("written_ns", "epoch", "id_ceiling"):
         if type(saved.get(name)) is not int:
-            return f"saved state has no integer {name}"
+            raise StateRejected("malformed header", f"no integer {name}")
     for name, kind in _PARTS.items():
         if not isinstance(saved.get(name), kind):
-            return f"saved state has no {name}"
-    return None
+            raise StateRejected("malformed header", f"no {name}")
 
 
 _LOCK_TYPES = (type(threading.Lock()), type(threading.RLock()))
@@ -357,6 +367,9 @@ class Persistence:
         self._cond = threading.Condition()
         self._writer: threading.Thread | None = None
         self._closing = False
+        self.publish = None
+        """``publish(blob)``: also send each snapshot (the active instance's
+        ``fusion/{id}/state`` publisher, for standbys on other hosts)."""
 
     @classmethod
     def from_config(cls, core) -> Persistence | None:
@@ -371,12 +384,19 @@ class Persistence:
         core._factory = numbering_from(core._factory, store)
         return cls(core, store, cfg.snapshot_interval)
 
-    def start(self) -> None:
-        """Begin a new epoch and resume the saved state if it may be (logged either way)."""
+    def start(self, received: dict | None = None) -> None:
+        """Begin a new epoch and resume the saved state if it may be (logged either way).
+        ``received``: the newest valid snapshot a standby got over Zenoh; it is resumed
+        instead of the state directory's when it is newer."""
         core, store = self.core, self.store
-        ids = store.begin_epoch()
+        ids = store.begin_epoch(received)
         core.epoch = ids.epoch
         saved, why = store.load()
+        if received is not None and (saved is None or received["written_ns"] > saved["written_ns"]):
+            saved, why = (
+                received,
+                f"snapshot received from the active instance {age_s(received):.2f} s old",
+            )
         if saved is not None:
             why_not = restore(core, saved)
             self.resumed = why_not is None
@@ -398,7 +418,17 @@ class Persistence:
         if now < self._next:
             return
         self._next = time.monotonic() + self.interval
-        blob, nid, epoch = self._serialised()
+        job = self._serialised()
+        if job is None:
+            return
+        blob, nid, epoch = job
+        if self.publish is not None:  # here, not in the writer: before any later output
+            try:
+                self.publish(blob)
+                self.core.counters["state_published"] += 1
+            except Exception as e:  # a transport error must not stop the tracking
+                self.core.counters["state_publish_errors"] += 1
+                log.error("state: cannot publish the snapshot: %s", e)
         with self._cond:
             self._pending = (blob, nid, epoch)
             self._cond.notify()
@@ -406,10 +436,18 @@ class Persistence:
             self._writer = threading.Thread(target=self._write_loop, name="state", daemon=True)
             self._writer.start()
 
-    def _serialised(self) -> tuple[bytes, int, int]:
+    def _serialised(self) -> tuple[bytes, int, int] | None:
+        """The snapshot blob, next id and epoch; ``None`` (counted, logged) if a part of
+        the state is of a type outside the codec's allow-list."""
         core = self.core
         nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
-        return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+        try:
+            return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+        except state_codec.StateUnsupported as e:
+            core.counters["state_save_errors"] += 1
+            if core.counters["state_save_errors"] == 1:
+                log.error("state: cannot serialise the tracker state: %s", e)
+            return None
 
     def _write_loop(self) -> None:
         while True:
@@ -442,6 +480,9 @@ class Persistence:
         except OSError as e:
             core.counters["state_save_errors"] += 1
             log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
+        if self.publish is not None:  # standbys on other hosts learn the new ceiling now
+            self._next = 0.0
+            self.tick(time.monotonic())
 
     def save(self) -> None:
         """Save now, in this thread (at a clean stop: after the writer thread's last
@@ -452,4 +493,6 @@ class Persistence:
                 self._cond.notify()
             self._writer.join(timeout=10.0)
             self._writer, self._closing = None, False
-        self._write(*self._serialised())
+        job = self._serialised()
+        if job is not None:
+            self._write(*job)
