@@ -89,6 +89,7 @@ CLASSES = frozenset(
         _F + "registration.estimator.RegistrationEstimator",
         "skyfuse.services.fusion.feed.TrackTable",
         "skyfuse.services.fusion.registration_link.RegistrationLink",
+        "skyfuse.services.runtime.seen_batches.SeenBatches",
     }
 )
 """Classes rebuilt attribute by attribute."""

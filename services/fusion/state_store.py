@@ -46,13 +46,13 @@ import logging
 import stat
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from skyfuse.services.fusion import state_codec
 from skyfuse.services.fusion.state_codec import StateRejected
+from skyfuse.services.runtime.seen_batches import SeenBatches
 from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
@@ -245,7 +245,7 @@ def capture(core) -> dict:
         "reorder": {
             "radar_time": dict(buf.radar_time),
             "last_time": buf.last_time,
-            "seen": {rid: list(d) for rid, d in buf._seen.items()},
+            "seen": buf.seen,
         },
         "pipeline": state,
         "fingerprint": None if pipe is None else tracker_fingerprint(pipe),
@@ -266,8 +266,7 @@ def restore(core, saved: dict) -> str | None:
     buf, rs = core.buffer, saved["reorder"]
     buf.radar_time.update(rs["radar_time"])
     buf.last_time = rs["last_time"]
-    for rid, seen in rs["seen"].items():
-        buf._seen.setdefault(rid, deque(maxlen=256)).extend(seen)
+    buf.seen = rs["seen"]
     state, frame = saved["pipeline"], saved["frame"]
     if state is None:
         return "no tracker state saved yet"
@@ -302,7 +301,9 @@ def _parts_problem(saved: dict) -> str | None:
         ok = (
             all(type(k) is str and type(v) is int for k, v in rs["radar_time"].items())
             and (rs["last_time"] is None or type(rs["last_time"]) is int)
-            and all(type(k) is str and type(v) is list for k, v in rs["seen"].items())
+            and type(rs["seen"]) is SeenBatches
+            and all(type(getattr(rs["seen"], a)) is int for a in ("max_radars", "window", "epochs"))
+            and all(type(k) is str and type(v) is dict for k, v in rs["seen"].radars.items())
         )
     except (KeyError, AttributeError, TypeError):
         ok = False
