@@ -69,6 +69,7 @@ CLASSES = frozenset(
         _T + "tracker.Tracker",
         _T + "tracker.TrackerOutput",
         _T + "tracker.OutputPrediction",
+        _T + "tracker.TrackEventRecord",
         _T + "measurements.MeasurementBatch",
         _T + "measurements.SectorCoverage",
         _T + "initiation.PlotBuffer",

@@ -229,3 +229,20 @@ def test_truncated_or_flipped_blobs_never_raise(data, scenario, tmp_path_factory
         store.check(bytes(blob[:cut]))
     except StateRejected as e:
         assert e.reason in REASONS
+
+
+def test_the_state_serialises_after_every_cycle(tmp_path):
+    """Every object the pipeline holds at any instant is of an allow-listed type (pending
+    track events, outputs, registration buffers …), not only at one chosen instant."""
+    sc = build_scenario("regional", seed=1, duration=30.0, targets=60, radars=4)
+    events = list(Simulator(sc, seed=1).run(truth=False))
+    batches = sorted((e.message for e in events if e.kind == "plots"), key=lambda b: b.time_end)
+    core = _core(sc.sites, TrackerConfig())
+    store = StateStore(tmp_path / "s", "main", max_age=60, id_horizon=60)
+    kinds = set()
+    for b in batches:
+        core.on_plots(b, 0.0)
+        for o in core.poll(flush=True):
+            kinds |= {e.kind for e in o.events}
+        store.check(store.serialise(capture(core), 1))  # raises if anything is refused
+    assert "confirmed" in kinds  # the run went through track events
