@@ -362,11 +362,15 @@ def _build(dec: _Decoder, node, depth):
 def _object(dec: _Decoder, node, depth):
     cls = _named_type(node, CLASSES)
     attrs = node.get("v")
-    if type(attrs) is not dict or not all(k.isidentifier() for k in attrs):
+    if type(attrs) is not dict or not all(k.isidentifier() and k[:2] != "__" for k in attrs):
         raise StateRejected("malformed manifest", f"{cls.__name__} attributes")
     obj = dec.keep(node, object.__new__(cls))
     for k, v in attrs.items():
-        object.__setattr__(obj, k, dec.decode(v, depth))
+        value = dec.decode(v, depth)
+        try:
+            object.__setattr__(obj, k, value)
+        except (AttributeError, TypeError) as e:  # e.g. a slot the class does not have
+            raise StateRejected("bad value", f"{cls.__name__}.{k}: {e}") from None
     return obj
 
 
@@ -441,5 +445,9 @@ def loads(blob: bytes, *, max_bytes: int = 256_000_000):
         arrays.append(members[f"a{i}"])
     try:
         return _Decoder(arrays).decode(manifest.get("root"))
+    except StateRejected:
+        raise
     except RecursionError:
         raise StateRejected("too deep", "recursion") from None
+    except Exception as e:  # anything else the rebuilding met: still a rejection
+        raise StateRejected("bad value", f"{type(e).__name__}: {e}") from None

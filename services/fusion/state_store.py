@@ -399,7 +399,11 @@ class Persistence:
                 f"snapshot received from the active instance {age_s(received):.2f} s old",
             )
         if saved is not None:
-            why_not = restore(core, saved)
+            try:
+                why_not = restore(core, saved)
+            except Exception as e:  # a well-formed blob whose objects do not fit together
+                core.pipeline = None
+                why_not = f"state inconsistent: {type(e).__name__}"
             self.resumed = why_not is None
             why = f"{why}, {'resumed' if self.resumed else 'tracks not resumed: ' + why_not}"
         if core.pipeline is not None:  # resumed, or created from the configuration
