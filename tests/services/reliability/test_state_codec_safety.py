@@ -234,7 +234,7 @@ def test_truncated_or_flipped_blobs_never_raise(data, scenario, tmp_path_factory
 def test_the_state_serialises_after_every_cycle(tmp_path):
     """Every object the pipeline holds at any instant is of an allow-listed type (pending
     track events, outputs, registration buffers …), not only at one chosen instant."""
-    sc = build_scenario("regional", seed=1, duration=30.0, targets=60, radars=4)
+    sc = build_scenario("regional", seed=1, duration=20.0, targets=25, radars=4)
     events = list(Simulator(sc, seed=1).run(truth=False))
     batches = sorted((e.message for e in events if e.kind == "plots"), key=lambda b: b.time_end)
     core = _core(sc.sites, TrackerConfig())
