@@ -14,8 +14,9 @@ COPY services ./services
 COPY recordings ./recordings
 RUN pip install . \
     && useradd --system --create-home --uid 10001 skyfuse \
-    && mkdir -p /data /etc/skyfuse \
-    && chown skyfuse /data
+    && mkdir -p /data /state /etc/skyfuse \
+    && chown skyfuse /data /state \
+    && chmod 700 /state
 
 COPY deploy/*.toml /etc/skyfuse/
 USER skyfuse

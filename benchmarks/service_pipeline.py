@@ -127,6 +127,8 @@ class Follower:
         self.rss: list[float] = []
         self.max_backlog = 0
         self.behind_seen = False
+        self.series: list[tuple[float, float | None, Status]] = []
+        """``(monotonic time, fusion RSS MB, Status)`` of every fusion Status received."""
 
     def pump(self, timeout: float) -> None:
         item = self.inbox.get(timeout)
@@ -141,6 +143,7 @@ class Follower:
                     self.behind_seen |= st.backlog.behind
                     if (r := rss_mb(self.pid)) is not None:
                         self.rss.append(r)
+                    self.series.append((time.monotonic(), r, st))
             item = self.inbox.get(0) if self.inbox.qsize() else None
 
     def caught_up(self, published: int) -> bool:
@@ -166,7 +169,11 @@ def sites_toml(rec: Path, work: Path) -> Path:
     return path
 
 
-def start_children(rec: Path, speed: float, radars: list[str], frame, a, work: Path, rate):
+def start_children(
+    rec: Path, speed: float, radars: list[str], frame, a, work: Path, rate, fusion_extra=()
+):
+    """The fusion process (id ``bench``) and one replay process per radar (not started);
+    ``fusion_extra``: more ``skyfuse fusion`` flags."""
     ep = loopback_endpoint()
     fusion = Child(
         "fusion",
@@ -175,7 +182,7 @@ def start_children(rec: Path, speed: float, radars: list[str], frame, a, work: P
             "--fusion-id", "bench", "--reorder-wait",
             str(a.reorder_wait), "--frame-kind", "stereographic", "--frame-lat0",
             repr(frame[0]), "--frame-lon0", repr(frame[1]), "--status-interval", "0.5",
-            "--latency-window", "1000000", "--connect", ep,
+            "--latency-window", "1000000", "--connect", ep, *fusion_extra,
         ],
         work / f"fusion-{rate:.0f}.log",
     )  # fmt: skip

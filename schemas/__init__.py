@@ -37,6 +37,7 @@ MODELS: dict[str, type[WireModel]] = {
     "truth": Truth,
     "registration": RegistrationStatus,
     "service-status": Status,
+    "standby-status": Status,
 }
 
 

@@ -3,21 +3,30 @@
 ``@v1`` is a verbatim chunk: it only matches itself, so a future ``@v2`` key space
 never mixes with this one.
 
-==========================================  =========================  ===========
-key expression                              payload                    direction
-==========================================  =========================  ===========
-``skyfuse/@v1/radar/{id}/site``             :class:`RadarSite`         sensor →
-``skyfuse/@v1/radar/{id}/plots``            :class:`PlotBatch`         sensor →
-``skyfuse/@v1/radar/{id}/alive``            liveliness token           sensor
-``skyfuse/@v1/fusion/{id}/tracks``          :class:`TrackBatch`        fusion →
-``skyfuse/@v1/fusion/{id}/events``          :class:`TrackEvent`        fusion →
-``skyfuse/@v1/fusion/{id}/status``          :class:`Status`            fusion →
-``skyfuse/@v1/fusion/{id}/snapshot``        queryable → TrackBatch     fusion
-``skyfuse/@v1/fusion/{id}/registration``    RegistrationStatus         fusion →
-``skyfuse/@v1/sim/truth``                   :class:`Truth`             simulator →
-``skyfuse/@v1/service/{name}/status``       :class:`Status`            any service
-``skyfuse/@v1/service/{name}/alive``        liveliness token           any service
-==========================================  =========================  ===========
+=================================================  ======================  =================
+key expression                                     payload                 direction
+=================================================  ======================  =================
+``skyfuse/@v1/radar/{id}/site``                    :class:`RadarSite`      sensor →
+``skyfuse/@v1/radar/{id}/plots``                   :class:`PlotBatch`      sensor →
+``skyfuse/@v1/radar/{id}/alive``                   liveliness token        sensor
+``skyfuse/@v1/fusion/{id}/tracks``                 :class:`TrackBatch`     fusion →
+``skyfuse/@v1/fusion/{id}/events``                 :class:`TrackEvent`     fusion →
+``skyfuse/@v1/fusion/{id}/status``                 :class:`Status`         fusion →
+``skyfuse/@v1/fusion/{id}/snapshot``               queryable → TrackBatch  fusion
+``skyfuse/@v1/fusion/{id}/registration``           RegistrationStatus      fusion →
+``skyfuse/@v1/fusion/{id}/state``                  snapshot blob (npz)     fusion → standby
+``skyfuse/@v1/fusion/{id}/active/{inst}``          liveliness token        fusion (election)
+``skyfuse/@v1/fusion/{id}/standby/{inst}/status``  :class:`Status`         standby →
+``skyfuse/@v1/sim/truth``                          :class:`Truth`          simulator →
+``skyfuse/@v1/service/{name}/status``              :class:`Status`         any service
+``skyfuse/@v1/service/{name}/alive``               liveliness token        any service
+=================================================  ======================  =================
+
+``state`` is the active instance's whole tracker state (``services.fusion.state_codec``,
+every ``snapshot_interval`` s) for a hot standby on another host; only the fusion
+identity may publish or read it (``skyfuse certs`` policy). ``{inst}`` names one
+instance of a fusion id (``{start ns}-{zenoh id}``): each standby reports its own Status
+on its own key, never on the active one's ``status``.
 """
 
 from __future__ import annotations
@@ -78,6 +87,17 @@ def fusion_registration(fusion_id: str) -> str:
     return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/registration"
 
 
+def fusion_state(fusion_id: str) -> str:
+    """The active instance's state snapshot for its standbys (binary, issue 14 §4)."""
+    return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/state"
+
+
+def fusion_standby_status(fusion_id: str, instance: str) -> str:
+    """The Status of one standby instance of a fusion id."""
+    fid, inst = check_id(fusion_id, "fusion id"), check_id(instance, "instance")
+    return f"{PREFIX}/fusion/{fid}/standby/{inst}/status"
+
+
 def service_alive(name: str) -> str:
     """Liveliness token of a running service (fusion, recorder, …)."""
     return f"{PREFIX}/service/{check_id(name, 'service name')}/alive"
@@ -90,7 +110,8 @@ def service_status(name: str) -> str:
 @dataclass(frozen=True)
 class KeyInfo:
     """What a key names: ``kind`` is one of site, plots, alive, tracks, events,
-    status, snapshot, registration, truth, service-status; ``owner`` the
+    status, snapshot, registration, state, standby-status, truth, service-status;
+    ``owner`` the
     radar/fusion/service id."""
 
     kind: str
@@ -101,10 +122,12 @@ _PATTERNS = [
     (re.compile(rf"^{re.escape(PREFIX)}/radar/([^/]+)/(site|plots|alive)$"), None),
     (
         re.compile(
-            rf"^{re.escape(PREFIX)}/fusion/([^/]+)/(tracks|events|status|snapshot|registration)$"
+            rf"^{re.escape(PREFIX)}/fusion/([^/]+)/"
+            r"(tracks|events|status|snapshot|registration|state)$"
         ),
         None,
     ),
+    (re.compile(rf"^{re.escape(PREFIX)}/fusion/([^/]+)/standby/[^/]+/status$"), "standby-status"),
     (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/status$"), "service-status"),
     (re.compile(rf"^{re.escape(PREFIX)}/service/([^/]+)/alive$"), "service-alive"),
 ]

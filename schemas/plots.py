@@ -33,6 +33,14 @@ class PlotBatch(WireModel):
     seq: int = Field(
         ge=0, le=INT64_MAX, description="Batch sequence number from this radar, +1 per batch"
     )
+    epoch: int = Field(
+        0,
+        ge=0,
+        le=INT64_MAX,
+        description="Epoch of the sensor's numbering: within one epoch a seq is never given "
+        "to two batches, so (radar_id, epoch, seq) identifies a batch and a repeat is a "
+        "duplicate; 0 = not announced (recordings from before the field)",
+    )
     sector_start: float = Field(
         0.0,
         ge=0.0,

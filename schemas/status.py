@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from .base import WireModel
@@ -92,6 +94,15 @@ class Status(WireModel):
     backlog: Backlog | None = None
     message: str = ""
     late: LateStats | None = Field(None, description="Fusion: late batches and the OOSM update")
+    role: Literal["active", "standby"] | None = Field(
+        None, description="Fusion: the active instance of its id, or a hot standby"
+    )
+    following: str | None = Field(
+        None, max_length=128, description="Standby: the active instance it follows"
+    )
+    state_age_s: float | None = Field(
+        None, ge=0.0, description="Standby: age of the newest valid state snapshot it holds, s"
+    )
     registration: RegistrationStatus | None = Field(
         None, description="Fusion: online sensor-registration estimates (issue 17)"
     )

@@ -36,7 +36,14 @@ from skyfuse.services.fusion.registration_link import (
     registration_config,
 )
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
-from skyfuse.services.fusion.standby import Election, Follower, FusionIdTaken, become_active
+from skyfuse.services.fusion.standby import (
+    Election,
+    Follower,
+    FusionIdTaken,
+    StateFollower,
+    become_active,
+    standby_status,
+)
 from skyfuse.services.fusion.state_store import Persistence
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK
 from skyfuse.services.runtime.transport import (
@@ -161,16 +168,22 @@ def serve(
     election = Election(session, core.cfg.fusion_id)
     keep = 2 * (core.cfg.snapshot_interval or 0.0) + core.cfg.max_lateness + 5.0
     follower = Follower(core.cfg.inbox, keep)
+    standby = _Standby(session, core, election, follower, persist)
     try:
-        if not become_active(election, inbox, stop, standby=core.cfg.standby, follower=follower):
+        if not become_active(
+            election, inbox, stop, standby=core.cfg.standby, follower=follower, tick=standby.tick
+        ):
             inbox.close()
             return EXIT_OK
     except FusionIdTaken:
         inbox.close()
         election.close()
         raise
+    finally:
+        standby.close()
+    core.role = "active"
     if persist is not None:
-        persist.start()
+        persist.start(standby.state())
     svc = _Service(session, core, cat062, persist)
     for item in follower.newer_than_state(core):  # received while in standby
         svc.handle(item)
@@ -221,6 +234,40 @@ def _loop(svc: _Service, inbox: Inbox, stop, duration, election, persist) -> int
     return EXIT_OK
 
 
+class _Standby:
+    """While this instance is a standby: the active one's snapshots over Zenoh and this
+    instance's own Status (``services.fusion.standby``)."""
+
+    def __init__(self, session, core: FusionCore, election, follower, persist) -> None:
+        self.core, self.election, self.follower = core, election, follower
+        self.states = self.pub = None
+        self._next_status = 0.0
+        if not core.cfg.standby:
+            return
+        fid = core.cfg.fusion_id
+        if persist is not None:
+            self.states = StateFollower(session, fid, persist.store, core.cfg.state_max_bytes)
+        self.pub = declare_publisher(session, keys.fusion_standby_status(fid, election.name))
+
+    def tick(self) -> None:
+        if self.states is not None:
+            self.states.poll()
+        if self.pub is not None and time.monotonic() >= self._next_status:
+            self._next_status = time.monotonic() + self.core.cfg.status_interval
+            st = standby_status(self.core, self.election, self.follower, self.states)
+            self.pub.put(st.to_json_bytes())
+
+    def state(self) -> dict | None:
+        """The newest valid snapshot received (``None``: none, or not a standby)."""
+        return None if self.states is None else self.states.state
+
+    def close(self) -> None:
+        if self.states is not None:
+            self.states.close()
+        if self.pub is not None:
+            self.pub.undeclare()
+
+
 class _Service:
     """The fusion service's Zenoh side: publishers, queryables (snapshot, Status), input
     handling and the shutdown drain."""
@@ -233,6 +280,8 @@ class _Service:
         self.pub_status = declare_publisher(session, keys.fusion_status(fid))
         self.pub_registration = declare_publisher(session, keys.fusion_registration(fid))
         self.snapshot_key, self.status_key = keys.fusion_snapshot(fid), keys.fusion_status(fid)
+        if persist is not None:  # snapshots for standbys on other hosts
+            persist.publish = declare_publisher(session, keys.fusion_state(fid)).put
         self.last_status = core.status().to_json_bytes()
         self.queryables = [
             session.declare_queryable(self.snapshot_key, self._answer_snapshot),

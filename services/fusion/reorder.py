@@ -26,7 +26,9 @@ service's time:
   (radar clock ahead = positive, including the network delay); the per-radar estimate
   :meth:`clock_offset` is the median of the last ``offset_samples`` samples, in seconds.
 
-A batch seen twice (same radar, seq, time_end and scan) is refused as a *duplicate*.
+A batch seen twice (same radar, epoch and seq; without an epoch: same seq, time_end and
+scan among the radar's last 256, ``services.runtime.seen_batches``) is refused as a
+*duplicate*.
 Memory is bounded per radar (``seen``: 256 ids, offsets: ``offset_samples``); the number
 of radars is bounded by the service (``max_radars``).
 """
@@ -41,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from skyfuse.schemas import PlotBatch
+from skyfuse.services.runtime.seen_batches import SeenBatches
 
 
 @dataclass(order=True)
@@ -79,7 +82,8 @@ class ReorderBuffer:
         """Service time: the latest ``time_end`` released, ns."""
         self.radar_time: dict[str, int] = {}
         """Per-radar watermark: the latest ``time_end`` released for each radar, ns."""
-        self._seen: dict[str, deque] = {}
+        self.seen = SeenBatches()
+        """Batches accepted, by ``(radar, epoch, seq)`` (``services.runtime.seen_batches``)."""
         self._offsets: dict[str, deque] = {}
         self._offset_samples = offset_samples
         self.late_released = 0
@@ -101,9 +105,7 @@ class ReorderBuffer:
         newest = max(batch.time_end, batch.time[-1]) if batch.time else batch.time_end
         offsets = self._offsets.setdefault(rid, deque(maxlen=self._offset_samples))
         offsets.append(batch.time_end - recv_ns)
-        seen = self._seen.setdefault(rid, deque(maxlen=256))
-        ident = (batch.seq, batch.time_end, batch.scan)
-        if ident in seen:
+        if self.seen.duplicate(batch):
             return "duplicate batch"
         if self.future_tolerance is not None and newest - recv_ns > self.future_tolerance * 1e9:
             return "time in the future"
@@ -112,7 +114,7 @@ class ReorderBuffer:
             return "out of sequence"
         if self.last_time is not None and self.last_time - batch.time_end > self.max_lateness * 1e9:
             return "too late"
-        seen.append(ident)
+        self.seen.add(batch)
         p = _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
         if self.last_time is not None and batch.time_end < self.last_time:
             p.late = True  # holding it cannot put it in order: release it at once

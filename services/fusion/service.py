@@ -194,6 +194,13 @@ class FusionConfig(BaseModel):
         "this, s (default 30 days)",
     )
 
+    state_max_bytes: int = Field(
+        64_000_000,
+        ge=10_000,
+        le=2_000_000_000,
+        description="Largest state snapshot a standby accepts from the active instance "
+        "(fusion/{id}/state), bytes; larger ones are counted and dropped unread",
+    )
     standby: bool = Field(
         False,
         description="Hot standby: if another instance of this fusion id is active, follow "
@@ -286,6 +293,8 @@ class FusionCore:
         self._warned: set[str] = set()
         self._log = RateLimitedLog(log)
         self.epoch: int | None = None
+        self.role: str | None = None
+        """``active`` once this instance publishes (``services.fusion.standby``)."""
         """Incarnation number, sent in every TrackBatch and Status (``state_store``)."""
         for site in cfg.sites:
             self.on_site(site, configured=True)
@@ -627,6 +636,7 @@ class FusionCore:
             service="fusion",
             service_id=self.cfg.fusion_id,
             epoch=self.epoch,
+            role=self.role,
             time=time.time_ns(),
             uptime_s=now - self.started,
             counters={

@@ -17,14 +17,26 @@ instance, since all follow the same tokens (:class:`Election`):
   at most ``inbox`` messages, none older than ``keep_s``), publishes nothing and answers
   no query. When the active instance's token goes away (process killed: Zenoh sees the
   link close at once; host lost: after the Zenoh lease, 10 s by default), the smallest
-  remaining token — the standby — becomes active: it resumes the state the active one
-  saved (``services.fusion.state_store``: the **shared state directory**, written every
-  ``snapshot_interval`` s by the active instance, read by the standby only at takeover),
-  applies the buffered batches newer than that state's per-radar watermarks, and starts
-  publishing with the same track ids and a new ``epoch``.
+  remaining token — the standby — becomes active: it resumes the newest state the active
+  one saved, applies the buffered batches newer than that state's per-radar watermarks,
+  and starts publishing with the same track ids and a new ``epoch``.
 
-Instances of one id share one state directory: on one host the default one, across
-hosts a shared file system (e.g. NFS) given with ``--state-dir``.
+The state comes two ways, the newer one wins (``written_ns``):
+
+* **over Zenoh** (:class:`StateFollower`): the active instance publishes every snapshot
+  blob (``services.fusion.state_codec``, the same bytes as its state file) on
+  ``fusion/{id}/state``; a standby keeps the newest valid one (at most
+  ``state_max_bytes``; decoded and checked when it arrives — a malformed, foreign or
+  hostile blob is a counted rejection with a reason, ``standby_state_rejected``). Its
+  epoch and id ceiling are taken too: track ids given by the active instance are never
+  given again, on any host (the active one publishes a snapshot at once whenever it
+  raises its id ceiling, before it publishes the ids);
+* from the standby's own **state directory** (a shared file system, or the same host).
+
+A standby publishes its own :class:`~skyfuse.schemas.Status` (``role`` standby, the
+instance it ``following``, ``state_age_s`` of the snapshot it holds) on
+``fusion/{id}/standby/{instance}/status`` (:func:`standby_status`), never on the active
+one's key.
 """
 
 from __future__ import annotations
@@ -32,10 +44,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 
-from skyfuse.schemas import PlotBatch, keys
+from skyfuse.schemas import PlotBatch, Status, keys
 from skyfuse.schemas.rejection import decode
+from skyfuse.services.fusion.state_codec import StateRejected
+from skyfuse.services.fusion.state_store import age_s
 from skyfuse.services.runtime.transport import Inbox, TransportError
 
 log = logging.getLogger(__name__)
@@ -131,10 +145,87 @@ class Follower:
         return out
 
 
-def become_active(election: Election, inbox: Inbox, stop, *, standby: bool, follower: Follower):
+class StateFollower:
+    """The newest valid snapshot the active instance published on ``fusion/{id}/state``.
+
+    The Zenoh callback only keeps the newest raw blob (at most ``max_bytes``; larger
+    ones are counted and dropped unread); :meth:`poll` (the standby's loop) decodes it
+    with ``store.check`` and keeps it if it is valid and newer than the one held."""
+
+    def __init__(self, session, fusion_id: str, store, max_bytes: int) -> None:
+        self.store, self.max_bytes = store, max_bytes
+        self.state: dict | None = None
+        self.received = 0
+        self.rejected: Counter[str] = Counter()
+        self._raw: bytes | None = None
+        self._lock = threading.Lock()
+        self._sub = session.declare_subscriber(keys.fusion_state(fusion_id), self._on_sample)
+
+    def _on_sample(self, sample) -> None:
+        size = len(sample.payload)
+        with self._lock:
+            self.received += 1
+            if size > self.max_bytes:
+                self.rejected["too large"] += 1
+                return
+            self._raw = sample.payload.to_bytes()
+
+    def poll(self) -> None:
+        """Decode the blob received last, if any (counted rejection if invalid)."""
+        with self._lock:
+            blob, self._raw = self._raw, None
+        if blob is None:
+            return
+        try:
+            saved = self.store.check(blob, self.max_bytes)
+        except StateRejected as e:
+            self.rejected[e.reason] += 1
+            log.warning("standby: snapshot refused (%s)", e)
+            return
+        if self.state is None or saved["written_ns"] > self.state["written_ns"]:
+            self.state = saved
+        else:
+            self.rejected["older than the one held"] += 1
+
+    def age_s(self) -> float | None:
+        return None if self.state is None else max(0.0, age_s(self.state))
+
+    def close(self) -> None:
+        try:
+            self._sub.undeclare()
+        except Exception as e:  # closing must never mask the real exit path
+            log.debug("undeclare: %s", e)
+
+
+def standby_status(core, election: Election, follower: Follower, states) -> Status:
+    """The Status a standby publishes on its own key (module docstring)."""
+    counters = {"standby_items_buffered": len(follower.items)}
+    rejected = {}
+    if states is not None:
+        counters["standby_states_received"] = states.received
+        rejected = {f"state: {k}": n for k, n in states.rejected.items()}
+    leader = election.leader()
+    return Status(
+        service="fusion",
+        service_id=core.cfg.fusion_id,
+        time=time.time_ns(),
+        uptime_s=time.monotonic() - core.started,
+        counters=counters,
+        rejected=rejected,
+        role="standby",
+        following=None if leader == election.name else leader,
+        state_age_s=None if states is None else states.age_s(),
+        message="standby" + ("" if leader == election.name else f": following {leader}"),
+    )
+
+
+def become_active(
+    election: Election, inbox: Inbox, stop, *, standby: bool, follower: Follower, tick=None
+):
     """Block until this instance is the active one (``True``), or ``stop`` (``False``).
     Without ``standby``, raise :class:`FusionIdTaken` if another instance is active.
-    A standby keeps what ``inbox`` receives meanwhile in ``follower``."""
+    A standby keeps what ``inbox`` receives meanwhile in ``follower`` and calls ``tick()``
+    every loop (snapshots, its Status)."""
     announced = False
     while not stop.is_set():
         if election.settled():
@@ -151,5 +242,7 @@ def become_active(election: Election, inbox: Inbox, stop, *, standby: bool, foll
                 log.info("standby: instance %s is active; following it", leader)
                 announced = True
         follower.add(inbox.drain(10_000))
+        if tick is not None:
+            tick()
         election.wait_change(0.05)
     return False

@@ -3,17 +3,20 @@
 Two files in the state directory of one fusion id (``--state-dir``, default
 ``$XDG_STATE_HOME/skyfuse/fusion-{id}``, i.e. ``~/.local/state/skyfuse/fusion-{id}``):
 
-* ``state.pickle`` — the whole tracker state, written every ``snapshot_interval`` s
+* ``state.npz`` — the whole tracker state, written every ``snapshot_interval`` s
   (default 2 s) and at a clean stop: the track pipeline (the tracker object as it is —
   tracks, components, existence, ids, the next id — and the feed's picture and cycle
   counter), the system frame, the radar sites and the reorder buffer's per-radar
   watermarks and recently seen batch ids (so batches already applied are refused as
-  duplicates after a restart). The tracker is serialised **generically** (``pickle`` of
-  the objects, protocol 5, with a format version and a fingerprint of the tracker
-  configuration), so any tracker whose objects pickle round-trips without a field list
-  to maintain. At start the service resumes from it when it was written less than
-  ``resume_max_age`` s ago (default 60 s), by the same fusion id, with the same tracker
-  configuration and the same configured frame; otherwise it starts empty and says why.
+  duplicates after a restart). The tracker is serialised **generically** by
+  :mod:`~skyfuse.services.fusion.state_codec` (a JSON manifest + NumPy arrays, every
+  object's attributes as they are, only allow-listed types rebuilt: reading it cannot
+  execute code), with a format version and a fingerprint of the tracker configuration.
+  At start the service resumes from it when it was written less than ``resume_max_age``
+  s ago (default 60 s), by the same fusion id, with the same tracker configuration and
+  the same configured frame, and its arrays are consistent (one row per track);
+  otherwise it starts empty and says why. The same blob is what a standby on another
+  host receives on ``fusion/{id}/state`` (:mod:`~skyfuse.services.fusion.standby`).
 * ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
   Before any output is published, the service checks that its tracker's next id is below
   the persisted ceiling, else it first writes a new one (next id + ``ID_RESERVE``); at
@@ -29,10 +32,10 @@ over the old file, ``fsync`` of the directory — after ``kill -9`` or a power l
 is the previous or the new snapshot, never a torn one. The service loop only pickles the
 state (consistent: nothing changes it meanwhile); a writer thread writes the bytes.
 
-**Trust assumption**: ``pickle`` executes code while loading, so the state directory must
-be writable only by the account running the service (it is created mode 0700 and files
-0600; a directory or file writable by others is refused). The state is written only by
-this service and read only from its own directory (never from the network).
+**Trust**: reading a snapshot never executes code (no pickle); a malformed or hostile
+blob is refused with a reason (``state_codec.REASONS``). The state directory is still
+created owner-only (0700, files 0600) and a directory writable by others is refused:
+whoever can write it can replace the picture.
 """
 
 from __future__ import annotations
@@ -40,21 +43,23 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import pickle
 import stat
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from skyfuse.services.fusion import state_codec
+from skyfuse.services.fusion.state_codec import StateRejected
+from skyfuse.services.runtime.seen_batches import SeenBatches
 from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
-FORMAT = 1
-"""Version of the layout of ``state.pickle`` (bumped when what is saved changes)."""
-STATE_FILE, IDS_FILE = "state.pickle", "ids.json"
+FORMAT = 2
+"""Version of what a snapshot holds (1: the pickle of earlier versions)."""
+STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
 """Ids reserved by one write of ``ids.json`` (a jump of at most this at a restart)."""
 
@@ -104,8 +109,8 @@ class StateStore:
         mode = path.stat().st_mode
         if mode & (stat.S_IWGRP | stat.S_IWOTH):
             raise PermissionError(
-                f"state {str(path)!r} is writable by group/others: refused (it holds "
-                "pickled objects; make it owner-only, chmod go-w)"
+                f"state {str(path)!r} is writable by group/others: refused (whoever "
+                "writes it sets the picture; make it owner-only, chmod go-w)"
             )
 
     # --- ids -------------------------------------------------------------------------
@@ -129,23 +134,28 @@ class StateStore:
             ids = Ids(self.next_id_floor, epoch, time.time_ns())
             atomic_write(self.dir / IDS_FILE, json.dumps(ids.__dict__).encode())
 
-    def begin_epoch(self) -> Ids:
+    def begin_epoch(self, received: dict | None = None) -> Ids:
         """At start or takeover: the new incarnation (persisted epoch + 1) and the next
-        id floor (the persisted next id if younger than ``id_horizon``)."""
+        id floor (the persisted next id if younger than ``id_horizon``). ``received``: a
+        snapshot of the active instance (a standby on another host): its epoch and id
+        ceiling count too, so neither goes back."""
         old = self.read_ids() or Ids()
         age = (time.time_ns() - old.written_ns) / 1e9
         floor = old.next_track_id if age <= self.id_horizon else 1
+        epoch = old.epoch
+        if received is not None:
+            floor, epoch = max(floor, received["id_ceiling"]), max(epoch, received["epoch"])
         self.next_id_floor = max(1, floor)
-        self.write_ids(old.epoch + 1)
-        return Ids(self.next_id_floor, old.epoch + 1)
+        self.write_ids(epoch + 1)
+        return Ids(self.next_id_floor, epoch + 1)
 
     # --- state -----------------------------------------------------------------------
     def serialise(self, state: dict, epoch: int) -> bytes:
-        """``state`` (a dict of picklable objects) as the bytes of ``state.pickle``."""
-        return pickle.dumps(
+        """``state`` (a dict of allow-listed objects, :func:`capture`) as one blob
+        (:func:`state_codec.dumps`), with the id ceiling persisted when it was made."""
+        return state_codec.dumps(
             {"format": FORMAT, "fusion_id": self.fusion_id, "written_ns": time.time_ns(),
-             "epoch": epoch, **state},
-            protocol=5,
+             "epoch": epoch, "id_ceiling": self.next_id_floor, **state},
         )  # fmt: skip
 
     def write(self, blob: bytes, next_track_id: int, epoch: int) -> None:
@@ -167,21 +177,49 @@ class StateStore:
             return None, "no saved state"
         try:
             self._check_private(path)
-        except PermissionError as e:
+            blob = path.read_bytes()
+        except (PermissionError, OSError) as e:
             return None, str(e)
         try:
-            with open(path, "rb") as f:
-                saved = pickle.load(f)
-        except Exception as e:  # a state from another version of the code
-            return None, f"saved state unreadable ({type(e).__name__}: {e})"
-        if not isinstance(saved, dict) or saved.get("format") != FORMAT:
-            return None, "saved state has another format version"
-        if saved.get("fusion_id") != self.fusion_id:
-            return None, f"saved state is of fusion id {saved.get('fusion_id')!r}"
-        age = (time.time_ns() - int(saved["written_ns"])) / 1e9
-        if age > self.max_age:
-            return None, f"saved state is {age:.1f} s old (resume_max_age {self.max_age:g} s)"
-        return saved, f"saved state {age:.2f} s old"
+            saved = self.check(blob)
+        except StateRejected as e:
+            return None, f"saved state refused ({e})"
+        return saved, f"saved state {age_s(saved):.2f} s old"
+
+    def check(self, blob: bytes, max_bytes: int = 256_000_000) -> dict:
+        """Decode a snapshot blob (file or network) and check that it may be resumed;
+        :class:`StateRejected` (a reason of :data:`state_codec.REASONS` or ``other
+        fusion id``, ``malformed header``, ``too old``) if not. Runs no code of the
+        blob."""
+        saved = state_codec.loads(blob, max_bytes=max_bytes)
+        _check_header(saved, self.fusion_id)
+        if age_s(saved) > self.max_age:
+            raise StateRejected(
+                "too old", f"{age_s(saved):.1f} s (resume_max_age {self.max_age:g} s)"
+            )
+        return saved
+
+
+def age_s(saved: dict) -> float:
+    """Age of a decoded snapshot, s (wall clock)."""
+    return (time.time_ns() - saved["written_ns"]) / 1e9
+
+
+_PARTS = {"frame": object, "sites": dict, "reorder": dict, "pipeline": (dict, type(None))}
+
+
+def _check_header(saved, fusion_id: str) -> None:
+    """Refuse a decoded snapshot that is not one of this fusion id's."""
+    if type(saved) is not dict or saved.get("format") != FORMAT:
+        raise StateRejected("format version", "another snapshot layout")
+    if saved.get("fusion_id") != fusion_id:
+        raise StateRejected("other fusion id", str(saved.get("fusion_id"))[:40])
+    for name in ("written_ns", "epoch", "id_ceiling"):
+        if type(saved.get(name)) is not int:
+            raise StateRejected("malformed header", f"no integer {name}")
+    for name, kind in _PARTS.items():
+        if not isinstance(saved.get(name), kind):
+            raise StateRejected("malformed header", f"no {name}")
 
 
 _LOCK_TYPES = (type(threading.Lock()), type(threading.RLock()))
@@ -207,7 +245,7 @@ def capture(core) -> dict:
         "reorder": {
             "radar_time": dict(buf.radar_time),
             "last_time": buf.last_time,
-            "seen": {rid: list(d) for rid, d in buf._seen.items()},
+            "seen": buf.seen,
         },
         "pipeline": state,
         "fingerprint": None if pipe is None else tracker_fingerprint(pipe),
@@ -217,14 +255,18 @@ def capture(core) -> dict:
 def restore(core, saved: dict) -> str | None:
     """Put a saved state (:func:`capture`) back into a new ``FusionCore``; ``None`` on
     success, else why the tracker state was not taken (the sites and watermarks are
-    still restored: batches already applied stay refused as duplicates)."""
+    still restored when well-formed: batches already applied stay refused as
+    duplicates). A state whose parts have other types, or whose arrays do not have one
+    row per track, is refused (``state inconsistent: …``) and changes nothing."""
+    why = _parts_problem(saved)
+    if why is not None:
+        return f"state inconsistent: {why}"
     for site in saved["sites"].values():
         core.on_site(site, configured=True)
     buf, rs = core.buffer, saved["reorder"]
     buf.radar_time.update(rs["radar_time"])
     buf.last_time = rs["last_time"]
-    for rid, seen in rs["seen"].items():
-        buf._seen.setdefault(rid, deque(maxlen=256)).extend(seen)
+    buf.seen = rs["seen"]
     state, frame = saved["pipeline"], saved["frame"]
     if state is None:
         return "no tracker state saved yet"
@@ -236,10 +278,63 @@ def restore(core, saved: dict) -> str | None:
     pipe = core._factory(frame)
     if tracker_fingerprint(pipe) != saved["fingerprint"]:
         return "the tracker configuration differs from the saved one"
+    if type(state.get("tracker")) is not type(pipe.tracker) or type(state.get("feed")) is not dict:
+        return "state inconsistent: the tracker or feed has another type"
     feed = state.pop("feed")
     vars(pipe).update(state)
     vars(pipe.feed).update(feed)
+    why = track_rows_problem(pipe)
+    if why is not None:
+        return f"state inconsistent: {why}"
     core.pipeline, core.frame = pipe, frame
+    return None
+
+
+def _parts_problem(saved: dict) -> str | None:
+    """Why the sites / reorder parts of a decoded snapshot cannot be applied."""
+    sites, rs = saved["sites"], saved["reorder"]
+    if not all(type(s).__name__ == "RadarSite" and k == s.radar_id for k, s in sites.items()):
+        return "sites"
+    if type(saved["frame"]).__name__ != "FrameSpec":
+        return "frame"
+    try:
+        ok = (
+            all(type(k) is str and type(v) is int for k, v in rs["radar_time"].items())
+            and (rs["last_time"] is None or type(rs["last_time"]) is int)
+            and type(rs["seen"]) is SeenBatches
+            and all(type(getattr(rs["seen"], a)) is int for a in ("max_radars", "window", "epochs"))
+            and all(type(k) is str and type(v) is dict for k, v in rs["seen"].radars.items())
+        )
+    except (KeyError, AttributeError, TypeError):
+        ok = False
+    return None if ok else "reorder watermarks"
+
+
+TRACK_ROWS = (
+    "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update", "height",
+    "coast_from",
+)  # fmt: skip
+"""The tracker's per-track arrays (one row per track, the order of ``ids``)."""
+
+
+def track_rows_problem(pipe) -> str | None:
+    """Why a restored pipeline's track arrays are inconsistent (``None``: they are not):
+    every per-track array and the density have ``len(ids)`` rows, and the picture can be
+    computed from them."""
+    tr = pipe.tracker
+    if not isinstance(tr.ids, np.ndarray) or tr.ids.ndim != 1:
+        return "track ids"
+    n = len(tr.ids)
+    for name in TRACK_ROWS:
+        a = getattr(tr, name, None)
+        if a is not None and (not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != n):
+            return f"tracker.{name} has {getattr(a, 'shape', None)} rows for {n} tracks"
+    try:
+        if len(tr.density) != n:
+            return f"the density has {len(tr.density)} tracks for {n}"
+        pipe.snapshot()
+    except Exception as e:  # arrays of wrong shapes deeper inside the density
+        return f"picture not computable ({type(e).__name__})"
     return None
 
 
@@ -273,6 +368,9 @@ class Persistence:
         self._cond = threading.Condition()
         self._writer: threading.Thread | None = None
         self._closing = False
+        self.publish = None
+        """``publish(blob)``: also send each snapshot (the active instance's
+        ``fusion/{id}/state`` publisher, for standbys on other hosts)."""
 
     @classmethod
     def from_config(cls, core) -> Persistence | None:
@@ -287,14 +385,25 @@ class Persistence:
         core._factory = numbering_from(core._factory, store)
         return cls(core, store, cfg.snapshot_interval)
 
-    def start(self) -> None:
-        """Begin a new epoch and resume the saved state if it may be (logged either way)."""
+    def start(self, received: dict | None = None) -> None:
+        """Begin a new epoch and resume the saved state if it may be (logged either way).
+        ``received``: the newest valid snapshot a standby got over Zenoh; it is resumed
+        instead of the state directory's when it is newer."""
         core, store = self.core, self.store
-        ids = store.begin_epoch()
+        ids = store.begin_epoch(received)
         core.epoch = ids.epoch
         saved, why = store.load()
+        if received is not None and (saved is None or received["written_ns"] > saved["written_ns"]):
+            saved, why = (
+                received,
+                f"snapshot received from the active instance {age_s(received):.2f} s old",
+            )
         if saved is not None:
-            why_not = restore(core, saved)
+            try:
+                why_not = restore(core, saved)
+            except Exception as e:  # a well-formed blob whose objects do not fit together
+                core.pipeline = None
+                why_not = f"state inconsistent: {type(e).__name__}"
             self.resumed = why_not is None
             why = f"{why}, {'resumed' if self.resumed else 'tracks not resumed: ' + why_not}"
         if core.pipeline is not None:  # resumed, or created from the configuration
@@ -314,7 +423,17 @@ class Persistence:
         if now < self._next:
             return
         self._next = time.monotonic() + self.interval
-        blob, nid, epoch = self._serialised()
+        job = self._serialised()
+        if job is None:
+            return
+        blob, nid, epoch = job
+        if self.publish is not None:  # here, not in the writer: before any later output
+            try:
+                self.publish(blob)
+                self.core.counters["state_published"] += 1
+            except Exception as e:  # a transport error must not stop the tracking
+                self.core.counters["state_publish_errors"] += 1
+                log.error("state: cannot publish the snapshot: %s", e)
         with self._cond:
             self._pending = (blob, nid, epoch)
             self._cond.notify()
@@ -322,10 +441,18 @@ class Persistence:
             self._writer = threading.Thread(target=self._write_loop, name="state", daemon=True)
             self._writer.start()
 
-    def _serialised(self) -> tuple[bytes, int, int]:
+    def _serialised(self) -> tuple[bytes, int, int] | None:
+        """The snapshot blob, next id and epoch; ``None`` (counted, logged) if a part of
+        the state is of a type outside the codec's allow-list."""
         core = self.core
         nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
-        return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+        try:
+            return self.store.serialise(capture(core), core.epoch or 0), nid, core.epoch or 0
+        except state_codec.StateUnsupported as e:
+            core.counters["state_save_errors"] += 1
+            if core.counters["state_save_errors"] == 1:
+                log.error("state: cannot serialise the tracker state: %s", e)
+            return None
 
     def _write_loop(self) -> None:
         while True:
@@ -358,6 +485,9 @@ class Persistence:
         except OSError as e:
             core.counters["state_save_errors"] += 1
             log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
+        if self.publish is not None:  # standbys on other hosts learn the new ceiling now
+            self._next = 0.0
+            self.tick(time.monotonic())
 
     def save(self) -> None:
         """Save now, in this thread (at a clean stop: after the writer thread's last
@@ -368,4 +498,6 @@ class Persistence:
                 self._cond.notify()
             self._writer.join(timeout=10.0)
             self._writer, self._closing = None, False
-        self._write(*self._serialised())
+        job = self._serialised()
+        if job is not None:
+            self._write(*job)

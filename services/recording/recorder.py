@@ -40,7 +40,7 @@ import json
 import logging
 import math
 import time
-from collections import Counter, deque
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +62,7 @@ from skyfuse.schemas import (
 from skyfuse.schemas.rejection import decode, rejection_detail
 from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from skyfuse.services.runtime.ratelimit import RateLimitedLog
+from skyfuse.services.runtime.seen_batches import SeenBatches
 from skyfuse.services.runtime.transport import Received
 
 log = logging.getLogger(__name__)
@@ -234,7 +235,9 @@ class Recorder:
         self.sites: dict[str, tuple[RadarSite, bytes]] = {}
         self._scan_plots: dict[str, list[PlotBatch]] = {}
         self._scan_count: dict[str, int] = {}
-        self._seen: dict[str, deque] = {}
+        self.seen = SeenBatches(max_radars=cfg.max_scan_radars)
+        self.skipped = 0
+        """Fusion state snapshots received (``fusion/*/state``, for standbys): not recorded."""
         self.limits: Counter[str] = Counter()
         self._log = RateLimitedLog(log)
         self._writer: RecordingWriter | None = None
@@ -358,6 +361,9 @@ class Recorder:
         """Validate and write one sample; ``False`` (and a counted reason) if rejected."""
         try:
             kind = keys.parse(item.key).kind
+            if kind == "state":  # a standby's input, not part of the recording
+                self.skipped += 1
+                return False
             model = schemas.MODELS[kind]
         except (ValueError, KeyError):
             self.rejected["key outside the skyfuse/@v1 key space"] += 1
@@ -390,18 +396,13 @@ class Recorder:
         return True
 
     def _duplicate(self, msg: PlotBatch) -> bool:
-        """Whether a batch with the same ``(seq, time_end, scan)`` of its radar was
-        recorded among the last 256 (a restarted sensor's repeats, see
-        ``services.sensors.continuation``); at most ``max_scan_radars`` radars are
-        remembered (the oldest forgotten)."""
-        seen = self._seen.pop(msg.radar_id, None) or deque(maxlen=256)
-        self._seen[msg.radar_id] = seen  # most recent last
-        while len(self._seen) > self.cfg.max_scan_radars:
-            self._seen.pop(next(iter(self._seen)))
-        ident = (msg.seq, msg.time_end, msg.scan)
-        if ident in seen:
+        """Whether this batch was recorded already: same ``(radar, epoch, seq)`` (a
+        restarted sensor's repeats, a file published again; without an epoch: same
+        ``(seq, time_end, scan)`` among the radar's last 256), bounded memory
+        (``services.runtime.seen_batches``, at most ``max_scan_radars`` radars)."""
+        if self.seen.duplicate(msg):
             return True
-        seen.append(ident)
+        self.seen.add(msg)
         return False
 
     def _buffer_plots(self, msg: PlotBatch, log_time: int) -> None:
@@ -487,4 +488,5 @@ class Recorder:
             "by_topic": dict(sorted(self.counts.items())),
             "rejected": dict(self.rejected),
             "limits": dict(self.limits),
+            "skipped_fusion_state": self.skipped,
         }

@@ -13,9 +13,13 @@ so all traffic passes through the one place that checks it. The policy
 * ``sensor-R`` may publish (put, liveliness, the site queryable) only under
   ``radar/R/**``, plus its own ``service/sensor-R/**`` status and token;
 * ``fusion-F`` may publish only under ``fusion/F/**`` (tracks, events, status, snapshot
-  queryable) and its service keys, and may read every radar;
-* the recorder ``N`` may read everything and publish only its own service keys;
-* ``client-C`` may read the fusion feeds (subscribe, snapshot query) and nothing else;
+  queryable, the ``state`` snapshots for its standby, the election tokens, a standby's
+  own Status) and its service keys, and may read every radar and ``fusion/F/**`` (so
+  its instances — same identity, other hosts — follow each other);
+* the recorder ``N`` may read everything but the fusion ``state`` snapshots and publish
+  only its own service keys;
+* ``client-C`` may read the fusion feeds (tracks, events, status, snapshot query,
+  registration, standby Status) and nothing else — not the ``state`` snapshots;
 * everyone may look up service liveliness under ``service/**`` (``--wait-for``).
 
 Zenoh filters *ingress* (what a peer sends to the router) and *egress* (what the router
@@ -98,10 +102,19 @@ def _rules_for(p: Principal) -> list[dict]:
         # its own fusion/F/** too: the election tokens of its instances (fusion.standby)
         rules += _writer(p.cn, own) + _reader(p.cn, [f"{P}/radar/**", f"{P}/fusion/{p.name}/**"])
     elif p.role == "recorder":
-        rules += _writer(p.cn, [own_service]) + _reader(p.cn, [f"{P}/**"])
+        everything = [f"{P}/radar/**", *FEED_KEYS, f"{P}/sim/**", f"{P}/service/**"]
+        rules += _writer(p.cn, [own_service]) + _reader(p.cn, [f"{P}/**"], receive=everything)
     elif p.role == "client":
-        rules += _reader(p.cn, [f"{P}/fusion/**"])
+        rules += _reader(p.cn, [f"{P}/fusion/**"], receive=FEED_KEYS)
     return rules
+
+
+FEED_KEYS = [
+    *(f"{P}/fusion/*/{k}" for k in ("tracks", "events", "status", "snapshot", "registration")),
+    f"{P}/fusion/*/standby/*/status",
+]
+"""What a client (and the recorder) may receive of the fusion keys: not ``state``, not
+the election tokens."""
 
 
 def _writer(cn: str, key_exprs: list[str]) -> list[dict]:
@@ -116,11 +129,13 @@ def _writer(cn: str, key_exprs: list[str]) -> list[dict]:
     ]
 
 
-def _reader(cn: str, key_exprs: list[str]) -> list[dict]:
-    """May subscribe to and query ``key_exprs`` and receive what is published there."""
+def _reader(cn: str, key_exprs: list[str], receive: list[str] | None = None) -> list[dict]:
+    """May subscribe to and query ``key_exprs`` and receive what is published there (only
+    on ``receive`` if given: the router checks each delivered sample's concrete key, so
+    a subscriber of ``**`` receives nothing else)."""
     return [
         _rule(f"{cn}-read", _READ_IN, ["ingress"], key_exprs),
-        _rule(f"{cn}-read-data", _READ_OUT, ["egress"], key_exprs),
+        _rule(f"{cn}-read-data", _READ_OUT, ["egress"], receive or key_exprs),
     ]
 
 

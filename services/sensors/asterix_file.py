@@ -8,6 +8,7 @@ import time
 
 from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
+from skyfuse.services.sensors.continuation import file_epoch
 from skyfuse.services.sensors.fleet import RadarFleet, asterix_sites, stats_text
 
 log = logging.getLogger(__name__)
@@ -48,7 +49,14 @@ class AsterixRecordingSensor:
                 )
             radars = {cfg.radar}
         self.radars = sorted(radars)
-        self.batches = [b for b in self.result.batches if b.radar_id in radars]
+        # the same file decoded the same way: the same epoch, so a restarted sensor's
+        # repeats are duplicates by (radar, epoch, seq) (services.sensors.continuation)
+        self.epoch = file_epoch(cfg.asterix, cfg.date, cfg.sector_count, delay, cfg.sites)
+        self.batches = [
+            b.model_copy(update={"epoch": self.epoch})
+            for b in self.result.batches
+            if b.radar_id in radars
+        ]
         self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}")
 
     def run(self, stop) -> SensorStats:

@@ -77,7 +77,8 @@ class AsterixUdpSensor:
                 self.filtered += 1
                 continue
             seq = self.sequence.number(b.radar_id, b.seq)  # continues across restarts
-            self.fleet.plots(b if seq == b.seq else b.model_copy(update={"seq": seq}), stamp_ns)
+            ident = {"seq": seq, "epoch": self.sequence.epoch}
+            self.fleet.plots(b.model_copy(update=ident), stamp_ns)
 
     def _sites(self) -> None:
         """Publish the sites of the radars heard so far: new ones, and changed ones — a

@@ -12,8 +12,16 @@ fingerprint matches and the file is younger than ``resume_max_age`` (default 60 
 sensor skips the batches with ``time_end`` up to the saved one and maps the first
 remaining one to its start instant: sequence numbers and times continue. A ``kill -9``
 can lose the last ``PROGRESS_INTERVAL`` of progress, so at most that much is published twice — those
-repeats have the identity ``(radar, seq, time_end, scan)`` of the first copies, which the
-fusion service and the recorder refuse as ``duplicate batch``.
+repeats have the identity ``(radar, epoch, seq)`` of the first copies, which the fusion
+service and the recorder refuse as ``duplicate batch`` (``services.runtime.seen_batches``).
+
+**Epochs** (``PlotBatch.epoch``): a sensor's numbering is identified by an epoch, kept
+with the numbering: the simulated sensor's is saved in ``progress.json`` (a continued
+run keeps it; a run from the beginning starts a new one: its start instant, ns), the
+live ASTERIX sensor's in ``sequence.json`` (``@epoch``, made once with the file); the
+ASTERIX file sensor's is a fingerprint of the file and of how it is decoded
+(:func:`file_epoch`), so publishing the same file again repeats the same
+``(radar, epoch, seq)`` and is refused as duplicates, batch by batch.
 """
 
 from __future__ import annotations
@@ -57,6 +65,8 @@ class SensorProgress:
         self.fingerprint, self.max_age = fingerprint, max_age
         self.last: tuple[int, int] | None = None
         self._written = 0.0
+        self.epoch = new_epoch()
+        """The epoch of this run's numbering (the previous run's if continued)."""
 
     @classmethod
     def from_config(cls, cfg) -> SensorProgress | None:
@@ -83,6 +93,9 @@ class SensorProgress:
             return None
         log.info("continuing after seq %d (progress %.1f s old)", seq, age)
         self.last = (int(seq), int(t_end))
+        epoch = d.get("epoch")
+        if type(epoch) is int and epoch > 0:  # files of earlier versions have none
+            self.epoch = epoch
         return int(t_end)
 
     def published(self, seq: int, time_end: int) -> None:
@@ -106,7 +119,7 @@ class SensorProgress:
         if self.last is None:
             return
         d = {"fingerprint": self.fingerprint, "seq": self.last[0], "time_end": self.last[1],
-             "written_ns": time.time_ns()}  # fmt: skip
+             "epoch": self.epoch, "written_ns": time.time_ns()}  # fmt: skip
         try:
             atomic_write(self.path, json.dumps(d).encode())
         except OSError as e:
@@ -134,9 +147,17 @@ class SequenceCeiling:
         self.dir = Path(directory)
         self.dir.mkdir(parents=True, exist_ok=True, mode=0o700)
         self.path = self.dir / "sequence.json"
+        self.epoch = new_epoch()
+        """The epoch of this sensor's numbering (``@epoch`` in the file; a new one only
+        when the file is made, i.e. when the numbers start again from 0)."""
         try:
             saved = json.loads(self.path.read_text())
+            epoch = saved.pop(EPOCH_KEY, None)
             self.ceiling = {str(k): int(v) for k, v in saved.items()}
+            if type(epoch) is int and epoch > 0:
+                self.epoch = epoch
+            elif self.ceiling:  # a file of an earlier version: numbers go on, new epoch
+                self._write()
         except FileNotFoundError:
             self.ceiling = {}
         except (ValueError, TypeError, AttributeError) as e:
@@ -149,8 +170,32 @@ class SequenceCeiling:
         out = self.base.get(radar_id, 0) + seq
         if out >= self.ceiling.get(radar_id, 0):
             self.ceiling[radar_id] = out + SEQ_RESERVE
-            try:
-                atomic_write(self.path, json.dumps(self.ceiling).encode())
-            except OSError as e:
-                log.error("cannot write %s: %s", self.path, e)
+            self._write()
         return out
+
+    def _write(self) -> None:
+        try:
+            atomic_write(self.path, json.dumps({**self.ceiling, EPOCH_KEY: self.epoch}).encode())
+        except OSError as e:
+            log.error("cannot write %s: %s", self.path, e)
+
+
+EPOCH_KEY = "@epoch"
+"""The epoch's entry in ``sequence.json`` (no radar id contains ``@``)."""
+
+
+def new_epoch() -> int:
+    """A new epoch: this instant, ns since the Unix epoch (UTC)."""
+    return time.time_ns()
+
+
+def file_epoch(path: Path, *selection) -> int:
+    """The epoch of the batches decoded from a recording file: the first 60 bits of the
+    SHA-256 of its content and of ``selection`` (what else determines the batches: the
+    date, the sector count, …), never 0. The same file decoded the same way has the
+    same epoch on every run and every host."""
+    h = hashlib.sha256(repr(selection).encode())
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return int(h.hexdigest()[:15], 16) or 1

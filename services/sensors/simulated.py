@@ -30,7 +30,7 @@ from skyfuse.services.runtime.transport import (
     wall_stamp,
 )
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
-from skyfuse.services.sensors.continuation import SensorProgress
+from skyfuse.services.sensors.continuation import SensorProgress, new_epoch
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +64,8 @@ class SimulatedRadar:
         self._token = None
         self._ready = declare_liveliness(session, service_alive_key(f"sensor-{cfg.radar}"))
         self.progress = SensorProgress.from_config(cfg)
+        self.epoch = new_epoch()
+        """``PlotBatch.epoch``: the progress file's when continued (see ``run``)."""
 
     def _answer_site(self, query) -> None:
         query.reply(keys.radar_site(self.cfg.radar), self._site_bytes)
@@ -107,6 +109,8 @@ class SimulatedRadar:
         wall0 = time.monotonic()
         t0 = getattr(self.scenario, "start_time", None)
         skip = None if self.progress is None else self.progress.resume_after()
+        if self.progress is not None:
+            self.epoch = self.progress.epoch
         if skip is not None:
             t0 = None  # the first batch not yet published is due at the start instant
         next_status = wall0
@@ -124,6 +128,7 @@ class SimulatedRadar:
             if not self.stats.wait_until(due_ns, stop):
                 break
             if ev.kind == "plots":
+                ev.message.epoch = self.epoch
                 self._pub_plots.put(ev.message.to_json_bytes(), attachment=wall_stamp(due_ns))
                 self.stats.plots += len(ev.message.time)
                 self.stats.published["plots"] += 1

@@ -80,12 +80,16 @@ def test_iter_recording_decodes_and_counts_bad_messages(tmp_path):
 def test_killed_writer_keeps_complete_chunks(tmp_path):
     buf = io.BytesIO()
     w = RecordingWriter(buf, chunk_size=2_000)
+    sizes = []
     for i in range(200):
         w.write(keys.radar_plots("r1"), _batch(i), i)
-    # The process dies here: no finish(), no summary. Only flushed chunks are on disk.
+        sizes.append(len(buf.getvalue()))
+    # The process dies here: no finish(), no summary. Only flushed chunks are on disk,
+    # and the last chunk written was cut mid-record (the one before the last growth).
     data = buf.getvalue()
+    last_chunk_start = max(s for s in sizes if s < len(data))
     path = tmp_path / "killed.mcap"
-    path.write_bytes(data[: len(data) - 7])  # and the last write was cut mid-record
+    path.write_bytes(data[: (last_chunk_start + len(data)) // 2])
     stats = ReadStats()
     got = list(iter_recording(path, stats=stats))
     assert stats.truncated

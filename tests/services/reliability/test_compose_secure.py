@@ -96,3 +96,31 @@ def test_router_listens_on_tls_only_with_the_policy(compose, certs):
     san = x509.load_pem_x509_certificate(tcfg.tls_cert.read_bytes()).extensions
     names = san.get_extension_for_class(x509.SubjectAlternativeName).value
     assert "zenohd" in names.get_values_for_type(x509.DNSName)
+
+
+@pytest.mark.parametrize("name", ["docker-compose.yml", "docker-compose.secure.yml"])
+def test_fusion_state_is_on_a_named_volume(name, monkeypatch):
+    """The fusion service's state dir (from its environment and TOML, as the CLI builds
+    it) lies on a named volume of the compose file, whose mount point the image creates
+    owned by the service user (Dockerfile), so a recreated container resumes."""
+    from skyfuse.services.fusion.service import FusionConfig
+
+    doc = yaml.safe_load((ROOT / name).read_text())
+    svc = doc["services"]["fusion"]
+    for k, v in svc["environment"].items():
+        monkeypatch.setenv(k, str(v))
+    args = build_parser().parse_args(svc["command"])
+    args.config = str(ROOT / "deploy" / Path(args.config).name)
+    cfg = build_config(
+        FusionConfig, args, toml_path=args.config, section="fusion", env_prefix="SKYFUSE_FUSION_"
+    )
+    mounts = dict(v.rsplit(":", 1)[0].split(":") if v.count(":") == 2 else v.split(":")
+                  for v in svc["volumes"])  # fmt: skip
+    volume = next(vol for vol, target in mounts.items() if cfg.state_dir.is_relative_to(target))
+    assert volume in doc["volumes"]  # a named volume, not the container's own layer
+    assert cfg.snapshot_interval is not None  # snapshots on
+    target = Path(mounts[volume])
+    dockerfile = (ROOT / "Dockerfile").read_text()
+    assert (
+        f"mkdir -p /data {target}" in dockerfile and f"chown skyfuse /data {target}" in dockerfile
+    )

@@ -21,7 +21,7 @@ import time
 
 import pytest
 from pyproj import Geod
-from skyfuse.schemas import FeedKind, TrackBatch, TrackPicture, keys
+from skyfuse.schemas import FeedKind, Status, TrackBatch, TrackPicture, keys
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportConfig,
@@ -55,19 +55,26 @@ def fusion_args(ep: str, state, *extra: str) -> tuple[str, ...]:
     )  # fmt: skip
 
 
-def kill_and_follow(start_skyfuse, rec, tmp_path, *, standby: bool) -> dict:
+def kill_and_follow(
+    start_skyfuse, rec, tmp_path, *, standby: bool, other_host: bool = False
+) -> dict:
     """Run the active instance (and a standby), kill -9 the active one, collect the feed
-    until the new incarnation has published; check it; return the figures."""
+    until the new incarnation has published; check it; return the figures.
+    ``other_host``: the standby has its own state directory (as on another host): it
+    can only resume what it received on ``fusion/main/state``."""
     ep = f"tcp/127.0.0.1:{free_port()}"
     extra = ("--standby",) if standby else ()
     args = fusion_args(ep, tmp_path / "state", *extra)
+    args_b = fusion_args(ep, tmp_path / "state-b", *extra) if other_host else args
     with open_session(TransportConfig(listen=[ep])) as s:
         inbox = Inbox()
         inbox.subscribe(s, keys.fusion_tracks("main"), "tracks")
+        st_inbox = Inbox()
+        st_inbox.subscribe(s, f"{keys.PREFIX}/fusion/main/standby/*/status", "standby")
         first = start_skyfuse(*args, log="fusion-1")
         assert wait_for_tokens(s, [service_alive_key("fusion")], 30.0) == []
         if standby:
-            second = start_skyfuse(*args, log="fusion-2")
+            second = start_skyfuse(*args_b, log="fusion-2")
             prefix = f"{keys.PREFIX}/fusion/main/active/*"
             assert wait_for_tokens(s, [prefix], 30.0) == []
         start_skyfuse("replay", str(rec), "--speed", "2", "--connect", ep, log="replay")
@@ -75,6 +82,7 @@ def kill_and_follow(start_skyfuse, rec, tmp_path, *, standby: bool) -> dict:
         enough = lambda m: m[-1][1].kind is FeedKind.FULL and len(m[-1][1].tracks) >= 12  # noqa: E731
         assert collect(inbox, msgs, enough, 40.0), "no picture of 12 tracks"
         collect(inbox, msgs, lambda m: False, 1.5)  # a snapshot or two more
+        standby_report = last_standby_status(st_inbox) if standby else None
         first.kill()  # SIGKILL
         first.wait()
         t_kill = time.monotonic()
@@ -84,7 +92,23 @@ def kill_and_follow(start_skyfuse, rec, tmp_path, *, standby: bool) -> dict:
         assert collect(inbox, msgs, new_full, 30.0), "the new incarnation published no picture"
         collect(inbox, msgs, lambda m: False, 3.0)
         assert second.poll() is None
-    return check_continuity(msgs, t_kill)
+    figures = check_continuity(msgs, t_kill)
+    if standby_report is not None:  # it reported itself as a standby, holding a snapshot
+        assert standby_report.role == "standby" and standby_report.following
+        assert standby_report.state_age_s is not None
+        assert standby_report.counters["standby_states_received"] >= 1
+        figures["standby_state_age_s"] = round(standby_report.state_age_s, 2)
+    if other_host:
+        log = (tmp_path / "fusion-2.log").read_text()
+        assert "snapshot received from the active instance" in log and "resumed" in log
+    return figures
+
+
+def last_standby_status(st_inbox: Inbox) -> Status:
+    """The newest Status the standby published on its own key (never the active one's)."""
+    items = st_inbox.drain()
+    assert items, "the standby published no Status"
+    return Status.from_json_bytes(items[-1].payload)
 
 
 def check_continuity(msgs: list, t_kill: float) -> dict:
@@ -131,6 +155,14 @@ def test_kill_9_fusion_restart_resumes_the_same_track_ids(
 
 def test_standby_takes_over_with_the_same_track_ids(start_skyfuse, simulated_recording, tmp_path):
     kill_and_follow(start_skyfuse, simulated_recording(*REGIONAL), tmp_path, standby=True)
+
+
+def test_standby_on_another_host_takes_over_from_the_snapshots_it_received(
+    start_skyfuse, simulated_recording, tmp_path
+):
+    kill_and_follow(
+        start_skyfuse, simulated_recording(*REGIONAL), tmp_path, standby=True, other_host=True
+    )
 
 
 def test_second_instance_without_standby_refuses_to_publish(start_skyfuse, tmp_path):

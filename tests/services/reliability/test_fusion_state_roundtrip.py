@@ -18,7 +18,7 @@ from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.schemas import FeedKind, TrackBatch, TrackPicture
 from skyfuse.services.fusion.pipeline import TrackPipeline
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
-from skyfuse.services.fusion.state_store import Persistence, StateStore
+from skyfuse.services.fusion.state_store import STATE_FILE, Persistence, StateStore
 from skyfuse.services.runtime.state_files import atomic_write
 
 
@@ -135,7 +135,7 @@ def test_state_dir_writable_by_others_is_refused(tmp_path, scenario):
     p = Persistence.from_config(core)
     p.start()
     p.save()
-    os.chmod(d / "state.pickle", 0o666)  # a file others could have replaced: not loaded
+    os.chmod(d / STATE_FILE, 0o666)  # a file others could have replaced: not loaded
     store = StateStore(d, "main", max_age=60, id_horizon=60)
     assert store.load()[0] is None and "writable" in store.load()[1]
 

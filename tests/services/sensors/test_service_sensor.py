@@ -58,7 +58,11 @@ def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
         finally:
             rc, _ = stop(proc, timeout=10)
     assert rc == 0, (tmp_path / "sensor.log").read_text()
-    assert [g.payload for g in got] == expected  # same batches, same order, unchanged
+    batches = [PlotBatch.from_json_bytes(g.payload) for g in got]
+    epochs = {b.epoch for b in batches}
+    assert len(epochs) == 1 and 0 not in epochs  # the epoch of this run's numbering
+    # same batches, same order, unchanged but for the epoch
+    assert [b.model_copy(update={"epoch": 0}).to_json_bytes() for b in batches] == expected
     assert RadarSite.from_json_bytes(sites[0].payload) == sc.sites[0]
     # paced: wall stamps follow simulated time / speed
     t = [PlotBatch.from_json_bytes(g.payload).time_end for g in got]

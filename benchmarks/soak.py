@@ -1,0 +1,249 @@
+"""Soak (issue 14 §6): the whole service on loopback for a long run, checked for silent
+loss, memory growth and latency drift.
+
+One ``skyfuse replay --radars ID`` publisher process per radar (the ``regional``
+scenario, ``--radars`` radars, ``--targets`` aircraft, simulated first into an MCAP file
+whose replay speed gives ``--rate`` plots/s), one ``skyfuse fusion`` (id ``bench``,
+snapshots on, state in the run's directory), one ``skyfuse record`` and one ``skyfuse
+tracks --json`` client, for ``--duration`` wall seconds. The processes and the Zenoh
+sessions are the ones of ``benchmarks/service_pipeline.py`` (its pieces are imported).
+
+Checks, at the end (after the fusion drained its queue):
+
+* **no batch missing from the recording**: recorded plot batches (distinct
+  ``(radar, epoch, seq)``) = published (the simulated file's), and recorded plots =
+  published plots;
+* **no silent loss in the fusion**: batches received = published, and batches received
+  = batches applied (``cycles``) + batch rejections counted by reason (Status
+  ``rejected``, plot-level ``plot: …`` reasons apart); plots accepted = plots applied;
+* **the client** received every track message the fusion published
+  (``track_batches_published``) — counted from its JSON lines;
+* **resident memory** of the fusion process (VmRSS at every Status): the median of the
+  last ``--window`` s against the median of the second window (the first is warm-up),
+  growth in %;
+* **latency** (sender's sweep-end stamp → publication of the delta with the batch, the
+  fusion's own measure, over every batch) p50 / p99 per window: the fusion's
+  ``--latency-window`` is set to the batches of one window, so the Status at each window
+  end gives the percentiles of that window.
+
+Prints the figures and writes them as JSON (default ``benchmarks/results/soak-R-Ds.json``).
+
+    python benchmarks/soak.py --duration 600 --rate 5000        # the 10-minute soak
+    python benchmarks/soak.py --duration 60 --rate 1000 --window 15   # a quick check
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from service_pipeline import (  # noqa: E402
+    Follower,
+    make_level_files,
+    sim_plot_rate,
+    start_children,
+)
+from skyfuse.services.evaluation.demo import Child  # noqa: E402
+from skyfuse.services.runtime.transport import (  # noqa: E402
+    TransportConfig,
+    declare_liveliness,
+    open_session,
+    service_alive_key,
+    wait_for_tokens,
+)
+
+
+def observers(ep: str, work: Path) -> tuple[Child, Child]:
+    """The recorder and the track client (not started)."""
+    rec = Child(
+        "recorder",
+        ["--log-level", "WARNING", "record", "--out", str(work / "soak.mcap"), "--stats",
+         str(work / "recorder.json"), "--connect", ep],
+        work / "recorder.log",
+    )  # fmt: skip
+    client = Child(
+        "tracks",
+        ["--log-level", "WARNING", "tracks", "--fusion-id", "bench", "--json",
+         str(work / "tracks.jsonl"), "--connect", ep],
+        work / "tracks.log",
+    )  # fmt: skip
+    return rec, client
+
+
+def run(a, work: Path) -> dict:
+    base = sim_plot_rate(a)
+    speed = a.rate / base
+    a.seconds, a.no_offline = a.duration, True
+    rec, facts = make_level_files(a.rate, speed, a, work)
+    per_window = max(10, round(facts["batches"] / a.duration * a.window))
+    frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
+    extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
+    ep, fusion, pubs = start_children(
+        rec, speed, facts["radars"], frame, a, work, a.rate, fusion_extra=extra
+    )
+    recorder, client = observers(ep, work)
+    load0 = os.getloadavg()
+    with open_session(TransportConfig(listen=[ep])) as s:
+        for c in (fusion, recorder, client):
+            c.start(state_home=work / "state-home")
+        names = [service_alive_key("fusion"), service_alive_key("recorder")]
+        assert wait_for_tokens(s, names, 60.0) == [], "fusion or recorder did not start"
+        f = Follower(s, fusion.proc.pid)
+        time.sleep(1.0)  # the client's subscription propagates
+        for c in pubs:
+            c.start(state_home=work / "state-home")
+        go = declare_liveliness(s, service_alive_key("bench"))
+        t0 = time.monotonic()
+        while any(c.poll() is None for c in pubs):
+            f.pump(0.2)
+        t_sent = time.monotonic() - t0
+        deadline = time.monotonic() + a.drain
+        while time.monotonic() < deadline and not f.caught_up(facts["batches"]):
+            f.pump(0.2)
+        time.sleep(1.0)  # the last Status after the drain
+        f.pump(0.1)
+        go.undeclare()
+        rcs = {c.name: c.terminate(timeout=15.0) for c in (client, recorder, fusion)}
+        f.inbox.close()
+    out = {
+        "config": {k: str(v) for k, v in vars(a).items()},
+        "base_plots_per_sim_s": round(base, 1),
+        "speed": round(speed, 3),
+        "send_s": round(t_sent, 1),
+        "offered_plots_per_s": round(facts["plots_processed"] / t_sent, 1),
+        "exit_codes": rcs | {c.name: c.poll() for c in pubs},
+        "loadavg_start": [round(x, 2) for x in load0],
+        "loadavg_end": [round(x, 2) for x in os.getloadavg()],
+    }
+    out["accounting"] = accounting(facts, f, work)
+    out["windows"] = windows(f, t0, a.window, t_sent)
+    out["rss"] = rss_growth(out["windows"])
+    return out
+
+
+FUSION_COUNTERS = (
+    "batches_received", "batches_in", "cycles", "plots_in", "plots_applied",
+    "batches_late_applied", "track_batches_published", "state_saves", "state_published",
+    "state_save_errors",
+)  # fmt: skip
+
+
+def accounting(facts: dict, f: Follower, work: Path) -> dict:
+    """published = recorded = fused + counted rejections (module docstring)."""
+    from skyfuse.schemas import PlotBatch
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    ids, plots = set(), 0
+    for r in iter_recording(work / "soak.mcap"):
+        if isinstance(r.message, PlotBatch):
+            ids.add((r.message.radar_id, r.message.epoch, r.message.seq))
+            plots += len(r.message)
+    fs = f.status["bench"]
+    c = fs.counters
+    batch_rejections = {k: n for k, n in fs.rejected.items() if not k.startswith("plot: ")}
+    lines = (work / "tracks.jsonl").read_text().splitlines()
+    client_tracks = sum('/tracks"' in ln[:200] for ln in lines)
+    rec_stats = json.loads((work / "recorder.json").read_text())
+    checks = {
+        "recorded_batches_eq_published": len(ids) == facts["batches"],
+        "recorded_plots_eq_published": plots == facts["plots_processed"],
+        "fusion_received_eq_published": c.get("batches_received") == facts["batches"],
+        "received_eq_applied_plus_rejected": c.get("batches_received")
+        == c.get("cycles", 0) + sum(batch_rejections.values()),
+        "plots_accepted_eq_applied": c.get("plots_in") == c.get("plots_applied"),
+        "client_got_every_track_message": client_tracks == c.get("track_batches_published"),
+    }
+    return {
+        "published_batches": facts["batches"],
+        "published_plots": facts["plots_processed"],
+        "recorded_batches": len(ids),
+        "recorded_plots": plots,
+        "recorder_rejected": rec_stats.get("rejected", {}),
+        "fusion_counters": {k: c.get(k) for k in FUSION_COUNTERS},
+        "fusion_rejected": fs.rejected,
+        "client_track_messages": client_tracks,
+        "tracks_confirmed_end": fs.tracks_confirmed,
+        "checks": checks,
+        "all_ok": all(checks.values()),
+    }
+
+
+def windows(f: Follower, t0: float, window: float, t_sent: float) -> list[dict]:
+    """Per window of the sending time: the fusion's latency percentiles at its end (over
+    that window's batches), the median RSS and the largest backlog inside it."""
+    out = []
+    n = max(1, int(t_sent // window))
+    for i in range(n):
+        lo, hi = t0 + i * window, t0 + (i + 1) * window
+        inside = [(t, r, st) for t, r, st in f.series if lo <= t < hi]
+        if not inside:
+            continue
+        last = inside[-1][2]
+        rss = [r for _, r, _ in inside if r is not None]
+        lat = last.latency_ms
+        out.append({
+            "t_s": round((i + 1) * window, 1),
+            "latency_p50_ms": None if lat.p50 is None else round(lat.p50, 1),
+            "latency_p99_ms": None if lat.p99 is None else round(lat.p99, 1),
+            "latency_count": lat.count,
+            "rss_mb_median": round(float(np.median(rss)), 1) if rss else None,
+            "max_backlog_batches": max(st.backlog.batches for _, _, st in inside if st.backlog),
+            "behind": any(st.backlog.behind for _, _, st in inside if st.backlog),
+            "tracks_confirmed": last.tracks_confirmed,
+        })  # fmt: skip
+    return out
+
+
+def rss_growth(ws: list[dict]) -> dict:
+    """RSS of the last window against the second one (the first is warm-up), %."""
+    vals = [w["rss_mb_median"] for w in ws if w["rss_mb_median"] is not None]
+    if len(vals) < 3:
+        return {"growth_pct": None, "note": "fewer than 3 windows"}
+    ref, end = vals[1], vals[-1]
+    return {"reference_mb": ref, "end_mb": end, "max_mb": max(vals),
+            "growth_pct": round(100.0 * (end - ref) / ref, 2)}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--duration", type=float, default=600.0, help="wall seconds of publishing")
+    ap.add_argument("--rate", type=float, default=5000.0, help="plots/s offered (all radars)")
+    ap.add_argument("--window", type=float, default=60.0, help="s per latency/RSS window")
+    ap.add_argument("--targets", type=int, default=1000)
+    ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 or 4")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--reorder-wait", type=float, default=0.2)
+    ap.add_argument("--drain", type=float, default=60.0, help="max s to let the fusion catch up")
+    ap.add_argument("--json", type=Path, default=None)
+    a = ap.parse_args()
+    a.profile = None
+    path = a.json or ROOT / "benchmarks" / "results" / f"soak-{a.rate:.0f}-{a.duration:.0f}s.json"
+    print(
+        f"soak: {a.duration:.0f} s at {a.rate:.0f} plots/s, {a.radars} radars, {a.targets} "
+        f"aircraft; {os.cpu_count()} cores, load {os.getloadavg()}",
+        flush=True,
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        out = run(a, Path(tmp))
+    for w in out["windows"]:
+        print(json.dumps(w))
+    print(json.dumps({k: out[k] for k in ("accounting", "rss", "offered_plots_per_s", "send_s",
+                                          "exit_codes", "loadavg_end")}, indent=1))  # fmt: skip
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2))
+    print(f"wrote {path}; all checks {'passed' if out['accounting']['all_ok'] else 'FAILED'}")
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()
