@@ -10,7 +10,7 @@ the types of an explicit allow-list:
 
 * JSON scalars (``null``, booleans, integers, floats with ``NaN``/``Infinity``,
   strings); ``list``, ``tuple``, ``set``, ``frozenset``, ``deque`` (with ``maxlen``),
-  ``dict`` (any encodable keys);
+  ``dict`` and ``collections.Counter`` (any encodable keys);
 * NumPy arrays and scalars of boolean, integer, unsigned, float or complex dtype (the
   manifest states dtype and shape; a member that differs is refused);
 * the enums and pydantic models of :data:`ENUMS` / :data:`MODELS` (rebuilt by
@@ -38,7 +38,7 @@ import importlib
 import io
 import json
 import zipfile
-from collections import deque
+from collections import Counter, deque
 from types import FunctionType
 
 import numpy as np
@@ -73,6 +73,8 @@ CLASSES = frozenset(
         _T + "measurements.MeasurementBatch",
         _T + "measurements.SectorCoverage",
         _T + "initiation.PlotBuffer",
+        _T + "oosm_pass.OutOfSequence",
+        _T + "oosm.LastStep",
         _T + "existence.ExistenceChain",
         _T + "components.Mixture",
         _T + "density.gaussian_mixture.GaussianMixtureDensity",
@@ -184,8 +186,9 @@ class _Encoder:
             return {"$": _SEQUENCES[t], "v": [self.encode(v) for v in o]}
         if t is deque:
             return {"$": "deque", "v": [self.encode(v) for v in o], "maxlen": o.maxlen}
-        if t is dict:
-            return {"$": "dict", "v": [[self.encode(k), self.encode(v)] for k, v in o.items()]}
+        if t is dict or t is Counter:
+            kind = "dict" if t is dict else "counter"
+            return {"$": kind, "v": [[self.encode(k), self.encode(v)] for k, v in o.items()]}
         if t is np.ndarray:
             return {"$": "array", **self._array(o)}
         if isinstance(o, np.generic):
@@ -302,7 +305,7 @@ def _dict(dec: _Decoder, node, depth):
     pairs = node.get("v")
     if type(pairs) is not list:
         raise StateRejected("malformed manifest", "dict without a list")
-    out = dec.keep(node, {})
+    out = dec.keep(node, Counter() if node["$"] == "counter" else {})
     for pair in pairs:
         if type(pair) is not list or len(pair) != 2:
             raise StateRejected("malformed manifest", "dict entry is not a pair")
@@ -394,6 +397,7 @@ _HANDLERS = {
     **{k: _sequence(k) for k in ("list", "tuple", "set", "frozenset")},
     "deque": _deque,
     "dict": _dict,
+    "counter": _dict,
     "array": _array,
     "scalar": _scalar,
     "enum": _enum,
