@@ -149,6 +149,28 @@ class TrackerConfig(BaseModel):
         description="A track whose probability of being below the radar's maximum elevation "
         "is under this is in the cone of silence: it coasts and its max_coast clock restarts",
     )
+    reid_max_gap: float | None = Field(
+        180.0,
+        gt=0.0,
+        description="Re-identification: a newly confirmed track takes the id of a confirmed "
+        "track terminated after its last plot at most this long ago, s, when their kinematics "
+        "agree unambiguously (fusion/tracker/reidentification.py); None: off",
+    )
+    reid_q: float = Field(
+        4.0,
+        ge=0.0,
+        description="Re-identification: continuous white-noise acceleration spectral density "
+        "of the terminated track's prediction, m²/s³",
+    )
+    reid_max_sigma: float = Field(
+        5000.0,
+        gt=0.0,
+        description="Re-identification: largest per-axis position σ of the terminated track's "
+        "prediction that may still continue it, m",
+    )
+    reid_p: float = Field(
+        0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
+    )
 
     # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s

@@ -44,6 +44,7 @@ from .ipda import AssociationResult
 from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
 from .measurements import MeasurementBatch
 from .registry import ASSOCIATIONS, make_density
+from .reidentification import TerminatedTracks
 
 NS = 1e-9
 
@@ -179,6 +180,12 @@ class Tracker:
         self.last_update = np.zeros(0, np.int64)
         self.height = np.zeros(0)
         self.coast_from = np.zeros(0, np.int64)
+        self.born = np.zeros(0, np.int64)
+        self.fix_x = np.zeros((0, self.d))
+        self.fix_P = np.zeros((0, self.d, self.d))
+        self.terminated = TerminatedTracks(
+            self.model, cfg.reid_max_gap or 0.0, cfg.reid_q, cfg.reid_p, cfg.reid_max_sigma
+        )
         self.buffer = PlotBuffer.empty(self.k)
         self.radar_names: list[str] = []
         self._next_id = 1
@@ -221,7 +228,7 @@ class Tracker:
 
     _ARRAYS = (
         "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
-        "height", "coast_from",
+        "height", "coast_from", "born", "fix_x", "fix_P",
     )  # fmt: skip
 
     def _remove(self, keep: np.ndarray) -> None:
@@ -245,6 +252,9 @@ class Tracker:
             "last_update": t,
             "height": np.full(nn, np.nan),
             "coast_from": t,
+            "born": t,
+            "fix_x": x,
+            "fix_P": P,
         }
         self._next_id += nn
         for name in self._ARRAYS:
@@ -384,6 +394,8 @@ class Tracker:
         self.updates[hit] += 1
         self.radar_mask[hit] |= bit
         self.last_update[hit] = t_pred[hit]
+        if self.cfg.reid_max_gap is not None and len(hit):
+            self.fix_x[hit], self.fix_P[hit] = self.density.estimate(hit)
         assigned = np.full(self.n, -1, dtype=np.int64)
         if len(res.beta):
             tp_track, tp_plot = table.tp_track, table.tp_plot
@@ -459,11 +471,33 @@ class Tracker:
             cfg.confirm_min_updates,
         )  # fmt: skip
         psi_now = self.existence()
-        for r in sel[conf & keep[sel]]:
-            self.confirmed[r] = True
+        rows = sel[conf & keep[sel]]
+        self.confirmed[rows] = True
+        previous = self._reidentify(rows, t_batch)
+        for r, old in zip(rows, previous):
+            why = "" if old < 0 else f"re-identified (tentative id {old})"
             events.append(
-                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]))
+                TrackEventRecord(
+                    t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]), reason=why
+                )
             )
+
+    def _reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
+        """Newly confirmed ``rows`` that continue a recently terminated track take its id
+        (:mod:`.reidentification`); returns their former ids (−1: not re-identified)."""
+        previous = np.full(len(rows), -1, np.int64)
+        if self.cfg.reid_max_gap is None or len(rows) == 0:
+            return previous
+        self.terminated.expire(t_batch)
+        if len(self.terminated) == 0:
+            return previous
+        x, P = self.density.estimate(rows)
+        j = self.terminated.match(x, P, self.t_last[rows], self.born[rows])
+        hit = j >= 0
+        previous[hit] = self.ids[rows[hit]]
+        self.ids[rows[hit]] = self.terminated.take(j[hit])
+        self._count("reidentified", int(hit.sum()))
+        return previous
 
     def _terminate(
         self,
@@ -496,6 +530,11 @@ class Tracker:
                 )
             )
         stats["terminated"] = int(term.sum())
+        ended = np.flatnonzero(term & self.confirmed)
+        if self.cfg.reid_max_gap is not None and len(ended):
+            self.terminated.add(
+                self.ids[ended], self.fix_x[ended], self.fix_P[ended], self.last_update[ended]
+            )
         return term
 
     def _used_plots(self, m: int, table: GatedTable, res: AssociationResult) -> np.ndarray:
