@@ -199,6 +199,14 @@ class TrackerConfig(BaseModel):
     imm_init_acceleration: float = Field(
         5.0, ge=0.0, description="IMM: acceleration σ of a new track, m/s²"
     )
+    imm_coast_after: float | None = Field(
+        30.0,
+        gt=0.0,
+        description="IMM: a prediction over more than this is a coast, s: predicted in steps "
+        "of imm_coast_step, then the manoeuvre modes take the CV mode's prediction (a lost "
+        "aircraft flies straight; fusion/tracker/density/imm_mixture.py); None: one step",
+    )
+    imm_coast_step: float = Field(10.0, gt=0.0, description="IMM: step of a coast's prediction, s")
 
     # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
     particles: int = Field(

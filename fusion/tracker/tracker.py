@@ -36,7 +36,7 @@ from skyfuse.fusion.models.cv import ConstantVelocity
 from .associators import AssociationProblem
 from .clutter import clutter_density
 from .config import TrackerConfig
-from .coverage import detection_share, select_tracks, track_heights
+from .coverage import detection_share, existence_clock, select_tracks, track_heights
 from .density.base import GatedTable, Prediction, TrackDensity
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
@@ -76,6 +76,7 @@ class OutputPrediction:
     exist: np.ndarray
     model: ConstantVelocity
     chain: ExistenceChain
+    t_exist: np.ndarray | None = None  # existence clocks (n,) ns; None: t_last
 
     def rows(self, idx: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, P, ψ) of the rows ``idx`` predicted to ``time_ns`` (not stored)."""
@@ -84,7 +85,9 @@ class OutputPrediction:
             return x, P, np.zeros(0)
         dt = np.maximum(self.time_ns - self.t_last[idx], 0) * NS
         x, P = predict(x, P, self.model.F(dt), self.model.Q(dt))
-        psi = self.chain.existence(self.chain.predict(self.exist[idx], dt))
+        te = self.t_last if self.t_exist is None else self.t_exist
+        dt_e = np.maximum(self.time_ns - te[idx], 0) * NS
+        psi = self.chain.existence(self.chain.predict(self.exist[idx], dt_e))
         return x, P, psi
 
 
@@ -317,7 +320,8 @@ class Tracker:
         stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
         pred = self.density.predict(sel, dt)
-        exist_pred = self.chain.predict(self.exist[sel], dt)
+        t_e = existence_clock(self.t_last[sel], self.coast_from[sel])
+        exist_pred = self.chain.predict(self.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
         res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
@@ -511,7 +515,10 @@ class Tracker:
         that found the track in a cone of silence, :mod:`.coverage`)."""
         cfg = self.cfg
         psi_now = self.chain.existence(
-            self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
+            self.chain.predict(
+                self.exist,
+                np.maximum(t_batch - existence_clock(self.t_last, self.coast_from), 0) * NS,
+            )
         )
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
@@ -591,7 +598,14 @@ class Tracker:
         t_batch = int(b.time_ns)
         x, P = self.estimates()
         snapshot = OutputPrediction(
-            t_batch, x, P, self.t_last.copy(), self.exist.copy(), self.model, self.chain
+            t_batch,
+            x,
+            P,
+            self.t_last.copy(),
+            self.exist.copy(),
+            self.model,
+            self.chain,
+            existence_clock(self.t_last, self.coast_from),
         )
         return TrackerOutput(
             time_ns=t_batch,
