@@ -31,6 +31,11 @@ plot, CV layout [x, vx, y, vy(, z, vz)]) and a newly confirmed track n (x_n, P_n
 A terminated track is a candidate for ``max_gap`` seconds after its last plot; the store
 holds at most ``capacity`` tracks (the oldest are dropped first). Times in ns, states in
 m and m/s.
+
+Consumers see the ``terminated`` event of the old id when it ends, then a ``confirmed``
+event of the same id with the reason ``re-identified (tentative id N)``: an id comes back
+only as the continuation of its track, within ``max_gap``, and never while it is alive.
+Fresh ids still come from the tracker's counter and are never given twice.
 """
 
 from __future__ import annotations
