@@ -168,6 +168,13 @@ class TrackerConfig(BaseModel):
         description="Re-identification: largest per-axis position σ of the terminated track's "
         "prediction that may still continue it, m",
     )
+    reid_min_speed: float = Field(
+        15.0,
+        ge=0.0,
+        description="Re-identification: both tracks must move at least this fast, m/s (about "
+        "the highest taxi speed, 30 kt: parked and taxiing aircraft are not told apart by "
+        "kinematics)",
+    )
     reid_p: float = Field(
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )

@@ -21,7 +21,17 @@ plot, CV layout [x, vx, y, vy(, z, vz)]) and a newly confirmed track n (x_n, P_n
           gap and grow the gate to kilometres);
     (R1') informative: every per-axis σ of P̂_o's position block ≤ ``max_sigma`` (a
           track whose last fix was a coasting guess, with a velocity σ of hundreds of
-          m/s, would otherwise gate anything and continue another aircraft);
+          m/s, would otherwise gate anything and continue another aircraft). For the
+          same reason a track's fix is replaced at a plot only by a fix at least as
+          informative as the old one: both predicted by (R1) to ``FIX_HORIZON`` after
+          the plot (the typical gap to bridge), the new one's largest per-axis position
+          variance is not larger (:func:`keeps_fix`). A weak plot after a coast, whose
+          estimate has a velocity σ of hundreds of m/s, then does not overwrite the
+          good fix before it;
+    (R1'') moving: both speeds (old fix and new estimate, horizontal) ≥ ``min_speed``.
+          Aircraft parked or taxiing on an apron, a few hundred metres apart and nearly
+          still, are not told apart by kinematics; re-identifying them joins two
+          aircraft (measured on the Barcelona recording);
     (R2)  d² = (x_n − x̂_o)ᵀ (P_n + P̂_o)⁻¹ (x_n − x̂_o) < χ²_{d}(p_reid)   (the track-to-
           track association test of Bar-Shalom, "On the track-to-track correlation
           problem", IEEE TAC 26(2), 1981, eq. 5, with independent errors);
@@ -48,6 +58,9 @@ from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.models.cv import ConstantVelocity
 
 NS = 1e-9
+FIX_HORIZON = 60.0
+"""s: the gap over which two fixes of a track are compared (R1') [IMPL]: the gaps to
+bridge are 20-60 s for intermittent detection and 80-120 s for the cone of silence."""
 
 
 def white_noise_acceleration_q(dt: np.ndarray, q: float, ndim: int) -> np.ndarray:
@@ -63,6 +76,34 @@ def white_noise_acceleration_q(dt: np.ndarray, q: float, ndim: int) -> np.ndarra
     return Q
 
 
+def _predict_fix(
+    x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float, model: ConstantVelocity
+) -> tuple[np.ndarray, np.ndarray]:
+    """(R1): fixes x (n, d), P (n, d, d) predicted over dt (n,) s."""
+    return predict(x, P, model.F(dt), white_noise_acceleration_q(dt, q, model.ndim))
+
+
+def keeps_fix(
+    P_old: np.ndarray,
+    t_old: np.ndarray,
+    P_new: np.ndarray,
+    t_new: np.ndarray,
+    q: float,
+    model: ConstantVelocity,
+) -> np.ndarray:
+    """(n,) bool: the old fixes (P_old at t_old ns) predict the position ``FIX_HORIZON``
+    after t_new (ns) better than the new estimates P_new at t_new (a smaller largest
+    per-axis position variance, both by (R1)), so the old fixes are kept (R1')."""
+    if len(P_old) == 0:
+        return np.zeros(0, bool)
+    dt = np.maximum(t_new - t_old, 0) * NS + FIX_HORIZON
+    zeros = np.zeros(P_old.shape[:2])
+    _, Po = _predict_fix(zeros, P_old, dt, q, model)
+    _, Pn = _predict_fix(zeros, P_new, np.full(len(dt), FIX_HORIZON), q, model)
+    pos = list(model.position_index)
+    return Po[:, pos, pos].max(axis=1) < Pn[:, pos, pos].max(axis=1)
+
+
 @dataclass
 class TerminatedTracks:
     """Bounded store of recently terminated confirmed tracks: ids (n,), x (n, d),
@@ -73,6 +114,7 @@ class TerminatedTracks:
     q: float = 4.0
     p_gate: float = 0.99
     max_sigma: float = 5000.0
+    min_speed: float = 15.0
     capacity: int = 1024
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     x: np.ndarray | None = None
@@ -116,12 +158,15 @@ class TerminatedTracks:
         d2 = np.full((m, n), np.inf)
         if m == 0 or n == 0:
             return d2
-        ii, jj = np.nonzero(born[:, None] >= self.t[None, :])
+        vel = [i + 1 for i in self.model.position_index[:2]]
+        fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= self.min_speed
+        fast_old = np.hypot(self.x[:, vel[0]], self.x[:, vel[1]]) >= self.min_speed
+        ok = (born[:, None] >= self.t[None, :]) & fast_new[:, None] & fast_old[None, :]
+        ii, jj = np.nonzero(ok)
         if len(ii) == 0:
             return d2
         dt = (t[ii] - self.t[jj]) * NS
-        Q = white_noise_acceleration_q(dt, self.q, self.model.ndim)
-        xo, Po = predict(self.x[jj], self.P[jj], self.model.F(dt), Q)
+        xo, Po = _predict_fix(self.x[jj], self.P[jj], dt, self.q, self.model)
         pos = list(self.model.position_index)
         sharp = Po[:, pos, pos].max(axis=1) <= self.max_sigma**2
         ii, jj, xo, Po = ii[sharp], jj[sharp], xo[sharp], Po[sharp]

@@ -44,7 +44,7 @@ from .ipda import AssociationResult
 from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
 from .measurements import MeasurementBatch
 from .registry import ASSOCIATIONS, make_density
-from .reidentification import TerminatedTracks
+from .reidentification import TerminatedTracks, keeps_fix
 
 NS = 1e-9
 
@@ -186,8 +186,14 @@ class Tracker:
         self.born = np.zeros(0, np.int64)
         self.fix_x = np.zeros((0, self.d))
         self.fix_P = np.zeros((0, self.d, self.d))
+        self.fix_t = np.zeros(0, np.int64)
         self.terminated = TerminatedTracks(
-            self.model, cfg.reid_max_gap or 0.0, cfg.reid_q, cfg.reid_p, cfg.reid_max_sigma
+            self.model,
+            cfg.reid_max_gap or 0.0,
+            cfg.reid_q,
+            cfg.reid_p,
+            cfg.reid_max_sigma,
+            cfg.reid_min_speed,
         )
         self.buffer = PlotBuffer.empty(self.k)
         self.radar_names: list[str] = []
@@ -231,7 +237,7 @@ class Tracker:
 
     _ARRAYS = (
         "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
-        "height", "coast_from", "born", "fix_x", "fix_P",
+        "height", "coast_from", "born", "fix_x", "fix_P", "fix_t",
     )  # fmt: skip
 
     def _remove(self, keep: np.ndarray) -> None:
@@ -258,6 +264,7 @@ class Tracker:
             "born": t,
             "fix_x": x,
             "fix_P": P,
+            "fix_t": t,
         }
         self._next_id += nn
         for name in self._ARRAYS:
@@ -399,7 +406,7 @@ class Tracker:
         self.radar_mask[hit] |= bit
         self.last_update[hit] = t_pred[hit]
         if self.cfg.reid_max_gap is not None and len(hit):
-            self.fix_x[hit], self.fix_P[hit] = self.density.estimate(hit)
+            self._update_fixes(hit, t_pred[hit])
         assigned = np.full(self.n, -1, dtype=np.int64)
         if len(res.beta):
             tp_track, tp_plot = table.tp_track, table.tp_plot
@@ -486,6 +493,15 @@ class Tracker:
                 )
             )
 
+    def _update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
+        """The re-identification fixes of the tracks ``hit`` by a plot at times ``t`` ns:
+        their new estimates, unless the old fix stays more informative (R1')."""
+        x, P = self.density.estimate(hit)
+        cfg = self.cfg
+        old = keeps_fix(self.fix_P[hit], self.fix_t[hit], P, t, cfg.reid_q, self.model)
+        new = hit[~old]
+        self.fix_x[new], self.fix_P[new], self.fix_t[new] = x[~old], P[~old], t[~old]
+
     def _reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
         """Newly confirmed ``rows`` that continue a recently terminated track take its id
         (:mod:`.reidentification`); returns their former ids (−1: not re-identified)."""
@@ -540,7 +556,7 @@ class Tracker:
         ended = np.flatnonzero(term & self.confirmed)
         if self.cfg.reid_max_gap is not None and len(ended):
             self.terminated.add(
-                self.ids[ended], self.fix_x[ended], self.fix_P[ended], self.last_update[ended]
+                self.ids[ended], self.fix_x[ended], self.fix_P[ended], self.fix_t[ended]
             )
         return term
 

@@ -115,3 +115,40 @@ def test_an_aircraft_lost_for_60_s_keeps_its_id(reid):
     assert len(ids["before"]) == 1 and len(ids["after"]) == 1
     assert (ids["before"] == ids["after"]) is reid
     assert trk.totals.get("reidentified", 0) == (1 if reid else 0)
+
+
+def test_a_weak_fix_does_not_replace_a_good_one():
+    from skyfuse.fusion.tracker.reidentification import FIX_HORIZON, keeps_fix
+
+    model = ConstantVelocity(q=25.0)
+    q, H = 4.0, FIX_HORIZON
+    good = np.diag([50.0**2, 5.0**2, 50.0**2, 5.0**2])[None]
+
+    def pos_var(p, v, dt):  # by hand, per axis: p² + dt² v² + q dt³/3
+        return p**2 + dt**2 * v**2 + q * dt**3 / 3
+
+    old = pos_var(50.0, 5.0, 20.0 + H)
+    for p_new, v_new in [(60.0, 250.0), (40.0, 4.0), (300.0, 5.0)]:
+        new = np.diag([p_new**2, v_new**2, p_new**2, v_new**2])[None]
+        got = keeps_fix(good, np.array([0]), new, np.array([20 * S]), q, model)
+        assert got.tolist() == [old < pos_var(p_new, v_new, H)]
+    # the weak post-coast estimate (velocity σ 250 m/s) keeps the old fix, a good new
+    # one replaces it
+    weak = np.diag([60.0**2, 250.0**2, 60.0**2, 250.0**2])[None]
+    sharp = np.diag([40.0**2, 4.0**2, 40.0**2, 4.0**2])[None]
+    assert keeps_fix(good, np.array([0]), weak, np.array([20 * S]), q, model).tolist() == [True]
+    assert keeps_fix(good, np.array([0]), sharp, np.array([20 * S]), q, model).tolist() == [False]
+
+
+def test_still_aircraft_are_not_reidentified():
+    st = _store()
+    P = np.diag([20.0**2, 2.0**2, 20.0**2, 2.0**2])[None]
+    # a taxiing aircraft (10 m/s) lost, a parked one (0 m/s) 100 m further: kinematically
+    # consistent (d² small) but below min_speed = 15 m/s, so never joined
+    st.add(np.array([5]), np.array([[0.0, 10.0, 0.0, 0.0]]), P, np.array([0]))
+    new = np.array([[300.0, 0.0, 0.0, 0.0]])
+    assert st.min_speed == 15.0
+    assert np.isinf(st.distances(new, P, np.array([20 * S]), np.array([10 * S]))).all()
+    fast = TerminatedTracks(ConstantVelocity(q=25.0), 180.0, q=4.0, min_speed=0.0)
+    fast.add(np.array([5]), np.array([[0.0, 10.0, 0.0, 0.0]]), P, np.array([0]))
+    assert np.isfinite(fast.distances(new, P, np.array([20 * S]), np.array([10 * S]))).all()
