@@ -154,6 +154,35 @@ class TrackerConfig(BaseModel):
         description="A track whose probability of being below the radar's maximum elevation "
         "is under this is in the cone of silence: it coasts and its max_coast clock restarts",
     )
+    reid_max_gap: float | None = Field(
+        180.0,
+        gt=0.0,
+        description="Re-identification: a newly confirmed track takes the id of a confirmed "
+        "track terminated after its last plot at most this long ago, s, when their kinematics "
+        "agree unambiguously (fusion/tracker/reidentification.py); None: off",
+    )
+    reid_q: float = Field(
+        4.0,
+        ge=0.0,
+        description="Re-identification: continuous white-noise acceleration spectral density "
+        "of the terminated track's prediction, m²/s³",
+    )
+    reid_max_sigma: float = Field(
+        5000.0,
+        gt=0.0,
+        description="Re-identification: largest per-axis position σ of the terminated track's "
+        "prediction that may still continue it, m",
+    )
+    reid_min_speed: float = Field(
+        15.0,
+        ge=0.0,
+        description="Re-identification: both tracks must move at least this fast, m/s (about "
+        "the highest taxi speed, 30 kt: parked and taxiing aircraft are not told apart by "
+        "kinematics)",
+    )
+    reid_p: float = Field(
+        0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
+    )
 
     # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
@@ -182,6 +211,14 @@ class TrackerConfig(BaseModel):
     imm_init_acceleration: float = Field(
         5.0, ge=0.0, description="IMM: acceleration σ of a new track, m/s²"
     )
+    imm_coast_after: float | None = Field(
+        30.0,
+        gt=0.0,
+        description="IMM: a prediction over more than this is a coast, s: predicted in steps "
+        "of imm_coast_step, then the manoeuvre modes take the CV mode's prediction (a lost "
+        "aircraft flies straight; fusion/tracker/density/imm_mixture.py); None: one step",
+    )
+    imm_coast_step: float = Field(10.0, gt=0.0, description="IMM: step of a coast's prediction, s")
 
     # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
     particles: int = Field(

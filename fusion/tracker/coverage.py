@@ -16,7 +16,12 @@ whose uncertainty straddles several sectors is not eroded once per sector.
 Blind tracks: a track with P_cone below ``blind_share`` is in the cone of silence. It is
 not predicted or updated by that batch (it coasts lazily, as outside the coverage), and
 its ``max_coast`` clock restarts: a known gap, an aircraft in the cone comes out of it,
-unlike one that left the coverage, whose clock keeps running.
+unlike one that left the coverage, whose clock keeps running. Its existence is held
+over the blind time too (:func:`existence_clock`): the Markov chain (spec 02 (5.3))
+predicts ψ only from the later of the track's last prediction and its last blind batch.
+With Δ11 = 0.98 per second a 100 s crossing of the cone would otherwise leave
+ψ ≤ 0.98¹⁰⁰ ≈ 0.13 at the exit, and the first misses at the cone's edge terminate the
+track before the aircraft is seen again.
 """
 
 from __future__ import annotations
@@ -55,6 +60,13 @@ def detection_share(
     sigma = np.sqrt(0.5 * (P[:, pos, pos].sum(axis=1) + P[:, vel, vel].sum(axis=1) * dt**2))
     p = _predicted_positions(batch, x, t_last, pos, vel)
     return batch.coverage.detection_share(p, sigma, height)
+
+
+def existence_clock(t_last: np.ndarray, coast_from: np.ndarray) -> np.ndarray:
+    """The time (n,) ns from which each track's existence chain predicts: the later of its
+    last prediction ``t_last`` and the last batch that found it blind (``coast_from``,
+    or its last plot); the chain does not act in a cone of silence (module docstring)."""
+    return np.maximum(t_last, coast_from)
 
 
 def track_heights(

@@ -36,7 +36,7 @@ from skyfuse.fusion.models.cv import ConstantVelocity
 from .associators import AssociationProblem
 from .clutter import clutter_density
 from .config import TrackerConfig
-from .coverage import detection_share, select_tracks, track_heights
+from .coverage import detection_share, existence_clock, select_tracks, track_heights
 from .density.base import GatedTable, Prediction, TrackDensity
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
@@ -45,6 +45,7 @@ from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
 from .measurements import MeasurementBatch
 from .oosm_pass import OutOfSequence
 from .registry import ASSOCIATIONS, make_density
+from .reidentification import TerminatedTracks, keeps_fix
 
 NS = 1e-9
 
@@ -76,6 +77,7 @@ class OutputPrediction:
     exist: np.ndarray
     model: ConstantVelocity
     chain: ExistenceChain
+    t_exist: np.ndarray | None = None  # existence clocks (n,) ns; None: t_last
 
     def rows(self, idx: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, P, ψ) of the rows ``idx`` predicted to ``time_ns`` (not stored)."""
@@ -84,7 +86,9 @@ class OutputPrediction:
             return x, P, np.zeros(0)
         dt = np.maximum(self.time_ns - self.t_last[idx], 0) * NS
         x, P = predict(x, P, self.model.F(dt), self.model.Q(dt))
-        psi = self.chain.existence(self.chain.predict(self.exist[idx], dt))
+        te = self.t_last if self.t_exist is None else self.t_exist
+        dt_e = np.maximum(self.time_ns - te[idx], 0) * NS
+        psi = self.chain.existence(self.chain.predict(self.exist[idx], dt_e))
         return x, P, psi
 
 
@@ -183,6 +187,18 @@ class Tracker:
         self.last_update = np.zeros(0, np.int64)
         self.height = np.zeros(0)
         self.coast_from = np.zeros(0, np.int64)
+        self.born = np.zeros(0, np.int64)
+        self.fix_x = np.zeros((0, self.d))
+        self.fix_P = np.zeros((0, self.d, self.d))
+        self.fix_t = np.zeros(0, np.int64)
+        self.terminated = TerminatedTracks(
+            self.model,
+            cfg.reid_max_gap or 0.0,
+            cfg.reid_q,
+            cfg.reid_p,
+            cfg.reid_max_sigma,
+            cfg.reid_min_speed,
+        )
         self.buffer = PlotBuffer.empty(self.k)
         self.radar_names: list[str] = []
         self._next_id = 1
@@ -225,7 +241,7 @@ class Tracker:
 
     _ARRAYS = (
         "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
-        "height", "coast_from",
+        "height", "coast_from", "born", "fix_x", "fix_P", "fix_t",
     )  # fmt: skip
 
     def _remove(self, keep: np.ndarray) -> None:
@@ -249,6 +265,10 @@ class Tracker:
             "last_update": t,
             "height": np.full(nn, np.nan),
             "coast_from": t,
+            "born": t,
+            "fix_x": x,
+            "fix_P": P,
+            "fix_t": t,
         }
         self._next_id += nn
         for name in self._ARRAYS:
@@ -312,7 +332,8 @@ class Tracker:
         stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
         pred = self.density.predict(sel, dt)
-        exist_pred = self.chain.predict(self.exist[sel], dt)
+        t_e = existence_clock(self.t_last[sel], self.coast_from[sel])
+        exist_pred = self.chain.predict(self.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
         res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
@@ -396,6 +417,8 @@ class Tracker:
         self.updates[hit] += 1
         self.radar_mask[hit] |= bit
         self.last_update[hit] = t_pred[hit]
+        if self.cfg.reid_max_gap is not None and len(hit):
+            self._update_fixes(hit, t_pred[hit])
         assigned = np.full(self.n, -1, dtype=np.int64)
         if len(res.beta):
             tp_track, tp_plot = table.tp_track, table.tp_plot
@@ -471,11 +494,42 @@ class Tracker:
             cfg.confirm_min_updates,
         )  # fmt: skip
         psi_now = self.existence()
-        for r in sel[conf & keep[sel]]:
-            self.confirmed[r] = True
+        rows = sel[conf & keep[sel]]
+        self.confirmed[rows] = True
+        previous = self._reidentify(rows, t_batch)
+        for r, old in zip(rows, previous):
+            why = "" if old < 0 else f"re-identified (tentative id {old})"
             events.append(
-                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]))
+                TrackEventRecord(
+                    t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]), reason=why
+                )
             )
+
+    def _update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
+        """The re-identification fixes of the tracks ``hit`` by a plot at times ``t`` ns:
+        their new estimates, unless the old fix stays more informative (R1')."""
+        x, P = self.density.estimate(hit)
+        cfg = self.cfg
+        old = keeps_fix(self.fix_P[hit], self.fix_t[hit], P, t, cfg.reid_q, self.model)
+        new = hit[~old]
+        self.fix_x[new], self.fix_P[new], self.fix_t[new] = x[~old], P[~old], t[~old]
+
+    def _reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
+        """Newly confirmed ``rows`` that continue a recently terminated track take its id
+        (:mod:`.reidentification`); returns their former ids (−1: not re-identified)."""
+        previous = np.full(len(rows), -1, np.int64)
+        if self.cfg.reid_max_gap is None or len(rows) == 0:
+            return previous
+        self.terminated.expire(t_batch)
+        if len(self.terminated) == 0:
+            return previous
+        x, P = self.density.estimate(rows)
+        j = self.terminated.match(x, P, self.t_last[rows], self.born[rows])
+        hit = j >= 0
+        previous[hit] = self.ids[rows[hit]]
+        self.ids[rows[hit]] = self.terminated.take(j[hit])
+        self._count("reidentified", int(hit.sum()))
+        return previous
 
     def _terminate(
         self,
@@ -489,7 +543,10 @@ class Tracker:
         that found the track in a cone of silence, :mod:`.coverage`)."""
         cfg = self.cfg
         psi_now = self.chain.existence(
-            self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
+            self.chain.predict(
+                self.exist,
+                np.maximum(t_batch - existence_clock(self.t_last, self.coast_from), 0) * NS,
+            )
         )
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
@@ -508,6 +565,11 @@ class Tracker:
                 )
             )
         stats["terminated"] = int(term.sum())
+        ended = np.flatnonzero(term & self.confirmed)
+        if self.cfg.reid_max_gap is not None and len(ended):
+            self.terminated.add(
+                self.ids[ended], self.fix_x[ended], self.fix_P[ended], self.fix_t[ended]
+            )
         return term
 
     def _used_plots(self, m: int, table: GatedTable, res: AssociationResult) -> np.ndarray:
@@ -567,7 +629,14 @@ class Tracker:
         self.newest_ns = t_out
         x, P = self.estimates()
         snapshot = OutputPrediction(
-            t_out, x, P, self.t_last.copy(), self.exist.copy(), self.model, self.chain
+            t_out,
+            x,
+            P,
+            self.t_last.copy(),
+            self.exist.copy(),
+            self.model,
+            self.chain,
+            existence_clock(self.t_last, self.coast_from),
         )
         return TrackerOutput(
             time_ns=t_out,

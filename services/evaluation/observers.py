@@ -16,7 +16,8 @@
 * :class:`LabelObserver` — per-plot rows (time, label, track, confirmed) scored by
   :func:`skyfuse.fusion.metrics.label_metrics.label_metrics`: completeness, track-id
   changes per aircraft, confirmed false tracks per hour, time to confirm. The label is
-  the plot's simulation ``target_id`` or, in real data, its Mode-S address (I048/220);
+  the plot's simulation ``target_id`` or, in real data, its Mode-S address (I048/220),
+  and for plots without one their discrete Mode-3/A code (I048/070; :func:`mode_3a_fallback`);
   labels score tracks, they never drive association. With reported altitudes the same
   measures are given per traffic class (``labels_by_traffic``: airborne, surface,
   overhead, all; :mod:`skyfuse.fusion.metrics.traffic_split`).
@@ -231,6 +232,29 @@ class TruthObserver(Observer):
         }
 
 
+MODE_3A_LABEL_BASE = 1 << 24
+"""Labels from a Mode-3/A code are ``MODE_3A_LABEL_BASE + code``: above every 24-bit
+Mode-S address, so the two never collide."""
+
+NON_DISCRETE_MODE_3A = (0o0000, 0o1200, 0o2000, 0o7000, 0o7500, 0o7600, 0o7700)
+"""Mode-3/A codes shared by many aircraft (ICAO conspicuity / VFR 7000, 1200, 2000, the
+emergency codes, 0000): they do not identify an aircraft and give no label."""
+
+
+def mode_3a_fallback(mode_s: np.ndarray, mode_3a: np.ndarray | None) -> np.ndarray:
+    """Scoring labels (n,): the Mode-S address where a plot has one, else its discrete
+    Mode-3/A code as ``MODE_3A_LABEL_BASE + code`` (aircraft with Mode A/C only, e.g.
+    light aircraft, are scored as aircraft instead of their tracks counting as false),
+    else −1. Only ever used to score tracks, never to associate."""
+    label = np.asarray(mode_s, np.int64).copy()
+    if mode_3a is None:
+        return label
+    code = np.asarray(mode_3a, np.int64)
+    use = (label < 0) & (code >= 0) & ~np.isin(code, NON_DISCRETE_MODE_3A)
+    label[use] = MODE_3A_LABEL_BASE + code[use]
+    return label
+
+
 class PlotTrackRows:
     """Per-plot rows (time s, label, track id, confirmed) collected batch by batch.
 
@@ -253,7 +277,7 @@ class PlotTrackRows:
             col = batch.column(name)
             if col is not None:
                 self.kind = self.kind or name
-                return col
+                return mode_3a_fallback(col, batch.column("mode_3a")) if name == "mode_s" else col
         return np.full(len(batch), NO_LABEL, np.int64)
 
     def add(self, batch: PlotBatch, out) -> None:

@@ -75,6 +75,7 @@ CLASSES = frozenset(
         _T + "initiation.PlotBuffer",
         _T + "oosm_pass.OutOfSequence",
         _T + "oosm.LastStep",
+        _T + "reidentification.TerminatedTracks",
         _T + "existence.ExistenceChain",
         _T + "components.Mixture",
         _T + "density.gaussian_mixture.GaussianMixtureDensity",

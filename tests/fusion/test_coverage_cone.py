@@ -58,8 +58,18 @@ def test_no_erosion_and_no_termination_in_the_cone():
     tid, out = _tracker_with_overflight(np.radians(45.0))
     assert tid in out.ids  # 80 s without plots, max_coast 60 s: coasting in a known gap
     psi = out.existence[list(out.ids).index(tid)]
-    # only the Markov chain Δ11 = 0.98 per second acts: ψ = 0.99 · 0.98^80
-    assert psi == pytest.approx(0.99 * 0.98**80, rel=1e-6)
+    # blind in every batch: the Markov chain (Δ11 = 0.98 per second) is held in the cone,
+    # so ψ stays at its value on entry (it would be 0.99 · 0.98^80 ≈ 0.20 otherwise)
+    assert psi == pytest.approx(0.99, rel=1e-12)
+
+
+def test_existence_resumes_its_chain_after_the_cone():
+    tid, out = _tracker_with_overflight(np.radians(45.0))
+    # predicted 10 s past the last blind batch: only those 10 s of the chain act
+    later = out.prediction
+    later.time_ns += 10_000_000_000
+    psi = later.rows(np.array([list(out.ids).index(tid)]))[2][0]
+    assert psi == pytest.approx(0.99 * 0.98**10, rel=1e-9)
 
 
 def test_misses_erode_without_a_cone():

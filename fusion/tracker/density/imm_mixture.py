@@ -14,6 +14,18 @@ Per batch, for the components of the tracks in coverage over their dt:
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
    common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
 2. **Mode-matched prediction** of every mode (KF or EKF, :func:`fusion.filters.ekf.predict`).
+   **Long coasts** [IMPL] (issue 17): a component predicted over dt > ``coast_after``
+   (a track outside every radar's coverage, in a cone of silence, or missed for several
+   scans) is predicted in ⌈dt / coast_step⌉ equal steps, and afterwards every
+   manoeuvre mode takes the CV mode's prediction (converted to its layout, spec 01 §4):
+   a lost aircraft is assumed to fly straight, as the output model and the
+   re-identification assume. In one step the discrete models' noise lets a single
+   piecewise-constant acceleration act for the whole gap (σ_pos = √q dt²/2, ≈ 10 km
+   for q = 4 m²/s⁴ over 100 s), and the turn mode's turn-rate noise (σ_ω ≈ 0.3 rad/s
+   after 100 s) linearised over it gave σ_pos ≈ 150 km on the Barcelona recording;
+   such a gate holds other aircraft's plots, which then count as detections at full
+   P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
+   track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
    per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
    4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10).
@@ -190,6 +202,8 @@ class IMMMixtureDensity:
         prune_threshold: float = 1e-3,
         max_components: int = 30,
         init_acceleration: float = 5.0,
+        coast_after: float | None = None,
+        coast_step: float = 10.0,
     ) -> None:
         if transition.r != len(models):
             raise ValueError(f"{len(models)} modes but a {transition.r}-mode transition matrix")
@@ -202,6 +216,8 @@ class IMMMixtureDensity:
         self.prune_threshold = prune_threshold
         self.max_components = max_components
         self.init_acceleration = init_acceleration
+        self.coast_after = coast_after
+        self.coast_step = coast_step
         self.H = [m.H() for m in self.models]
         self.pos = [list(m.position_index) for m in self.models]
         self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
@@ -285,10 +301,39 @@ class IMMMixtureDensity:
                 self._native(j, *moment_match_rows(wmix[:, :, j], xc, Pc)) for j in range(self.r)
             ]
         for j, model in enumerate(self.models):
-            xj, Pj = ekf_predict(model, mixed[j][0], mixed[j][1], dt)
+            xj, Pj = self._predict_mode(model, mixed[j][0], mixed[j][1], dt)
             xs.append(xj)
             Ps.append(Pj)
+        self._straight_coast(xs, Ps, dt)
         return IMMComponents(comp.track, comp.w, comp.hist, c, xs, Ps)
+
+    def _straight_coast(self, xs: list, Ps: list, dt: np.ndarray) -> None:
+        """Components coasting longer than ``coast_after``: every manoeuvre mode takes
+        the CV mode's prediction (module docstring, step 2)."""
+        cv_first = isinstance(self.models[0], ConstantVelocity)
+        if self.coast_after is None or self.r == 1 or not cv_first:
+            return
+        long = np.flatnonzero(dt > self.coast_after)
+        if len(long) == 0:
+            return
+        xc, Pc = self._common(0, xs[0][long], Ps[0][long])
+        for j in range(1, self.r):
+            xs[j][long], Ps[j][long] = self._native(j, xc, Pc)
+
+    def _predict_mode(
+        self, model, x: np.ndarray, P: np.ndarray, dt: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Mode-matched prediction over dt (C,) s, in ⌈dt / coast_step⌉ equal steps for
+        the components that coast longer than ``coast_after`` (module docstring, step 2)."""
+        if self.coast_after is None or len(dt) == 0 or dt.max() <= self.coast_after:
+            return ekf_predict(model, x, P, dt)
+        steps = np.where(dt > self.coast_after, np.ceil(dt / self.coast_step), 1.0)
+        h = dt / steps
+        x, P = ekf_predict(model, x, P, h)
+        for s in range(1, int(steps.max())):
+            rows = np.flatnonzero(steps > s)
+            x[rows], P[rows] = ekf_predict(model, x[rows], P[rows], h[rows])
+        return x, P
 
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
         inside = np.zeros(len(self), bool)
@@ -458,4 +503,6 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         cfg.prune_threshold,
         cfg.max_components,
         cfg.imm_init_acceleration,
+        cfg.imm_coast_after,
+        cfg.imm_coast_step,
     )

@@ -1,0 +1,196 @@
+"""Re-identification of a terminated track by kinematic continuity (issue 17).
+
+An aircraft that the radar loses for a while (the cone of silence over the radar,
+shadowing, a low aircraft detected intermittently) has its track terminated, and a new
+track starts when it is seen again. An operator expects the aircraft to keep its track
+number. When a new track is confirmed, it takes over the id of a recently terminated
+confirmed track if, and only if, its state is consistent with that track's last fix
+predicted to now, and the pairing is unambiguous. Only kinematics decide: Mode-S or
+Mode-3/A codes never enter (they only score).
+
+Test, for a terminated track o (last fix x_o, P_o at t_o, the estimate after its last
+plot, CV layout [x, vx, y, vy(, z, vz)]) and a newly confirmed track n (x_n, P_n at t_n
+≥ t_o, started at or after t_o):
+
+    (R1)  x̂_o = F(Δ) x_o,  P̂_o = F(Δ) P_o F(Δ)ᵀ + Q(Δ),   Δ = t_n − t_o, with the CV
+          F and the *continuous* white-noise acceleration Q per axis,
+          q̃ [[Δ³/3, Δ²/2], [Δ²/2, Δ]] (Bar-Shalom, Li and Kirubarajan, "Estimation with
+          Applications to Tracking and Navigation", 2001, eq. 6.2.2-12; q̃ in m²/s³:
+          the quiet straight flight a lost aircraft is assumed to keep; the tracker's
+          piecewise-constant Q, q Δ⁴/4, would let one acceleration act for the whole
+          gap and grow the gate to kilometres);
+    (R1') informative: every per-axis σ of P̂_o's position block ≤ ``max_sigma`` (a
+          track whose last fix was a coasting guess, with a velocity σ of hundreds of
+          m/s, would otherwise gate anything and continue another aircraft). For the
+          same reason a track's fix is replaced at a plot only by a fix at least as
+          informative as the old one: both predicted by (R1) to ``FIX_HORIZON`` after
+          the plot (the typical gap to bridge), the new one's largest per-axis position
+          variance is not larger (:func:`keeps_fix`). A weak plot after a coast, whose
+          estimate has a velocity σ of hundreds of m/s, then does not overwrite the
+          good fix before it;
+    (R1'') moving: both speeds (old fix and new estimate, horizontal) ≥ ``min_speed``.
+          Aircraft parked or taxiing on an apron, a few hundred metres apart and nearly
+          still, are not told apart by kinematics; re-identifying them joins two
+          aircraft (measured on the Barcelona recording);
+    (R2)  d² = (x_n − x̂_o)ᵀ (P_n + P̂_o)⁻¹ (x_n − x̂_o) < χ²_{d}(p_reid)   (the track-to-
+          track association test of Bar-Shalom, "On the track-to-track correlation
+          problem", IEEE TAC 26(2), 1981, eq. 5, with independent errors);
+    (R3)  unique: n passes (R2) with exactly one o, and that o with exactly one n of the
+          tracks confirmed in the same batch (an ambiguous pair keeps the new id).
+
+A terminated track is a candidate for ``max_gap`` seconds after its last plot; the store
+holds at most ``capacity`` tracks (the oldest are dropped first). Times in ns, states in
+m and m/s.
+
+Consumers see the ``terminated`` event of the old id when it ends, then a ``confirmed``
+event of the same id with the reason ``re-identified (tentative id N)``: an id comes back
+only as the continuation of its track, within ``max_gap``, and never while it is alive.
+Fresh ids still come from the tracker's counter and are never given twice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+from skyfuse.fusion.filters.kalman import predict
+from skyfuse.fusion.models.cv import ConstantVelocity
+
+NS = 1e-9
+FIX_HORIZON = 60.0
+"""s: the gap over which two fixes of a track are compared (R1') [IMPL]: the gaps to
+bridge are 20-60 s for intermittent detection and 80-120 s for the cone of silence."""
+
+
+def white_noise_acceleration_q(dt: np.ndarray, q: float, ndim: int) -> np.ndarray:
+    """(n, 2·ndim, 2·ndim) continuous white-noise acceleration covariance of (R1) for
+    dt (n,) s, q̃ in m²/s³, state interleaved [x, vx, y, vy(, z, vz)]."""
+    t = np.asarray(dt, dtype=np.float64)
+    Q = np.zeros((len(t), 2 * ndim, 2 * ndim))
+    for a in range(ndim):
+        i = 2 * a
+        Q[:, i, i] = q * t**3 / 3.0
+        Q[:, i, i + 1] = Q[:, i + 1, i] = q * t**2 / 2.0
+        Q[:, i + 1, i + 1] = q * t
+    return Q
+
+
+def _predict_fix(
+    x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float, model: ConstantVelocity
+) -> tuple[np.ndarray, np.ndarray]:
+    """(R1): fixes x (n, d), P (n, d, d) predicted over dt (n,) s."""
+    return predict(x, P, model.F(dt), white_noise_acceleration_q(dt, q, model.ndim))
+
+
+def keeps_fix(
+    P_old: np.ndarray,
+    t_old: np.ndarray,
+    P_new: np.ndarray,
+    t_new: np.ndarray,
+    q: float,
+    model: ConstantVelocity,
+) -> np.ndarray:
+    """(n,) bool: the old fixes (P_old at t_old ns) predict the position ``FIX_HORIZON``
+    after t_new (ns) better than the new estimates P_new at t_new (a smaller largest
+    per-axis position variance, both by (R1)), so the old fixes are kept (R1')."""
+    if len(P_old) == 0:
+        return np.zeros(0, bool)
+    dt = np.maximum(t_new - t_old, 0) * NS + FIX_HORIZON
+    zeros = np.zeros(P_old.shape[:2])
+    _, Po = _predict_fix(zeros, P_old, dt, q, model)
+    _, Pn = _predict_fix(zeros, P_new, np.full(len(dt), FIX_HORIZON), q, model)
+    pos = list(model.position_index)
+    return Po[:, pos, pos].max(axis=1) < Pn[:, pos, pos].max(axis=1)
+
+
+@dataclass
+class TerminatedTracks:
+    """Bounded store of recently terminated confirmed tracks: ids (n,), x (n, d),
+    P (n, d, d), t (n,) ns of the last fix."""
+
+    model: ConstantVelocity
+    max_gap: float
+    q: float = 4.0
+    p_gate: float = 0.99
+    max_sigma: float = 5000.0
+    min_speed: float = 15.0
+    capacity: int = 1024
+    ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    x: np.ndarray | None = None
+    P: np.ndarray | None = None
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def __post_init__(self) -> None:
+        d = self.model.dim
+        self.x = np.zeros((0, d)) if self.x is None else self.x
+        self.P = np.zeros((0, d, d)) if self.P is None else self.P
+        self.gate = float(chi2.ppf(self.p_gate, d))
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def add(self, ids: np.ndarray, x: np.ndarray, P: np.ndarray, t: np.ndarray) -> None:
+        """Store terminated tracks (their last fixes); keep the newest ``capacity``."""
+        if len(ids) == 0:
+            return
+        self.ids = np.concatenate([self.ids, np.asarray(ids, np.int64)])[-self.capacity :]
+        self.x = np.concatenate([self.x, x])[-self.capacity :]
+        self.P = np.concatenate([self.P, P])[-self.capacity :]
+        self.t = np.concatenate([self.t, np.asarray(t, np.int64)])[-self.capacity :]
+
+    def expire(self, now_ns: int) -> None:
+        """Drop the tracks whose last fix is more than ``max_gap`` s before ``now_ns``."""
+        self._keep((now_ns - self.t) * NS <= self.max_gap)
+
+    def _keep(self, keep: np.ndarray) -> None:
+        self.ids, self.x, self.P, self.t = (
+            self.ids[keep], self.x[keep], self.P[keep], self.t[keep]
+        )  # fmt: skip
+
+    def distances(
+        self, x: np.ndarray, P: np.ndarray, t: np.ndarray, born: np.ndarray
+    ) -> np.ndarray:
+        """d² (m, n) of (R2) between the new tracks' estimates x (m, d), P (m, d, d) at
+        times t (m,) ns, started at ``born`` (m,) ns, and the stored tracks predicted by
+        (R1); +inf where a new track started before the stored track's last fix."""
+        m, n = len(x), len(self)
+        d2 = np.full((m, n), np.inf)
+        if m == 0 or n == 0:
+            return d2
+        vel = [i + 1 for i in self.model.position_index[:2]]
+        fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= self.min_speed
+        fast_old = np.hypot(self.x[:, vel[0]], self.x[:, vel[1]]) >= self.min_speed
+        ok = (born[:, None] >= self.t[None, :]) & fast_new[:, None] & fast_old[None, :]
+        ii, jj = np.nonzero(ok)
+        if len(ii) == 0:
+            return d2
+        dt = (t[ii] - self.t[jj]) * NS
+        xo, Po = _predict_fix(self.x[jj], self.P[jj], dt, self.q, self.model)
+        pos = list(self.model.position_index)
+        sharp = Po[:, pos, pos].max(axis=1) <= self.max_sigma**2
+        ii, jj, xo, Po = ii[sharp], jj[sharp], xo[sharp], Po[sharp]
+        dx = x[ii] - xo
+        S = P[ii] + Po
+        d2[ii, jj] = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
+        return d2
+
+    def match(self, x: np.ndarray, P: np.ndarray, t: np.ndarray, born: np.ndarray) -> np.ndarray:
+        """For each new track (rows of x), the index of the stored track it continues by
+        (R1)-(R3), −1 for none; the matched stored tracks are removed by :meth:`take`."""
+        d2 = self.distances(x, P, t, born)
+        ok = d2 < self.gate
+        out = np.full(len(x), -1, np.int64)
+        unique = (ok.sum(axis=1) == 1)[:, None] & (ok.sum(axis=0) == 1)[None, :] & ok
+        rows, cols = np.nonzero(unique)
+        out[rows] = cols
+        return out
+
+    def take(self, idx: np.ndarray) -> np.ndarray:
+        """The ids of stored tracks ``idx`` (≥ 0), removed from the store."""
+        idx = np.asarray(idx, np.int64)
+        ids = self.ids[idx]
+        keep = np.ones(len(self), bool)
+        keep[idx] = False
+        self._keep(keep)
+        return ids
