@@ -154,13 +154,17 @@ def accounting(facts: dict, f: Follower, work: Path) -> dict:
     lines = (work / "tracks.jsonl").read_text().splitlines()
     client_tracks = sum('/tracks"' in ln[:200] for ln in lines)
     rec_stats = json.loads((work / "recorder.json").read_text())
+    queued = fs.backlog.batches if fs.backlog is not None else 0
+    queued_plots = fs.backlog.plots if fs.backlog is not None else 0
     checks = {
         "recorded_batches_eq_published": len(ids) == facts["batches"],
         "recorded_plots_eq_published": plots == facts["plots_processed"],
         "fusion_received_eq_published": c.get("batches_received") == facts["batches"],
-        "received_eq_applied_plus_rejected": c.get("batches_received")
-        == c.get("cycles", 0) + sum(batch_rejections.values()),
-        "plots_accepted_eq_applied": c.get("plots_in") == c.get("plots_applied"),
+        # what the fusion has not applied yet is still queued (reported), not lost
+        "received_eq_applied_plus_rejected_plus_queued": c.get("batches_received")
+        == c.get("cycles", 0) + sum(batch_rejections.values()) + queued,
+        "plots_accepted_eq_applied_plus_queued": c.get("plots_in")
+        == c.get("plots_applied", 0) + queued_plots,
         "client_got_every_track_message": client_tracks == c.get("track_batches_published"),
     }
     return {
@@ -171,6 +175,8 @@ def accounting(facts: dict, f: Follower, work: Path) -> dict:
         "recorder_rejected": rec_stats.get("rejected", {}),
         "fusion_counters": {k: c.get(k) for k in FUSION_COUNTERS},
         "fusion_rejected": fs.rejected,
+        "fusion_queued_at_end": {"batches": queued, "plots": queued_plots},
+        "fusion_late": fs.late.model_dump() if fs.late is not None else None,
         "client_track_messages": client_tracks,
         "tracks_confirmed_end": fs.tracks_confirmed,
         "checks": checks,
