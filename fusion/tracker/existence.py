@@ -43,6 +43,12 @@ class ExistenceChain:
         self._lam = np.clip(lam.real, 0.0, None)
         self._V = V.real
         self._Vinv = np.linalg.inv(self._V)
+        # existence alone is a two-state chain when both existing states die alike (MC1,
+        # MC2): ψ' = b + λ ψ per period, λ = s − b, s = 1 − Π[0, 2], b = Π[2, 0] + Π[2, 1]
+        s_, b_ = 1.0 - Pi[0, 2], Pi[2, 0] + Pi[2, 1]
+        self._lumped = bool(Pi[0, 2] == Pi[1, 2]) and s_ - b_ > 0.0
+        self._psi_lambda = s_ - b_
+        self._psi_inf = b_ / (1.0 - self._psi_lambda) if self._psi_lambda < 1.0 else 0.0
 
     def power(self, dt: np.ndarray) -> np.ndarray:
         """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
@@ -57,6 +63,19 @@ class ExistenceChain:
         full = np.column_stack([state, 1.0 - state.sum(axis=1)])
         out = (full[:, None, :] @ self.power(dt))[:, 0, :]
         return np.clip(out[:, :2], 0.0, 1.0)
+
+    def existence_bound(self, state: np.ndarray, dt: np.ndarray) -> np.ndarray | None:
+        """ψ of ``state`` (n, 2) predicted over ``dt`` (n,) s in closed form,
+        ψ(t) = ψ∞ + (ψ₀ − ψ∞) λ^(dt/T) (the two-state existence chain the three states lump
+        into, 2.36 / 3.40), or None when Π does not lump. It equals
+        ``existence(predict(state, dt))`` up to rounding; it serves to find the few tracks
+        whose predicted existence can be near a threshold, for which the exact
+        prediction is then made (termination)."""
+        if not self._lumped:
+            return None
+        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
+        psi0 = np.clip(state[:, 0] + state[:, 1], 0.0, 1.0)
+        return self._psi_inf + (psi0 - self._psi_inf) * self._psi_lambda**t
 
     @staticmethod
     def existence(state: np.ndarray) -> np.ndarray:

@@ -46,6 +46,9 @@ from .measurements import MeasurementBatch
 from .registry import ASSOCIATIONS, make_density
 
 NS = 1e-9
+#: Tracks whose closed-form predicted existence is at least τ_t + this are not terminated
+#: without the exact chain prediction (the two differ by rounding, ~1e-15).
+TERMINATION_MARGIN = 1e-6
 
 
 @dataclass
@@ -209,6 +212,12 @@ class Tracker:
         """MMSE estimates x (n, d), P (n, d, d) of all tracks at their t_last."""
         return self.density.estimate(np.arange(self.n))
 
+    def _estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """The estimates of all tracks for reading only: the density's own arrays when it
+        offers them (``estimates_view``, no copy of every track per batch), else a copy."""
+        view = getattr(self.density, "estimates_view", None)
+        return view() if view is not None else self.estimates()
+
     def _count(self, key: str, value: int) -> None:
         self.totals[key] = self.totals.get(key, 0) + int(value)
 
@@ -296,13 +305,20 @@ class Tracker:
         m = len(b)
         stats = {"plots": m, "rejected": sum(b.rejected.values())}
         bit = self._radar_bit(b.radar_id)
-        x, P = self.estimates()
+        x, P = self._estimates_view()
         inside, t_pred = select_tracks(
             b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma
         )
-        seen, cone = detection_share(b, x, P, self.t_last, self.pos, self.vel, self.height)
-        blind = inside & (cone < self.cfg.blind_share)
-        sel = np.flatnonzero(inside & ~blind)
+        # the detection share of the tracks in coverage only (the others are not used)
+        cand = np.flatnonzero(inside)
+        seen, cone = detection_share(
+            b, x[cand], P[cand], self.t_last[cand], self.pos, self.vel, self.height[cand]
+        )
+        is_blind = cone < self.cfg.blind_share
+        blind = np.zeros(self.n, bool)
+        blind[cand[is_blind]] = True
+        sel = cand[~is_blind]
+        share = (seen * cone)[~is_blind]
         stats["tracks_in_coverage"] = len(sel)
         stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
@@ -310,7 +326,7 @@ class Tracker:
         exist_pred = self.chain.predict(self.exist[sel], dt)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
-        res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
+        res = self._associate(b, pred, table, exist_pred[:, 0], share)
         self.density.update(pred, table, res.beta0, res.beta)
         stats.update(res.stats)
         stats.update(getattr(self.density, "stats", {}))
@@ -340,21 +356,24 @@ class Tracker:
         row without a gated plot scaled by its detection ``share`` (:mod:`.coverage`; a
         plot in the gate shows the radar saw where the track is)."""
         cfg = self.cfg
-        share = np.where(np.isin(np.arange(len(share)), table.tp_track), 1.0, share)
+        share = share.copy()
+        share[table.tp_track] = 1.0
         pdpg = float(b.p_detection) * self.P_G * share
+        # the track-level moments only for the estimated clutter (known: not used)
+        estimated = cfg.clutter == "estimated"
         rho = clutter_density(
             cfg.clutter,
             b.clutter_density,
             cfg.clutter_density_floor,
             table.tp_track,
             table.tp_plot,
-            pred.S0,
+            pred.S0 if estimated else None,
             b.R,
             pdpg,
             psi_det,
             self.g,
             z=b.z,
-            z_mean=pred.z_mean,
+            z_mean=pred.z_mean if estimated else None,
             volume_floor=cfg.clutter_volume,
         )
         problem = AssociationProblem(
@@ -430,7 +449,7 @@ class Tracker:
         if len(a) == 0:
             return keep
         psi_all = self.existence()
-        x, P = self.estimates()
+        x, P = self._estimates_view()
         loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, self.confirmed, self.g_dup)
         keep[loser] = False
         for lo, wi in zip(loser, winner):
@@ -476,14 +495,19 @@ class Tracker:
         ``max_coast`` seconds (counted from the later of the last plot and the last batch
         that found the track in a cone of silence, :mod:`.coverage`)."""
         cfg = self.cfg
-        psi_now = self.chain.existence(
-            self.chain.predict(self.exist, np.maximum(t_batch - self.t_last, 0) * NS)
-        )
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
             coasting = (t_batch - np.maximum(self.last_update, self.coast_from)) > round(
                 cfg.max_coast / NS
             )
+        dt = np.maximum(t_batch - self.t_last, 0) * NS
+        # exact existence prediction only where the closed form says ψ can be near τ_t
+        rows = np.arange(self.n)
+        bound = self.chain.existence_bound(self.exist, dt)
+        if bound is not None:
+            rows = np.flatnonzero((bound < cfg.tau_terminate + TERMINATION_MARGIN) | coasting)
+        psi_now = np.ones(self.n)
+        psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
         term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(

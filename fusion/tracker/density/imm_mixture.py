@@ -410,6 +410,10 @@ class IMMMixtureDensity:
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[rows].copy(), self.P[rows].copy()
 
+    def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
+        return self.x, self.P
+
     def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
         """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
         out = np.zeros((len(self), self.r))
