@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .small_spd import right_solve
+
 
 def predict(
     x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray
@@ -36,7 +38,9 @@ def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.nda
 def gain(P: np.ndarray, H: np.ndarray, S: np.ndarray) -> np.ndarray:
     """K = P Hᵀ S⁻¹, shape (n, d, m), computed by a solve rather than an inverse."""
     PHt = P @ H.T  # (n, d, m)
-    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric.
+    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric (closed form for m = 2).
+    if PHt.ndim == 3 and np.ndim(S) == 3:
+        return right_solve(PHt, S)
     return np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
 
 

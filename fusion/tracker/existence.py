@@ -43,12 +43,18 @@ class ExistenceChain:
         self._lam = np.clip(lam.real, 0.0, None)
         self._V = V.real
         self._Vinv = np.linalg.inv(self._V)
-        # existence alone is a two-state chain when both existing states die alike (MC1,
-        # MC2): ψ' = b + λ ψ per period, λ = s − b, s = 1 − Π[0, 2], b = Π[2, 0] + Π[2, 1]
-        s_, b_ = 1.0 - Pi[0, 2], Pi[2, 0] + Pi[2, 1]
-        self._lumped = bool(Pi[0, 2] == Pi[1, 2]) and s_ - b_ > 0.0
-        self._psi_lambda = s_ - b_
-        self._psi_inf = b_ / (1.0 - self._psi_lambda) if self._psi_lambda < 1.0 else 0.0
+
+    def _lumped(self) -> tuple[float, float] | None:
+        """(λ, ψ∞) of the existence alone, or None. Existence is a two-state chain when
+        both existing states die alike (MC1, MC2): ψ' = b + λ ψ per period with
+        λ = s − b, s = 1 − Π[0, 2], b = Π[2, 0] + Π[2, 1], ψ∞ = b / (1 − λ); λ > 0 so that
+        λ^(dt/T) is the fractional power of the eigendecomposition."""
+        Pi = self.Pi
+        s, b = 1.0 - Pi[0, 2], Pi[2, 0] + Pi[2, 1]
+        lam = s - b
+        if Pi[0, 2] != Pi[1, 2] or not 0.0 < lam < 1.0:
+            return None
+        return lam, b / (1.0 - lam)
 
     def power(self, dt: np.ndarray) -> np.ndarray:
         """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
@@ -71,11 +77,13 @@ class ExistenceChain:
         ``existence(predict(state, dt))`` up to rounding; it serves to find the few tracks
         whose predicted existence can be near a threshold, for which the exact
         prediction is then made (termination)."""
-        if not self._lumped:
+        lumped = self._lumped()
+        if lumped is None:
             return None
+        lam, psi_inf = lumped
         t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
         psi0 = np.clip(state[:, 0] + state[:, 1], 0.0, 1.0)
-        return self._psi_inf + (psi0 - self._psi_inf) * self._psi_lambda**t
+        return psi_inf + (psi0 - psi_inf) * lam**t
 
     @staticmethod
     def existence(state: np.ndarray) -> np.ndarray:

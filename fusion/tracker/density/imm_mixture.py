@@ -39,6 +39,7 @@ from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
+from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
@@ -165,10 +166,7 @@ class IMMTable(GatedTable):
 
 def _log_gauss(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
     """log N(ν; 0, S) over leading axes."""
-    L = np.linalg.cholesky(S)
-    w = np.linalg.solve(L, nu[..., None])[..., 0]
-    d2 = np.einsum("...i,...i->...", w, w)
-    logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+    d2, logdet = quadratic_and_logdet(S, nu)
     return -0.5 * (d2 + logdet + nu.shape[-1] * np.log(2.0 * np.pi))
 
 
