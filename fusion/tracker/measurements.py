@@ -233,12 +233,13 @@ class MeasurementBatch:
         reject(~np.isfinite(z).all(axis=1), "position not finite")
         reject(~np.isfinite(R).all(axis=(1, 2)), "covariance not finite")
         reject(~np.isfinite(rho) | (rho < 0), "clutter density negative or not finite")
-        Rs = np.where(ok[:, None, None], R, np.eye(ndim))
-        asym = np.abs(Rs - np.swapaxes(Rs, 1, 2)).max(axis=(1, 2)) > 1e-6 * (
-            1.0 + np.abs(Rs).max(axis=(1, 2))
+        # the rejected plots' R replaced by I for the next tests (none in a clean batch)
+        Rs = R if ok.all() else np.where(ok[:, None, None], R, np.eye(ndim))
+        asym = np.abs(Rs - np.swapaxes(Rs, 1, 2)).max(axis=(1, 2), initial=0.0) > 1e-6 * (
+            1.0 + np.abs(Rs).max(axis=(1, 2), initial=0.0)
         )
         reject(asym, "covariance not symmetric")
-        Rs = np.where(ok[:, None, None], Rs, np.eye(ndim))
+        Rs = Rs if ok.all() else np.where(ok[:, None, None], Rs, np.eye(ndim))
         reject(~_positive_definite(Rs), "covariance not positive definite")
 
         if self.heights is not None and np.shape(self.heights) != (m,):
