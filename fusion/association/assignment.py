@@ -206,7 +206,7 @@ def assign_sparse(
     rows = np.flatnonzero(single & (cost < miss[track]))
     if len(rows):
         order = rows[np.lexsort((cost[rows], track[rows]))]
-        first = np.r_[True, track[order][1:] != track[order][:-1]]
+        first = np.concatenate(([True], track[order][1:] != track[order][:-1]))
         chosen[track[order[first]]] = order[first]
     multi = np.flatnonzero(~single)
     lab = labels[track[multi]]

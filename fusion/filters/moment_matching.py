@@ -66,7 +66,7 @@ def moment_match(
     group = np.asarray(group)
     if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
         # one component per group (GNN/IPDA tracks): nothing to merge
-        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + np.swapaxes(P, 1, 2))
+        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + P.swapaxes(1, 2))
     if len(w) == 0:
         d = x.shape[1]  # groups without components: no mean (NaN), as 0 / 0
         return np.zeros(ngroups), np.full((ngroups, d), np.nan), np.full((ngroups, d, d), np.nan)
@@ -86,7 +86,7 @@ def moment_match(
     dx = x - xm[group]
     spread = P + dx[:, :, None] * dx[:, None, :]
     Pm = _sorted_sum(ww[:, None, None] * spread, starts, gid, ngroups) / Wn[:, None, None]
-    Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+    Pm = 0.5 * (Pm + Pm.swapaxes(1, 2))
     return W, xm, Pm
 
 
@@ -106,4 +106,4 @@ def moment_match_rows(
     dx = xs - xm[:, None, :]
     spread = Ps + dx[..., :, None] * dx[..., None, :]
     Pm = np.einsum("nr,nrij->nij", ww, spread) / W[:, None, None]
-    return xm, 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+    return xm, 0.5 * (Pm + Pm.swapaxes(1, 2))

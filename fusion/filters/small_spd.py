@@ -51,4 +51,4 @@ def right_solve(B: np.ndarray, S: np.ndarray) -> np.ndarray:
         out[:, :, 0] = b0 * i00 + b1 * i01
         out[:, :, 1] = b0 * i01 + b1 * i11
         return out
-    return np.swapaxes(np.linalg.solve(S, np.swapaxes(B, -1, -2)), -1, -2)
+    return np.swapaxes(np.linalg.solve(S, B.swapaxes(-1, -2)), -1, -2)

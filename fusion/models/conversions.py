@@ -26,8 +26,8 @@ SPEED_SIGNIFICANCE = 3.0
 
 
 def _sandwich(J, P):
-    out = J @ P @ np.swapaxes(J, -1, -2)
-    return 0.5 * (out + np.swapaxes(out, -1, -2))
+    out = J @ P @ J.swapaxes(-1, -2)
+    return 0.5 * (out + out.swapaxes(-1, -2))
 
 
 def common_dim(ndim: int) -> int:
@@ -50,7 +50,7 @@ def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarr
         xc = np.zeros((len(x), 3 * model.ndim))
         xc[:, idx] = x
         Pc = np.zeros((len(x), 3 * model.ndim, 3 * model.ndim))
-        Pc[:, idx[:, None], idx[None, :]] = 0.5 * (P + np.swapaxes(P, -1, -2))
+        Pc[:, idx[:, None], idx[None, :]] = 0.5 * (P + P.swapaxes(-1, -2))
         return xc, Pc
     if isinstance(model, CoordinatedTurn):
         n = x.shape[0]
@@ -84,7 +84,7 @@ def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.n
         # x S and Sᵀ P S select the CV entries (exact)
         idx = _cv_common_index(model.ndim)
         Pcv = Pc[:, idx[:, None], idx[None, :]]
-        return xc[:, idx], 0.5 * (Pcv + np.swapaxes(Pcv, -1, -2))
+        return xc[:, idx], 0.5 * (Pcv + Pcv.swapaxes(-1, -2))
     if isinstance(model, CoordinatedTurn):
         n = xc.shape[0]
         vx, ax, vy, ay = xc[:, 1], xc[:, 2], xc[:, 4], xc[:, 5]

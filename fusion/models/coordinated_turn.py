@@ -114,7 +114,7 @@ class CoordinatedTurn:
         G[:, 4, 0] = t
         G[:, 2, 1] = t * t / 2
         G[:, 3, 1] = t
-        Q = G @ np.diag([self.sigma_a**2, self.sigma_omega**2]) @ np.swapaxes(G, -1, -2)
+        Q = G @ np.diag([self.sigma_a**2, self.sigma_omega**2]) @ G.swapaxes(-1, -2)
         if self.vertical:
             Q[:, 5, 5] = self.q_vertical * t**4 / 4
             Q[:, 5, 6] = Q[:, 6, 5] = self.q_vertical * t**3 / 2

@@ -79,7 +79,7 @@ def take_concat(a: np.ndarray, idx: np.ndarray, b: np.ndarray) -> np.ndarray:
     them) and appends the new ones of the tracks inside it."""
     n = len(idx)
     out = np.empty((n + len(b), *a.shape[1:]), dtype=np.result_type(a, b))
-    np.take(a, idx, axis=0, out=out[:n])
+    a.take(idx, axis=0, out=out[:n])
     out[n:] = b
     return out
 
@@ -142,7 +142,7 @@ def history_groups(track: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.
     keys = np.column_stack([track, hist])
     order = np.lexsort(keys.T[::-1])
     ks = keys[order]
-    new = np.r_[True, (ks[1:] != ks[:-1]).any(axis=1)]
+    new = np.concatenate(([True], (ks[1:] != ks[:-1]).any(axis=1)))
     inv = np.empty(len(order), np.int64)
     inv[order] = np.cumsum(new) - 1
     return inv, ks[new]

@@ -128,30 +128,37 @@ class SectorCoverage:
         n = pos[:, self.axes[1]] - self.site[self.axes[1]]
         return np.hypot(e, n), np.mod(np.arctan2(e, n), TWO_PI)
 
-    def sector_fraction(self, pos: np.ndarray) -> np.ndarray:
+    def sector_fraction(self, pos: np.ndarray, polar=None) -> np.ndarray:
         """Where in the sweep each position lies: 0 at sector_start, 1 at its end; values
-        outside [0, 1] are outside the sector (negative: before its start)."""
-        _, az = self._polar(pos)
+        outside [0, 1] are outside the sector (negative: before its start). ``polar``:
+        the positions' (range, azimuth) when already computed (:meth:`polar`)."""
+        _, az = self._polar(pos) if polar is None else polar
         off = np.mod(az - self.sector_start, TWO_PI)
         # put offsets in the half-turn before the sector at negative values
         off = np.where(off > 0.5 * (TWO_PI + self.sector_width), off - TWO_PI, off)
         return off / self.sector_width
 
-    def contains(self, pos: np.ndarray, margin: np.ndarray | float = 0.0) -> np.ndarray:
+    def polar(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(horizontal range m, azimuth rad from north) of positions ``pos`` (n, ≥2) from
+        the site, to pass to several of the tests below (computed once)."""
+        return self._polar(np.atleast_2d(pos))
+
+    def contains(self, pos: np.ndarray, margin: np.ndarray | float = 0.0, polar=None) -> np.ndarray:
         """True where a position (within ``margin`` metres) is inside range and sector."""
         pos = np.atleast_2d(pos)
-        r, _ = self._polar(pos)
+        polar = self._polar(pos) if polar is None else polar
+        r = polar[0]
         margin = np.broadcast_to(np.asarray(margin, dtype=np.float64), r.shape)
         ok = (r >= self.min_range - margin) & (r <= self.max_range + margin)
         if self.sector_width < TWO_PI:
-            frac = self.sector_fraction(pos)
+            frac = self.sector_fraction(pos, polar)
             ang = np.minimum(margin / np.maximum(r, 1.0), np.pi) / self.sector_width
             ok &= (frac >= -ang) & (frac <= 1.0 + ang)
         return ok
 
-    def illumination_time(self, pos: np.ndarray) -> np.ndarray:
+    def illumination_time(self, pos: np.ndarray, polar=None) -> np.ndarray:
         """Time (ns) the beam swept each position: linear in azimuth across the sector."""
-        frac = np.clip(self.sector_fraction(np.atleast_2d(pos)), 0.0, 1.0)
+        frac = np.clip(self.sector_fraction(np.atleast_2d(pos), polar), 0.0, 1.0)
         span = self.time_end - self.time_start
         return self.time_start + np.round(frac * span).astype(np.int64)
 
@@ -235,7 +242,7 @@ class MeasurementBatch:
         reject(~np.isfinite(rho) | (rho < 0), "clutter density negative or not finite")
         # the rejected plots' R replaced by I for the next tests (none in a clean batch)
         Rs = R if ok.all() else np.where(ok[:, None, None], R, np.eye(ndim))
-        asym = np.abs(Rs - np.swapaxes(Rs, 1, 2)).max(axis=(1, 2), initial=0.0) > 1e-6 * (
+        asym = np.abs(Rs - Rs.swapaxes(1, 2)).max(axis=(1, 2), initial=0.0) > 1e-6 * (
             1.0 + np.abs(Rs).max(axis=(1, 2), initial=0.0)
         )
         reject(asym, "covariance not symmetric")

@@ -407,7 +407,7 @@ class Tracker:
         if len(res.beta):
             tp_track, tp_plot = table.tp_track, table.tp_plot
             order = np.lexsort((-res.beta, tp_track))
-            first = np.r_[True, tp_track[order][1:] != tp_track[order][:-1]]
+            first = np.concatenate(([True], tp_track[order][1:] != tp_track[order][:-1]))
             best = order[first]
             good = res.beta[best] > res.beta0[tp_track[best]]
             assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
@@ -477,12 +477,10 @@ class Tracker:
             psi_sel, self.confirmed[sel], self.updates[sel], cfg.tau_confirm,
             cfg.confirm_min_updates,
         )  # fmt: skip
-        psi_now = self.existence()
         for r in sel[conf & keep[sel]]:
             self.confirmed[r] = True
-            events.append(
-                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]))
-            )
+            psi_r = float(self.chain.existence(self.exist[r : r + 1])[0])
+            events.append(TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), psi_r))
 
     def _terminate(
         self,

@@ -312,7 +312,7 @@ class IMMMixtureDensity:
         pc, pp = key // max(m, 1), key % max(m, 1)
         nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
         S = pred.HPH[pc] + R[pp][:, None]
-        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        S = 0.5 * (S + S.swapaxes(-1, -2))
         log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
         mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
         p_pair = mix / gate_probability_of(float(g), k)
