@@ -179,6 +179,20 @@ def _positive_definite(R: np.ndarray) -> np.ndarray:
     return ok
 
 
+def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
+    """True when every plot passes every test of :meth:`MeasurementBatch._plot_mask`
+    (finite position and covariance, non-negative finite clutter density, symmetric and
+    positive-definite covariance)."""
+    finite = np.isfinite(z).all() and np.isfinite(R).all() and np.isfinite(rho).all()
+    if not finite or (rho < 0).any():
+        return False
+    flat = R.reshape(len(R), -1)
+    asym = np.abs(flat - R.swapaxes(1, 2).reshape(len(R), -1)).max(axis=1, initial=0.0)
+    if (asym > 1e-6 * (1.0 + np.abs(flat).max(axis=1, initial=0.0))).any():
+        return False
+    return bool(_positive_definite(R).all())
+
+
 @dataclass
 class MeasurementBatch:
     """One batch of plots in the system frame.
@@ -211,6 +225,33 @@ class MeasurementBatch:
     def validated(self, ndim: int) -> MeasurementBatch:
         """A copy with arrays in canonical shape and bad plots dropped; the reasons are
         counted in ``rejected``. Raises ValueError for batch-level problems."""
+        z, R, rho = self._canonical(ndim)
+        m = len(z)
+        if self.heights is not None and np.shape(self.heights) != (m,):
+            raise ValueError(f"heights has shape {np.shape(self.heights)}: expected ({m},)")
+        rejected = dict(self.rejected)
+        # one pass over the whole batch first: a clean batch (the usual case) skips the
+        # per-reason masks (the same result: every plot kept, nothing counted)
+        ok = np.ones(m, dtype=bool) if _clean(z, R, rho) else self._plot_mask(z, R, rho, rejected)
+
+        def sel(a):
+            return None if a is None else np.asarray(a)[ok]
+
+        return replace(
+            self,
+            z=z[ok],
+            R=R[ok],
+            clutter_density=rho[ok],
+            plot_times=sel(self.plot_times),
+            plot_ids=sel(self.plot_ids),
+            target_ids=sel(self.target_ids),
+            heights=None if self.heights is None else np.asarray(self.heights, float)[ok],
+            rejected=rejected,
+        )
+
+    def _canonical(self, ndim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """z (m, ndim), R (m, ndim, ndim), clutter density (m,) as float arrays; raises
+        ValueError for a bad P_D or shapes."""
         if not 0.0 < float(self.p_detection) <= 1.0:
             raise ValueError(f"p_detection = {self.p_detection}: must be in (0, 1]")
         z = (
@@ -221,14 +262,24 @@ class MeasurementBatch:
         m = len(z)
         R = np.asarray(self.R, dtype=np.float64)
         if R.shape == (ndim, ndim):
-            R = np.broadcast_to(R, (m, ndim, ndim)).copy()
+            R_all = np.empty((m, ndim, ndim))
+            R_all[:] = R
+            R = R_all
         if R.shape != (m, ndim, ndim):
             raise ValueError(f"R has shape {R.shape}: expected ({m}, {ndim}, {ndim}) or 2-D")
         rho = np.asarray(self.clutter_density, dtype=np.float64)
-        rho = np.broadcast_to(rho, (m,)).copy() if rho.ndim == 0 else rho
+        rho = np.full(m, float(rho)) if rho.ndim == 0 else rho
         if rho.shape != (m,):
             raise ValueError(f"clutter_density has shape {rho.shape}: expected () or ({m},)")
-        rejected = dict(self.rejected)
+        return z, R, rho
+
+    @staticmethod
+    def _plot_mask(
+        z: np.ndarray, R: np.ndarray, rho: np.ndarray, rejected: dict[str, int]
+    ) -> np.ndarray:
+        """The plots that pass every test, each rejection counted under its first failed
+        test's reason in ``rejected``."""
+        m, ndim = z.shape
         ok = np.ones(m, dtype=bool)
 
         def reject(mask: np.ndarray, reason: str) -> None:
@@ -248,21 +299,4 @@ class MeasurementBatch:
         reject(asym, "covariance not symmetric")
         Rs = Rs if ok.all() else np.where(ok[:, None, None], Rs, np.eye(ndim))
         reject(~_positive_definite(Rs), "covariance not positive definite")
-
-        if self.heights is not None and np.shape(self.heights) != (m,):
-            raise ValueError(f"heights has shape {np.shape(self.heights)}: expected ({m},)")
-
-        def sel(a):
-            return None if a is None else np.asarray(a)[ok]
-
-        return replace(
-            self,
-            z=z[ok],
-            R=R[ok],
-            clutter_density=rho[ok],
-            plot_times=sel(self.plot_times),
-            plot_ids=sel(self.plot_ids),
-            target_ids=sel(self.target_ids),
-            heights=None if self.heights is None else np.asarray(self.heights, float)[ok],
-            rejected=rejected,
-        )
+        return ok

@@ -332,14 +332,20 @@ class IMMMixtureDensity:
             return null
         c, p = t.pair_comp, t.pair_plot
         w = comp.w[c] * beta[t.pair_row] * t.p_pair / t.p[t.pair_row]
-        lw = t.log_n + np.log(np.maximum(comp.mu[c], 1e-300))
+        # children of weight 0 (GNN: every pair but the chosen one) are dropped by the
+        # update: no Kalman update for them
+        live = np.flatnonzero(w > 0.0)
+        if len(live) == 0:
+            return null
+        c, p, w, log_n, S, nu = c[live], p[live], w[live], t.log_n[live], t.S[live], t.nu[live]
+        lw = log_n + np.log(np.maximum(comp.mu[c], 1e-300))
         mu = np.exp(lw - lw.max(axis=1, keepdims=True))
         mu /= mu.sum(axis=1, keepdims=True)  # eq. 19
         xs, Ps = [], []
         for j in range(self.r):
             Pj = comp.P[j][c]
-            K = gain(Pj, self.H[j], t.S[:, j])
-            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, t.nu[:, j]))
+            K = gain(Pj, self.H[j], S[:, j])
+            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, nu[:, j]))
             Ps.append(joseph_covariance(Pj, K, self.H[j], t.R[p]))
         upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
         return IMMComponents.concat([null, upd])
