@@ -186,8 +186,8 @@ def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
     finite = np.isfinite(z).all() and np.isfinite(R).all() and np.isfinite(rho).all()
     if not finite or (rho < 0).any():
         return False
-    flat = R.reshape(len(R), -1)
-    asym = np.abs(flat - R.swapaxes(1, 2).reshape(len(R), -1)).max(axis=1, initial=0.0)
+    flat = R.reshape(len(R), R.shape[1] * R.shape[2])
+    asym = np.abs(flat - R.swapaxes(1, 2).reshape(flat.shape)).max(axis=1, initial=0.0)
     if (asym > 1e-6 * (1.0 + np.abs(flat).max(axis=1, initial=0.0))).any():
         return False
     return bool(_positive_definite(R).all())
