@@ -328,6 +328,8 @@ class IMMMixtureDensity:
         null = IMMComponents(
             comp.track, comp.w * beta0[pred.loc], _shift(comp.hist, 0), comp.mu, comp.x, comp.P
         )
+        if not (null.w > 0.0).all():  # children of weight 0 are dropped
+            null = null.take(np.flatnonzero(null.w > 0.0))
         if len(t.pair_comp) == 0:
             return null
         c, p = t.pair_comp, t.pair_plot
@@ -355,6 +357,10 @@ class IMMMixtureDensity:
         ξ μ_j; merged μ_j = Σ ξ μ_j / Σ ξ."""
         if len(comp) == 0:
             return comp
+        if np.bincount(comp.track).max() == 1:
+            # one child per track (GNN; no plot gated): in track order every child is
+            # its own group, and the moment matching below copies it
+            comp = comp.take(np.argsort(comp.track, kind="stable"))
         inv, uniq = history_groups(comp.track, comp.hist)
         G = len(uniq)
         W = np.bincount(inv, weights=comp.w, minlength=G)
@@ -373,8 +379,7 @@ class IMMMixtureDensity:
     def update(
         self, pred: IMMPrediction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
     ) -> None:
-        children = self._children(pred, table, beta0, beta)
-        children = children.take(np.flatnonzero(children.w > 0.0))
+        children = self._children(pred, table, beta0, beta)  # all of weight > 0
         merged = self._merge(children)
         keep, w = prune_indices(
             merged.track, merged.w, self.prune_threshold, self.max_components, len(self)
