@@ -138,3 +138,34 @@ def test_validation_clean_empty_and_bad_batches():
     bad = _batch(zb, Rs).validated(2)
     assert bad.rejected == {"covariance not symmetric": 1, "position not finite": 1}
     np.testing.assert_array_equal(bad.z, z[[0, 2, 4]])
+
+
+def _components_reference(t, p, n, m):
+    """Connected components of the full track–plot graph by scipy, per track."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    A = sp.csr_matrix((np.ones(len(t)), (t, n + p)), shape=(n + m, n + m))
+    return connected_components(A, directed=False)[1][:n]
+
+
+@pytest.mark.parametrize("case", ["small", "chain", "many links"])
+def test_track_clusters_by_propagation_and_fallbacks(case):
+    from skyfuse.fusion.association.assignment import track_clusters
+
+    rng = np.random.default_rng(7)
+    if case == "chain":  # 300 tracks in one random chain: more rounds than the cap
+        n = m = 300
+        perm = rng.permutation(n)
+        t = np.concatenate([perm[:-1], perm[1:]])
+        p = np.concatenate([np.arange(n - 1)] * 2)
+    else:
+        n, m, e = (30, 50, 40) if case == "small" else (400, 500, 900)
+        key = np.unique(rng.integers(0, n, e) * m + rng.integers(0, m, e))
+        t, p = key // m, key % m
+    got = track_clusters(t, p, n, m)
+    ref = _components_reference(t, p, n, m)
+    pairs = set(zip(got.tolist(), ref.tolist()))
+    assert len(pairs) == len(set(got.tolist())) == len(set(ref.tolist()))
+    for lab in np.unique(got):  # the label is the smallest track index of its cluster
+        assert lab == np.flatnonzero(got == lab).min()
