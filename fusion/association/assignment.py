@@ -243,15 +243,21 @@ def assign_sparse(
         first = np.concatenate(([True], track[order][1:] != track[order][:-1]))
         chosen[track[order[first]]] = order[first]
     multi = np.flatnonzero(~single)
+    if len(multi) == 0:
+        return chosen
+    # the rows of each cluster, clusters in label order (one sort, no scan per cluster)
     lab = labels[track[multi]]
-    for c in np.unique(lab):
-        r = multi[lab == c]
+    order = np.argsort(lab, kind="stable")
+    multi, lab = multi[order], lab[order]
+    for r in np.split(multi, np.flatnonzero(lab[1:] != lab[:-1]) + 1):
         trk, ti = np.unique(track[r], return_inverse=True)
         plt, pi = np.unique(plot[r], return_inverse=True)
         C = np.full((len(trk), len(plt)), np.inf)  # +inf: not gated
         C[ti, pi] = cost[r]
+        row = np.full(C.shape, -1, dtype=np.int64)
+        row[ti, pi] = r
         t2p = solve(C, miss[trk]).track_to_plot
-        for a in np.flatnonzero(t2p >= 0):
-            if C[a, t2p[a]] < miss[trk[a]]:
-                chosen[trk[a]] = r[(ti == a) & (pi == t2p[a])][0]
+        a = np.flatnonzero(t2p >= 0)
+        a = a[C[a, t2p[a]] < miss[trk[a]]]
+        chosen[trk[a]] = row[a, t2p[a]]
     return chosen
