@@ -342,7 +342,8 @@ class Tracker:
         blind = np.zeros(self.n, bool)
         blind[cand[is_blind]] = True
         sel = cand[~is_blind]
-        share = (seen * cone)[~is_blind]
+        share = np.zeros(self.n)  # by track row; only the rows in coverage are used
+        share[cand] = seen * cone
         stats["tracks_in_coverage"] = len(sel)
         sel, late, t_tau = self.oosm.split(self, b, sel, x, stats)  # plots older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
@@ -352,7 +353,7 @@ class Tracker:
         exist_pred = self.chain.predict(self.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
-        res = self._associate(b, pred, table, exist_pred[:, 0], share)
+        res = self._associate(b, pred, table, exist_pred[:, 0], share[sel])
         self.density.update(pred, table, res.beta0, res.beta)
         self.oosm.record(self, sel, t_pred, pred)
         stats.update(res.stats)
@@ -363,7 +364,7 @@ class Tracker:
         used = self._used_plots(m, table, res)
         if len(late):
             assigned, used = self.oosm.apply(
-                self, b, late, t_tau, seen * cone, bit, assigned, used, stats
+                self, b, late, t_tau, share, bit, assigned, used, stats
             )
             sel = np.union1d(sel, late)
         self.height = track_heights(self.height, assigned, b.heights)
