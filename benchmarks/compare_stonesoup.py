@@ -42,9 +42,12 @@ included in the time). Stone Soup runs ``GNNWith2DAssignment`` with a Kalman fil
 Timing: each (scenario, pairing) is run ``--repeats`` times, alternating skyfuse and
 Stone Soup (the order swaps every repetition) in one process; tracker construction and
 plot preparation (PlotBatch / Detection objects) are outside the timed region; the
-medians over repetitions of the mean ms per scan are reported. GOSPA (p = 1, α = 2,
-cut-off c) of every scan is computed by ONE implementation, Stone Soup's
-``GOSPAMetric``, between the truth at the scan end and each system's output tracks
+medians over repetitions of the mean ms per scan are reported, in wall time
+(``ms_per_scan``, ``speedup``) and in CPU time of the process (``time.process_time``:
+``cpu_ms_per_scan``, ``speedup_cpu``; on a shared, loaded machine the wall time of
+skyfuse's millisecond steps includes other jobs' time slices, the CPU time does not).
+GOSPA (p = 1, α = 2, cut-off c) of every scan is computed by ONE implementation, Stone
+Soup's ``GOSPAMetric``, between the truth at the scan end and each system's output tracks
 (skyfuse: confirmed tracks; Stone Soup: its tracks, which its initiator releases only
 once confirmed), both predicted to the scan end.
 
@@ -312,17 +315,21 @@ def skyfuse_config(setup: Setup, kind: str) -> TrackerConfig:
     )
 
 
-def run_skyfuse(setup: Setup, scans: list[ScanInput], kind: str) -> tuple[list[float], list]:
-    """Per-scan ms and per-scan (n, 4) confirmed track states at the scan end."""
+def run_skyfuse(
+    setup: Setup, scans: list[ScanInput], kind: str
+) -> tuple[list[float], list[float], list]:
+    """Per-scan wall ms, per-scan CPU ms of this process and per-scan (n, 4) confirmed
+    track states at the scan end."""
     pipe = TrackPipeline(setup.scenario.frame, skyfuse_config(setup, kind))
     site = setup.scenario.sites[0]
-    ms, est = [], []
+    ms, cpu, est = [], [], []
     for s in scans:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = pipe.step(site, s.batch)
         ms.append((time.perf_counter() - t0) * 1e3)
+        cpu.append((time.process_time() - c0) * 1e3)
         est.append(out.states[out.confirmed])
-    return ms, est
+    return ms, cpu, est
 
 
 # ---------------------------------------------------------------------------- Stone Soup
@@ -448,17 +455,19 @@ def stonesoup_tracker(setup: Setup, ss: dict, kind: str, scans: list[ScanInput])
 
 def run_stonesoup(
     setup: Setup, ss: dict, scans: list[ScanInput], kind: str
-) -> tuple[list[float], list]:
-    """Per-scan ms and per-scan (n, 4) track states predicted to the scan end."""
+) -> tuple[list[float], list[float], list]:
+    """Per-scan wall ms, per-scan CPU ms and per-scan (n, 4) track states predicted to
+    the scan end."""
     tracker = stonesoup_tracker(setup, ss, kind, scans)
     F = ss["transition_model"]
     index = list(ss["state_index"])  # → [x, vx, y, vy]
     it = iter(tracker)
-    ms, est = [], []
+    ms, cpu, est = [], [], []
     for s in scans:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         _, tracks = next(it)
         ms.append((time.perf_counter() - t0) * 1e3)
+        cpu.append((time.process_time() - c0) * 1e3)
         t_end = _ss_time(s.time_ns)
         rows = []
         for tr in tracks:
@@ -468,7 +477,7 @@ def run_stonesoup(
             x = F.matrix(time_interval=dt.timedelta(seconds=lag)) @ x if lag else x
             rows.append(x[index])
         est.append(np.array(rows).reshape(-1, 4))
-    return ms, est
+    return ms, cpu, est
 
 
 # -------------------------------------------------------------------------------- GOSPA
@@ -523,6 +532,31 @@ PAIRINGS = {
 }  # fmt: skip
 
 
+def _case_row(setup: Setup, plots: float, scans: list[ScanInput], label: str, sf, ss) -> dict:
+    """One result row: ``sf`` / ``ss`` = (tracker, wall ms per run, CPU ms per run,
+    estimates); speed-ups from the medians over runs, of wall time and of CPU time."""
+    sides = {}
+    for name, (kind, ms, cpu, est) in (("skyfuse", sf), ("stonesoup", ss)):
+        sides[name] = {"tracker": kind, "ms_per_scan": round(statistics.median(ms), 3),
+                       "ms_per_scan_runs": [round(v, 3) for v in ms],
+                       "cpu_ms_per_scan": round(statistics.median(cpu), 3),
+                       "cpu_ms_per_scan_runs": [round(v, 3) for v in cpu],
+                       **gospa_series(setup, scans, est)}  # fmt: skip
+    sfs, sss = sides["skyfuse"], sides["stonesoup"]
+    return {
+        "scenario": setup.case,
+        "targets": setup.n_targets,
+        "clutter_per_scan": setup.clutter,
+        "plots_per_scan": round(plots, 1),
+        "scans": len(scans),
+        "pairing": label,
+        **sides,
+        "speedup": round(sss["ms_per_scan"] / sfs["ms_per_scan"], 1),
+        "speedup_cpu": round(sss["cpu_ms_per_scan"] / sfs["cpu_ms_per_scan"], 1),
+        "load_average_1min": round(os.getloadavg()[0], 2),
+    }
+
+
 def bench_case(
     setup: Setup, repeats: int, ss_repeats: int, log, time_bin: float = 0.0
 ) -> list[dict]:
@@ -534,10 +568,10 @@ def bench_case(
         f"  {setup.case} {setup.n_targets} targets, {setup.clutter:g} clutter/scan: "
         f"{len(scans)} scans, {plots:.0f} plots/scan (prepared in {time.perf_counter() - t0:.1f} s)"
     )
-    ss_cache: dict[str, tuple[list[float], list]] = {}
+    ss_cache: dict[str, tuple[list[float], list[float], list]] = {}
     rows = []
     for sf_kind, ss_kind, label in PAIRINGS[setup.case]:
-        sf_ms, ss_ms = [], []
+        sf_ms, ss_ms, sf_cpu, ss_cpu = [], [], [], []
         sf_est = ss_est = None
         n_ss = 0 if ss_kind in ss_cache and ss_repeats <= len(ss_cache[ss_kind][0]) else ss_repeats
         for r in range(max(repeats, n_ss)):
@@ -545,39 +579,27 @@ def bench_case(
             for who in order:
                 gc.collect()  # neither side pays for the other's garbage
                 if who == "sf" and r < repeats:
-                    ms, sf_est = run_skyfuse(setup, scans, sf_kind)
+                    ms, cpu, sf_est = run_skyfuse(setup, scans, sf_kind)
                     sf_ms.append(float(np.mean(ms)))
+                    sf_cpu.append(float(np.mean(cpu)))
                 elif who == "ss" and r < n_ss:
-                    ms, est = run_stonesoup(setup, ss, scans, ss_kind)
+                    ms, cpu, est = run_stonesoup(setup, ss, scans, ss_kind)
                     ss_ms.append(float(np.mean(ms)))
+                    ss_cpu.append(float(np.mean(cpu)))
                     ss_est = est
         if n_ss == 0:
-            ss_ms, ss_est = ss_cache[ss_kind]
+            ss_ms, ss_cpu, ss_est = ss_cache[ss_kind]
         else:
-            ss_cache[ss_kind] = (ss_ms, ss_est)
-        sf_g = gospa_series(setup, scans, sf_est)
-        ss_g = gospa_series(setup, scans, ss_est)
-        sf_med = statistics.median(sf_ms)
-        ss_med = statistics.median(ss_ms)
-        row = {
-            "scenario": setup.case,
-            "targets": setup.n_targets,
-            "clutter_per_scan": setup.clutter,
-            "plots_per_scan": round(plots, 1),
-            "scans": len(scans),
-            "pairing": label,
-            "skyfuse": {"tracker": sf_kind, "ms_per_scan": round(sf_med, 3),
-                        "ms_per_scan_runs": [round(v, 3) for v in sf_ms], **sf_g},
-            "stonesoup": {"tracker": ss_kind, "ms_per_scan": round(ss_med, 3),
-                          "ms_per_scan_runs": [round(v, 3) for v in ss_ms], **ss_g},
-            "speedup": round(ss_med / sf_med, 1),
-        }  # fmt: skip
+            ss_cache[ss_kind] = (ss_ms, ss_cpu, ss_est)
+        row = _case_row(setup, plots, scans, label, (sf_kind, sf_ms, sf_cpu, sf_est),
+                        (ss_kind, ss_ms, ss_cpu, ss_est))  # fmt: skip
         rows.append(row)
+        sf, st = row["skyfuse"], row["stonesoup"]
         log(
-            f"    {label:<26} skyfuse {sf_kind:>5} {sf_med:8.2f} ms  GOSPA "
-            f"{sf_g['gospa_distance']:9.1f} | Stone Soup {ss_kind:>4} {ss_med:9.1f} ms  GOSPA "
-            f"{ss_g['gospa_distance']:9.1f}"
-            f" | ×{ss_med / sf_med:.0f}"
+            f"    {label:<26} skyfuse {sf_kind:>5} {sf['ms_per_scan']:8.2f} ms "
+            f"(CPU {sf['cpu_ms_per_scan']:.2f})  GOSPA {sf['gospa_distance']:9.1f} | Stone Soup "
+            f"{ss_kind:>4} {st['ms_per_scan']:9.1f} ms (CPU {st['cpu_ms_per_scan']:.1f})  GOSPA "
+            f"{st['gospa_distance']:9.1f} | ×{row['speedup']:.0f} (CPU ×{row['speedup_cpu']:.0f})"
         )
     return rows
 
@@ -586,9 +608,9 @@ def markdown_table(paths: list[Path]) -> str:
     """Markdown table of the cases in result files (for docs/performance.md)."""
     lines = [
         "| kind | targets | plots/scan | skyfuse | Stone Soup | skyfuse ms/scan "
-        "| Stone Soup ms/scan | speed-up | GOSPA skyfuse (loc/miss/false) "
+        "| Stone Soup ms/scan | speed-up | speed-up (CPU) | GOSPA skyfuse (loc/miss/false) "
         "| GOSPA Stone Soup (loc/miss/false) |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def g(side: dict) -> str:
@@ -596,6 +618,9 @@ def markdown_table(paths: list[Path]) -> str:
             f"{side['gospa_distance']:.0f} ({side['gospa_localisation']:.0f}/"
             f"{side['gospa_missed']:.0f}/{side['gospa_false']:.0f})"
         )
+
+    def cpu_speedup(c: dict) -> str:
+        return f"×{c['speedup_cpu']:.0f}" if "speedup_cpu" in c else "–"
 
     names = {"gnn": "GNN", "jipda": "JIPDA", "lmits": "LM-ITS N=3", "jpda": "JPDA (EHM)"}
     for path in paths:
@@ -608,7 +633,8 @@ def markdown_table(paths: list[Path]) -> str:
                 f"| {c['scenario']} | {c['targets']} | {c['plots_per_scan']:.0f} "
                 f"| {names[sf_kind]}{' ' + motion if motion else ''} | {ss_name} "
                 f"| {sf['ms_per_scan']:.1f} "
-                f"| {ss['ms_per_scan']:.0f} | ×{c['speedup']:.0f} | {g(sf)} | {g(ss)} |"
+                f"| {ss['ms_per_scan']:.0f} | ×{c['speedup']:.0f} "
+                f"| {cpu_speedup(c)} | {g(sf)} | {g(ss)} |"
             )
     return "\n".join(lines)
 

@@ -250,6 +250,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--targets-fixed", type=int, default=1000, help="targets of the clutter sweep")
     ap.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results" / "scaling.json")
     ap.add_argument("--png", type=Path, default=ROOT / "docs" / "performance" / "scaling.png")
+    ap.add_argument(
+        "--point",
+        action="store_true",
+        help="only the target point (lmits, 1,000 targets + 5,000 clutter, cv and IMM): "
+        "for before/after runs of two source trees (PYTHONPATH) side by side",
+    )
     args = ap.parse_args(argv)
     if args.quick:
         targets, clutter = [10, 100, 300], [0, 300, 1000]
@@ -298,6 +304,12 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
 
+    if args.point:
+        res["target_point"] = target_point(args.scans, args.warmup, show)
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(res, indent=2) + "\n")
+        print(f"wrote {args.json}")
+        return 0
     for kind in ("lmits", "gnn"):
         for n in targets:
             r = run_case(kind, n, args.clutter_fixed, args.scans, args.warmup)

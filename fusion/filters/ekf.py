@@ -21,28 +21,26 @@ def predict(model, x: np.ndarray, P: np.ndarray, dt) -> tuple[np.ndarray, np.nda
     """Predict n states over dt (scalar or (n,)) seconds with ``model``."""
     if getattr(model, "nonlinear", False):
         xp, J = model.transition(x, dt)
-        Pp = J @ P @ np.swapaxes(J, -1, -2) + model.Q(dt, x)
-        return xp, 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
+        Pp = J @ P @ J.swapaxes(-1, -2) + model.Q(dt, x)
+        return xp, 0.5 * (Pp + Pp.swapaxes(-1, -2))
     return kalman.predict(x, P, model.F(dt), model.Q(dt))
 
 
 def innovation(x, P, R, measurement):
     """Predicted measurement ẑ (n, m), its Jacobian H (n, m, d) and S = H P Hᵀ + R."""
     zhat, H = measurement.predict(x)
-    S = H @ P @ np.swapaxes(H, -1, -2) + R
-    return zhat, H, 0.5 * (S + np.swapaxes(S, -1, -2))
+    S = H @ P @ H.swapaxes(-1, -2) + R
+    return zhat, H, 0.5 * (S + S.swapaxes(-1, -2))
 
 
 def update(x, P, z, R, measurement):
     """EKF/KF update of n states with n measurements; returns (x, P, ν, S)."""
     zhat, H, S = innovation(x, P, R, measurement)
-    Ht = np.swapaxes(H, -1, -2)
+    Ht = H.swapaxes(-1, -2)
     PHt = P @ Ht
-    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
+    K = np.swapaxes(np.linalg.solve(S, PHt.swapaxes(-1, -2)), -1, -2)
     nu = measurement.residual(np.asarray(z, float), zhat)
     x_new = x + np.einsum("...ij,...j->...i", K, nu)
     A = np.eye(x.shape[-1]) - K @ H
-    P_new = A @ P @ np.swapaxes(A, -1, -2) + K @ np.broadcast_to(R, S.shape) @ np.swapaxes(
-        K, -1, -2
-    )
-    return x_new, 0.5 * (P_new + np.swapaxes(P_new, -1, -2)), nu, S
+    P_new = A @ P @ A.swapaxes(-1, -2) + K @ np.broadcast_to(R, S.shape) @ np.swapaxes(K, -1, -2)
+    return x_new, 0.5 * (P_new + P_new.swapaxes(-1, -2)), nu, S

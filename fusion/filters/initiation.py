@@ -25,7 +25,7 @@ def interleave_covariance(Ppp: np.ndarray, Ppv: np.ndarray, Pvv: np.ndarray) -> 
     P = np.zeros((n, 2 * k, 2 * k))
     P[:, 0::2, 0::2] = Ppp
     P[:, 0::2, 1::2] = Ppv
-    P[:, 1::2, 0::2] = np.swapaxes(Ppv, 1, 2)
+    P[:, 1::2, 0::2] = Ppv.swapaxes(1, 2)
     P[:, 1::2, 1::2] = Pvv
     return P
 

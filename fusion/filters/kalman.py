@@ -17,35 +17,39 @@ from __future__ import annotations
 
 import numpy as np
 
+from .small_spd import right_solve
+
 
 def predict(
     x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predict states and covariances: x⁻ = F x, P⁻ = F P Fᵀ + Q."""
     x_pred = np.einsum("...ij,...j->...i", F, x)
-    P_pred = F @ P @ np.swapaxes(F, -1, -2) + Q
-    return x_pred, 0.5 * (P_pred + np.swapaxes(P_pred, -1, -2))
+    P_pred = F @ P @ F.swapaxes(-1, -2) + Q
+    return x_pred, 0.5 * (P_pred + P_pred.swapaxes(-1, -2))
 
 
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
     """S = H P Hᵀ + R, shape (n, m, m)."""
     S = H @ P @ H.T + R
-    return 0.5 * (S + np.swapaxes(S, -1, -2))
+    return 0.5 * (S + S.swapaxes(-1, -2))
 
 
 def gain(P: np.ndarray, H: np.ndarray, S: np.ndarray) -> np.ndarray:
     """K = P Hᵀ S⁻¹, shape (n, d, m), computed by a solve rather than an inverse."""
     PHt = P @ H.T  # (n, d, m)
-    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric.
-    return np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
+    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric (closed form for m = 2).
+    if PHt.ndim == 3 and np.ndim(S) == 3:
+        return right_solve(PHt, S)
+    return np.swapaxes(np.linalg.solve(S, PHt.swapaxes(-1, -2)), -1, -2)
 
 
 def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
     """(I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetric and positive semi-definite by construction."""
     d = P.shape[-1]
     A = np.eye(d) - K @ H
-    P_new = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
-    return 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+    P_new = A @ P @ A.swapaxes(-1, -2) + K @ R @ K.swapaxes(-1, -2)
+    return 0.5 * (P_new + P_new.swapaxes(-1, -2))
 
 
 def update(

@@ -16,6 +16,18 @@ from __future__ import annotations
 import numpy as np
 
 
+def _segment_starts(group: np.ndarray) -> np.ndarray:
+    """Indices where a run of equal labels starts in a non-decreasing ``group`` (C ≥ 1)."""
+    change = np.empty(len(group), bool)
+    change[0] = True
+    np.not_equal(group[1:], group[:-1], out=change[1:])
+    return np.flatnonzero(change)
+
+
+def _is_sorted(group: np.ndarray) -> bool:
+    return len(group) < 2 or not (group[1:] < group[:-1]).any()
+
+
 def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarray:
     """Σ of ``values`` (C, ...) over components with equal ``group``, shape (ngroups, ...).
 
@@ -26,11 +38,19 @@ def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarr
     if len(values) == 0:
         return out
     group = np.asarray(group)
-    if len(group) > 1 and (group[1:] < group[:-1]).any():
+    if not _is_sorted(group):
         order = np.argsort(group, kind="stable")
         group, values = group[order], values[order]
-    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    starts = _segment_starts(group)
     out[group[starts]] = np.add.reduceat(values, starts, axis=0)
+    return out
+
+
+def _sorted_sum(values: np.ndarray, starts: np.ndarray, gid: np.ndarray, ngroups: int):
+    """:func:`segment_sum` of components already sorted by group (runs at ``starts``,
+    labels ``gid``)."""
+    out = np.zeros((ngroups, *values.shape[1:]))
+    out[gid] = np.add.reduceat(values, starts, axis=0)
     return out
 
 
@@ -39,23 +59,34 @@ def moment_match(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Merge components with equal ``group``: w (C,), x (C, d), P (C, d, d).
 
-    Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean."""
+    Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean.
+    The components are sorted by group once (stable, skipped when already sorted) and
+    every grouped sum is one ``np.add.reduceat`` over those runs, in the components'
+    order within each group (the order of ``np.bincount``)."""
+    group = np.asarray(group)
     if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
         # one component per group (GNN/IPDA tracks): nothing to merge
-        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + np.swapaxes(P, 1, 2))
-    W = np.bincount(group, weights=w, minlength=ngroups)
+        return w.astype(np.float64, copy=True), x.copy(), 0.5 * (P + P.swapaxes(1, 2))
+    if len(w) == 0:
+        d = x.shape[1]  # groups without components: no mean (NaN), as 0 / 0
+        return np.zeros(ngroups), np.full((ngroups, d), np.nan), np.full((ngroups, d, d), np.nan)
+    if not _is_sorted(group):
+        order = np.argsort(group, kind="stable")
+        w, x, P, group = w[order], x[order], P[order], group[order]
+    starts = _segment_starts(group)
+    gid = group[starts]
+    W = _sorted_sum(np.asarray(w, dtype=np.float64), starts, gid, ngroups)
     zero = W <= 0.0
-    ww = w.copy()
+    ww = w
+    Wn = W
     if zero.any():  # fall back to equal weights inside weightless groups
-        ww[zero[group]] = 1.0
-        Wn = np.bincount(group, weights=ww, minlength=ngroups)
-    else:
-        Wn = W
-    xm = segment_sum(ww[:, None] * x, group, ngroups) / Wn[:, None]
+        ww = np.where(zero[group], 1.0, w)
+        Wn = _sorted_sum(ww, starts, gid, ngroups)
+    xm = _sorted_sum(ww[:, None] * x, starts, gid, ngroups) / Wn[:, None]
     dx = x - xm[group]
     spread = P + dx[:, :, None] * dx[:, None, :]
-    Pm = segment_sum(ww[:, None, None] * spread, group, ngroups) / Wn[:, None, None]
-    Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+    Pm = _sorted_sum(ww[:, None, None] * spread, starts, gid, ngroups) / Wn[:, None, None]
+    Pm = 0.5 * (Pm + Pm.swapaxes(1, 2))
     return W, xm, Pm
 
 
@@ -63,9 +94,16 @@ def moment_match_rows(
     w: np.ndarray, xs: np.ndarray, Ps: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Σ_r w[n, r] N(xs[n, r], Ps[n, r]) → (x (n, d), P (n, d, d)) for weights w (n, r)
-    summing to 1 per row (IMM mixing and output): :func:`moment_match` with group = row."""
-    n, r = w.shape
-    d = xs.shape[-1]
-    group = np.repeat(np.arange(n), r)
-    _, x, P = moment_match(w.reshape(-1), xs.reshape(n * r, d), Ps.reshape(n * r, d, d), group, n)
-    return x, P
+    summing to 1 per row (IMM mixing and output): :func:`moment_match` with group = row,
+    written as sums over the mode axis (no grouping needed: every row is a group)."""
+    W = w.sum(axis=1)
+    ww = w
+    zero = W <= 0.0
+    if zero.any():  # equal weights in weightless rows, as moment_match
+        ww = np.where(zero[:, None], 1.0, w)
+        W = ww.sum(axis=1)
+    xm = np.einsum("nr,nrd->nd", ww, xs) / W[:, None]
+    dx = xs - xm[:, None, :]
+    spread = Ps + dx[..., :, None] * dx[..., None, :]
+    Pm = np.einsum("nr,nrij->nij", ww, spread) / W[:, None, None]
+    return xm, 0.5 * (Pm + Pm.swapaxes(1, 2))

@@ -26,21 +26,18 @@ SPEED_SIGNIFICANCE = 3.0
 
 
 def _sandwich(J, P):
-    out = J @ P @ np.swapaxes(J, -1, -2)
-    return 0.5 * (out + np.swapaxes(out, -1, -2))
+    out = J @ P @ J.swapaxes(-1, -2)
+    return 0.5 * (out + out.swapaxes(-1, -2))
 
 
 def common_dim(ndim: int) -> int:
     return 3 * ndim
 
 
-def _cv_selector(ndim: int) -> np.ndarray:
-    """(common_dim, cv_dim) matrix embedding a CV state in the common format."""
-    S = np.zeros((3 * ndim, 2 * ndim))
-    for a in range(ndim):
-        S[3 * a, 2 * a] = 1.0
-        S[3 * a + 1, 2 * a + 1] = 1.0
-    return S
+def _cv_common_index(ndim: int) -> np.ndarray:
+    """Where the CV entries [x, vx, y, vy(, z, vz)] sit in the common layout (the
+    embedding x_c = S x with the 0/1 selector S, whose non-zero rows these are)."""
+    return np.array([3 * a + b for a in range(ndim) for b in (0, 1)])
 
 
 def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -48,8 +45,13 @@ def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarr
     if isinstance(model, (Singer, ConstantAcceleration)):
         return x, P
     if isinstance(model, ConstantVelocity):
-        S = _cv_selector(model.ndim)
-        return x @ S.T, _sandwich(S, P)
+        # S x and S P Sᵀ are placements of x and P (exact)
+        idx = _cv_common_index(model.ndim)
+        xc = np.zeros((len(x), 3 * model.ndim))
+        xc[:, idx] = x
+        Pc = np.zeros((len(x), 3 * model.ndim, 3 * model.ndim))
+        Pc[:, idx[:, None], idx[None, :]] = 0.5 * (P + P.swapaxes(-1, -2))
+        return xc, Pc
     if isinstance(model, CoordinatedTurn):
         n = x.shape[0]
         ndim = model.ndim
@@ -79,8 +81,10 @@ def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.n
     if isinstance(model, (Singer, ConstantAcceleration)):
         return xc, Pc
     if isinstance(model, ConstantVelocity):
-        S = _cv_selector(model.ndim)
-        return xc @ S, _sandwich(S.T, Pc)
+        # x S and Sᵀ P S select the CV entries (exact)
+        idx = _cv_common_index(model.ndim)
+        Pcv = Pc[:, idx[:, None], idx[None, :]]
+        return xc[:, idx], 0.5 * (Pcv + Pcv.swapaxes(-1, -2))
     if isinstance(model, CoordinatedTurn):
         n = xc.shape[0]
         vx, ax, vy, ay = xc[:, 1], xc[:, 2], xc[:, 4], xc[:, 5]
@@ -111,9 +115,8 @@ def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.n
         weak = v2 < SPEED_SIGNIFICANCE**2 * var_v
         if weak.any():
             w = np.flatnonzero(weak)
-            pol = [2, 3, 4]
-            P[np.ix_(w, pol, range(model.dim))] = 0.0
-            P[np.ix_(w, range(model.dim), pol)] = 0.0
+            P[w, 2:5, :] = 0.0  # the polar entries ψ, ω, v
+            P[w, :, 2:5] = 0.0
             P[w, 2, 2] = np.pi**2
             P[w, 3, 3] = 0.5 * (Pc[w, 2, 2] + Pc[w, 5, 5]) / np.maximum(var_v[w], 1.0)
             P[w, 4, 4] = v2[w] + var_v[w]

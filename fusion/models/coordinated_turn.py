@@ -71,12 +71,11 @@ class CoordinatedTurn:
         s0, c0 = np.sin(psi), np.cos(psi)
         s1, c1 = np.sin(psi + wt), np.cos(psi + wt)
         small = np.abs(w) < _SMALL_OMEGA
-        ws = np.where(small, 1.0, w)
-        # A = (sin(ψ+ωT) − sinψ)/ω, B = (cosψ − cos(ψ+ωT))/ω and their ω-derivatives.
-        A = np.where(small, t * c0 - w * t * t * s0 / 2, (s1 - s0) / ws)
-        B = np.where(small, t * s0 + w * t * t * c0 / 2, (c0 - c1) / ws)
-        dA = np.where(small, -t * t * s0 / 2 - w * t**3 * c0 / 3, (t * c1 - A) / ws)
-        dB = np.where(small, t * t * c0 / 2 - w * t**3 * s0 / 3, (t * s1 - B) / ws)
+        A, B, dA, dB, J02, J12 = (
+            _turn_terms_mixed(t, w, v, s0, c0, s1, c1, small)
+            if small.any()
+            else _turn_terms(t, w, v, s0, c0, s1, c1)
+        )
         xp = x.copy()
         xp[:, 0] = x[:, 0] + v * A
         xp[:, 1] = x[:, 1] + v * B
@@ -84,12 +83,8 @@ class CoordinatedTurn:
         n, d = x.shape
         J = np.zeros((n, d, d))
         J[:, np.arange(d), np.arange(d)] = 1.0
-        J[:, 0, 2] = v * (c1 - c0) * np.where(small, 0.0, 1.0) / ws + np.where(
-            small, -v * t * s0, 0.0
-        )
-        J[:, 1, 2] = v * (s1 - s0) * np.where(small, 0.0, 1.0) / ws + np.where(
-            small, v * t * c0, 0.0
-        )
+        J[:, 0, 2] = J02
+        J[:, 1, 2] = J12
         J[:, 0, 3] = v * dA
         J[:, 1, 3] = v * dB
         J[:, 0, 4] = A
@@ -114,9 +109,29 @@ class CoordinatedTurn:
         G[:, 4, 0] = t
         G[:, 2, 1] = t * t / 2
         G[:, 3, 1] = t
-        Q = G @ np.diag([self.sigma_a**2, self.sigma_omega**2]) @ np.swapaxes(G, -1, -2)
+        Q = G @ np.diag([self.sigma_a**2, self.sigma_omega**2]) @ G.swapaxes(-1, -2)
         if self.vertical:
             Q[:, 5, 5] = self.q_vertical * t**4 / 4
             Q[:, 5, 6] = Q[:, 6, 5] = self.q_vertical * t**3 / 2
             Q[:, 6, 6] = self.q_vertical * t**2
         return Q
+
+
+def _turn_terms(t, w, v, s0, c0, s1, c1):
+    """A = (sin(ψ+ωT) − sinψ)/ω, B = (cosψ − cos(ψ+ωT))/ω, their ω-derivatives and
+    ∂x'/∂ψ, ∂y'/∂ψ, for turn rates all away from 0."""
+    A = (s1 - s0) / w
+    B = (c0 - c1) / w
+    return A, B, (t * c1 - A) / w, (t * s1 - B) / w, v * (c1 - c0) / w, v * (s1 - s0) / w
+
+
+def _turn_terms_mixed(t, w, v, s0, c0, s1, c1, small):
+    """:func:`_turn_terms` with the ω → 0 series where ``small``."""
+    ws = np.where(small, 1.0, w)
+    A = np.where(small, t * c0 - w * t * t * s0 / 2, (s1 - s0) / ws)
+    B = np.where(small, t * s0 + w * t * t * c0 / 2, (c0 - c1) / ws)
+    dA = np.where(small, -t * t * s0 / 2 - w * t**3 * c0 / 3, (t * c1 - A) / ws)
+    dB = np.where(small, t * t * c0 / 2 - w * t**3 * s0 / 3, (t * s1 - B) / ws)
+    J02 = v * (c1 - c0) * np.where(small, 0.0, 1.0) / ws + np.where(small, -v * t * s0, 0.0)
+    J12 = v * (s1 - s0) * np.where(small, 0.0, 1.0) / ws + np.where(small, v * t * c0, 0.0)
+    return A, B, dA, dB, J02, J12

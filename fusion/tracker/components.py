@@ -79,7 +79,7 @@ def take_concat(a: np.ndarray, idx: np.ndarray, b: np.ndarray) -> np.ndarray:
     them) and appends the new ones of the tracks inside it."""
     n = len(idx)
     out = np.empty((n + len(b), *a.shape[1:]), dtype=np.result_type(a, b))
-    np.take(a, idx, axis=0, out=out[:n])
+    a.take(idx, axis=0, out=out[:n])
     out[n:] = b
     return out
 
@@ -113,6 +113,10 @@ def prune_indices(
     track by weight (spec 02 §7 step 11 [IMPL]). Returns (kept indices, weights)."""
     if len(w) == 0:
         return np.zeros(0, np.int64), w
+    if len(track) < 2 or (track[1:] > track[:-1]).all():
+        # one component per track: it is kept, its weight normalised (twice, as below)
+        wn = w / np.where(w > 0, w, 1.0)
+        return np.arange(len(w)), wn / np.where(wn > 0, wn, 1.0)
     tot = np.bincount(track, weights=w, minlength=ntracks)
     w = w / np.where(tot[track] > 0, tot[track], 1.0)
     order = np.lexsort((-w, track))
@@ -140,9 +144,11 @@ def history_groups(track: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.
     """Singer N-scan groups: (group label per component, unique (track, hist) rows),
     grouped as ``np.unique(keys, axis=0)`` would (lexicographic), by one lexsort."""
     keys = np.column_stack([track, hist])
+    if len(track) < 2 or (track[1:] > track[:-1]).all():  # one component per track
+        return np.arange(len(track)), keys
     order = np.lexsort(keys.T[::-1])
     ks = keys[order]
-    new = np.r_[True, (ks[1:] != ks[:-1]).any(axis=1)]
+    new = np.concatenate(([True], (ks[1:] != ks[:-1]).any(axis=1)))
     inv = np.empty(len(order), np.int64)
     inv[order] = np.cumsum(new) - 1
     return inv, ks[new]

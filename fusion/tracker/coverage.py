@@ -105,7 +105,8 @@ def select_tracks(
     Ppos = P[:, pos, pos].sum(axis=1)
     Pvel = P[:, vel, vel].sum(axis=1)
     sigma = np.sqrt(Ppos + Pvel * dt**2)
-    inside = cov.contains(p, coverage_sigma * sigma)
+    polar = cov.polar(p)  # once for both tests
+    inside = cov.contains(p, coverage_sigma * sigma, polar)
     if cov.time_end > cov.time_start:
-        t = cov.illumination_time(p)
+        t = cov.illumination_time(p, polar)
     return inside, np.maximum(t, t_last)

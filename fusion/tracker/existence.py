@@ -44,6 +44,18 @@ class ExistenceChain:
         self._V = V.real
         self._Vinv = np.linalg.inv(self._V)
 
+    def _lumped(self) -> tuple[float, float] | None:
+        """(λ, ψ∞) of the existence alone, or None. Existence is a two-state chain when
+        both existing states die alike (MC1, MC2): ψ' = b + λ ψ per period with
+        λ = s − b, s = 1 − Π[0, 2], b = Π[2, 0] + Π[2, 1], ψ∞ = b / (1 − λ); λ > 0 so that
+        λ^(dt/T) is the fractional power of the eigendecomposition."""
+        Pi = self.Pi
+        s, b = 1.0 - Pi[0, 2], Pi[2, 0] + Pi[2, 1]
+        lam = s - b
+        if Pi[0, 2] != Pi[1, 2] or not 0.0 < lam < 1.0:
+            return None
+        return lam, b / (1.0 - lam)
+
     def power(self, dt: np.ndarray) -> np.ndarray:
         """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
         t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
@@ -57,6 +69,21 @@ class ExistenceChain:
         full = np.column_stack([state, 1.0 - state.sum(axis=1)])
         out = (full[:, None, :] @ self.power(dt))[:, 0, :]
         return np.clip(out[:, :2], 0.0, 1.0)
+
+    def existence_bound(self, state: np.ndarray, dt: np.ndarray) -> np.ndarray | None:
+        """ψ of ``state`` (n, 2) predicted over ``dt`` (n,) s in closed form,
+        ψ(t) = ψ∞ + (ψ₀ − ψ∞) λ^(dt/T) (the two-state existence chain the three states lump
+        into, 2.36 / 3.40), or None when Π does not lump. It equals
+        ``existence(predict(state, dt))`` up to rounding; it serves to find the few tracks
+        whose predicted existence can be near a threshold, for which the exact
+        prediction is then made (termination)."""
+        lumped = self._lumped()
+        if lumped is None:
+            return None
+        lam, psi_inf = lumped
+        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
+        psi0 = np.clip(state[:, 0] + state[:, 1], 0.0, 1.0)
+        return psi_inf + (psi0 - psi_inf) * lam**t
 
     @staticmethod
     def existence(state: np.ndarray) -> np.ndarray:

@@ -53,13 +53,22 @@ def component_update(
     if len(pairs) == 0:
         children = null
     else:
-        c = pairs.state
-        wi = pred.w[c] * beta[row] * p_pair / p_track[row]
+        wi = pred.w[pairs.state] * beta[row] * p_pair / p_track[row]
+        # children of weight 0 (GNN: all pairs but the chosen one) are dropped below:
+        # no Kalman update for them
+        live = np.flatnonzero(wi > 0.0)
+        c, plot, wi, S, nu = (
+            pairs.state[live],
+            pairs.plot[live],
+            wi[live],
+            pairs.S[live],
+            pairs.nu[live],
+        )
         P = pred.P[c]
-        K = gain(P, H, pairs.S)
-        x = pred.x[c] + np.einsum("pij,pj->pi", K, pairs.nu)
-        Pn = joseph_covariance(P, K, H, R[pairs.plot])
-        upd = Mixture(pred.track[c], wi, x, Pn, shift_history(pred.hist[c], plot_uid[pairs.plot]))
+        K = gain(P, H, S)
+        x = pred.x[c] + np.einsum("pij,pj->pi", K, nu)
+        Pn = joseph_covariance(P, K, H, R[plot])
+        upd = Mixture(pred.track[c], wi, x, Pn, shift_history(pred.hist[c], plot_uid[plot]))
         children = Mixture.concat([null, upd])
     keep = children.w > 0.0
     return children.take(np.flatnonzero(keep)) if not keep.all() else children

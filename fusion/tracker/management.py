@@ -74,5 +74,5 @@ def duplicates(
     winner = np.where(a_wins, a, b)
     # one removal per loser: keep its strongest winner
     order = np.lexsort((-(confirmed[winner] * 2.0 + psi[winner]), loser))
-    first = np.r_[True, loser[order][1:] != loser[order][:-1]] if len(order) else order
+    first = np.concatenate(([True], loser[order][1:] != loser[order][:-1])) if len(order) else order
     return loser[order][first], winner[order][first]

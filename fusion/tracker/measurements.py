@@ -128,30 +128,37 @@ class SectorCoverage:
         n = pos[:, self.axes[1]] - self.site[self.axes[1]]
         return np.hypot(e, n), np.mod(np.arctan2(e, n), TWO_PI)
 
-    def sector_fraction(self, pos: np.ndarray) -> np.ndarray:
+    def sector_fraction(self, pos: np.ndarray, polar=None) -> np.ndarray:
         """Where in the sweep each position lies: 0 at sector_start, 1 at its end; values
-        outside [0, 1] are outside the sector (negative: before its start)."""
-        _, az = self._polar(pos)
+        outside [0, 1] are outside the sector (negative: before its start). ``polar``:
+        the positions' (range, azimuth) when already computed (:meth:`polar`)."""
+        _, az = self._polar(pos) if polar is None else polar
         off = np.mod(az - self.sector_start, TWO_PI)
         # put offsets in the half-turn before the sector at negative values
         off = np.where(off > 0.5 * (TWO_PI + self.sector_width), off - TWO_PI, off)
         return off / self.sector_width
 
-    def contains(self, pos: np.ndarray, margin: np.ndarray | float = 0.0) -> np.ndarray:
+    def polar(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(horizontal range m, azimuth rad from north) of positions ``pos`` (n, ≥2) from
+        the site, to pass to several of the tests below (computed once)."""
+        return self._polar(np.atleast_2d(pos))
+
+    def contains(self, pos: np.ndarray, margin: np.ndarray | float = 0.0, polar=None) -> np.ndarray:
         """True where a position (within ``margin`` metres) is inside range and sector."""
         pos = np.atleast_2d(pos)
-        r, _ = self._polar(pos)
+        polar = self._polar(pos) if polar is None else polar
+        r = polar[0]
         margin = np.broadcast_to(np.asarray(margin, dtype=np.float64), r.shape)
         ok = (r >= self.min_range - margin) & (r <= self.max_range + margin)
         if self.sector_width < TWO_PI:
-            frac = self.sector_fraction(pos)
+            frac = self.sector_fraction(pos, polar)
             ang = np.minimum(margin / np.maximum(r, 1.0), np.pi) / self.sector_width
             ok &= (frac >= -ang) & (frac <= 1.0 + ang)
         return ok
 
-    def illumination_time(self, pos: np.ndarray) -> np.ndarray:
+    def illumination_time(self, pos: np.ndarray, polar=None) -> np.ndarray:
         """Time (ns) the beam swept each position: linear in azimuth across the sector."""
-        frac = np.clip(self.sector_fraction(np.atleast_2d(pos)), 0.0, 1.0)
+        frac = np.clip(self.sector_fraction(np.atleast_2d(pos), polar), 0.0, 1.0)
         span = self.time_end - self.time_start
         return self.time_start + np.round(frac * span).astype(np.int64)
 
@@ -170,6 +177,20 @@ def _positive_definite(R: np.ndarray) -> np.ndarray:
     if k == 3:
         ok &= np.linalg.det(R) > 0.0
     return ok
+
+
+def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
+    """True when every plot passes every test of :meth:`MeasurementBatch._plot_mask`
+    (finite position and covariance, non-negative finite clutter density, symmetric and
+    positive-definite covariance)."""
+    finite = np.isfinite(z).all() and np.isfinite(R).all() and np.isfinite(rho).all()
+    if not finite or (rho < 0).any():
+        return False
+    flat = R.reshape(len(R), R.shape[1] * R.shape[2])
+    asym = np.abs(flat - R.swapaxes(1, 2).reshape(flat.shape)).max(axis=1, initial=0.0)
+    if (asym > 1e-6 * (1.0 + np.abs(flat).max(axis=1, initial=0.0))).any():
+        return False
+    return bool(_positive_definite(R).all())
 
 
 @dataclass
@@ -204,45 +225,14 @@ class MeasurementBatch:
     def validated(self, ndim: int) -> MeasurementBatch:
         """A copy with arrays in canonical shape and bad plots dropped; the reasons are
         counted in ``rejected``. Raises ValueError for batch-level problems."""
-        if not 0.0 < float(self.p_detection) <= 1.0:
-            raise ValueError(f"p_detection = {self.p_detection}: must be in (0, 1]")
-        z = (
-            np.asarray(self.z, dtype=np.float64).reshape(-1, ndim)
-            if np.size(self.z)
-            else (np.zeros((0, ndim)))
-        )
+        z, R, rho = self._canonical(ndim)
         m = len(z)
-        R = np.asarray(self.R, dtype=np.float64)
-        if R.shape == (ndim, ndim):
-            R = np.broadcast_to(R, (m, ndim, ndim)).copy()
-        if R.shape != (m, ndim, ndim):
-            raise ValueError(f"R has shape {R.shape}: expected ({m}, {ndim}, {ndim}) or 2-D")
-        rho = np.asarray(self.clutter_density, dtype=np.float64)
-        rho = np.broadcast_to(rho, (m,)).copy() if rho.ndim == 0 else rho
-        if rho.shape != (m,):
-            raise ValueError(f"clutter_density has shape {rho.shape}: expected () or ({m},)")
-        rejected = dict(self.rejected)
-        ok = np.ones(m, dtype=bool)
-
-        def reject(mask: np.ndarray, reason: str) -> None:
-            bad = mask & ok
-            if bad.any():
-                rejected[reason] = rejected.get(reason, 0) + int(bad.sum())
-                ok[bad] = False
-
-        reject(~np.isfinite(z).all(axis=1), "position not finite")
-        reject(~np.isfinite(R).all(axis=(1, 2)), "covariance not finite")
-        reject(~np.isfinite(rho) | (rho < 0), "clutter density negative or not finite")
-        Rs = np.where(ok[:, None, None], R, np.eye(ndim))
-        asym = np.abs(Rs - np.swapaxes(Rs, 1, 2)).max(axis=(1, 2)) > 1e-6 * (
-            1.0 + np.abs(Rs).max(axis=(1, 2))
-        )
-        reject(asym, "covariance not symmetric")
-        Rs = np.where(ok[:, None, None], Rs, np.eye(ndim))
-        reject(~_positive_definite(Rs), "covariance not positive definite")
-
         if self.heights is not None and np.shape(self.heights) != (m,):
             raise ValueError(f"heights has shape {np.shape(self.heights)}: expected ({m},)")
+        rejected = dict(self.rejected)
+        # one pass over the whole batch first: a clean batch (the usual case) skips the
+        # per-reason masks (the same result: every plot kept, nothing counted)
+        ok = np.ones(m, dtype=bool) if _clean(z, R, rho) else self._plot_mask(z, R, rho, rejected)
 
         def sel(a):
             return None if a is None else np.asarray(a)[ok]
@@ -258,3 +248,55 @@ class MeasurementBatch:
             heights=None if self.heights is None else np.asarray(self.heights, float)[ok],
             rejected=rejected,
         )
+
+    def _canonical(self, ndim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """z (m, ndim), R (m, ndim, ndim), clutter density (m,) as float arrays; raises
+        ValueError for a bad P_D or shapes."""
+        if not 0.0 < float(self.p_detection) <= 1.0:
+            raise ValueError(f"p_detection = {self.p_detection}: must be in (0, 1]")
+        z = (
+            np.asarray(self.z, dtype=np.float64).reshape(-1, ndim)
+            if np.size(self.z)
+            else (np.zeros((0, ndim)))
+        )
+        m = len(z)
+        R = np.asarray(self.R, dtype=np.float64)
+        if R.shape == (ndim, ndim):
+            R_all = np.empty((m, ndim, ndim))
+            R_all[:] = R
+            R = R_all
+        if R.shape != (m, ndim, ndim):
+            raise ValueError(f"R has shape {R.shape}: expected ({m}, {ndim}, {ndim}) or 2-D")
+        rho = np.asarray(self.clutter_density, dtype=np.float64)
+        rho = np.full(m, float(rho)) if rho.ndim == 0 else rho
+        if rho.shape != (m,):
+            raise ValueError(f"clutter_density has shape {rho.shape}: expected () or ({m},)")
+        return z, R, rho
+
+    @staticmethod
+    def _plot_mask(
+        z: np.ndarray, R: np.ndarray, rho: np.ndarray, rejected: dict[str, int]
+    ) -> np.ndarray:
+        """The plots that pass every test, each rejection counted under its first failed
+        test's reason in ``rejected``."""
+        m, ndim = z.shape
+        ok = np.ones(m, dtype=bool)
+
+        def reject(mask: np.ndarray, reason: str) -> None:
+            bad = mask & ok
+            if bad.any():
+                rejected[reason] = rejected.get(reason, 0) + int(bad.sum())
+                ok[bad] = False
+
+        reject(~np.isfinite(z).all(axis=1), "position not finite")
+        reject(~np.isfinite(R).all(axis=(1, 2)), "covariance not finite")
+        reject(~np.isfinite(rho) | (rho < 0), "clutter density negative or not finite")
+        # the rejected plots' R replaced by I for the next tests (none in a clean batch)
+        Rs = R if ok.all() else np.where(ok[:, None, None], R, np.eye(ndim))
+        asym = np.abs(Rs - Rs.swapaxes(1, 2)).max(axis=(1, 2), initial=0.0) > 1e-6 * (
+            1.0 + np.abs(Rs).max(axis=(1, 2), initial=0.0)
+        )
+        reject(asym, "covariance not symmetric")
+        Rs = Rs if ok.all() else np.where(ok[:, None, None], Rs, np.eye(ndim))
+        reject(~_positive_definite(Rs), "covariance not positive definite")
+        return ok

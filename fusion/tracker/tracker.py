@@ -48,6 +48,9 @@ from .registry import ASSOCIATIONS, make_density
 from .reidentification import TerminatedTracks, keeps_fix
 
 NS = 1e-9
+#: Tracks whose closed-form predicted existence is at least τ_t + this are not terminated
+#: without the exact chain prediction (the two differ by rounding, ~1e-15).
+TERMINATION_MARGIN = 1e-6
 
 
 @dataclass
@@ -229,6 +232,12 @@ class Tracker:
         """MMSE estimates x (n, d), P (n, d, d) of all tracks at their t_last."""
         return self.density.estimate(np.arange(self.n))
 
+    def _estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """The estimates of all tracks for reading only: the density's own arrays when it
+        offers them (``estimates_view``, no copy of every track per batch), else a copy."""
+        view = getattr(self.density, "estimates_view", None)
+        return view() if view is not None else self.estimates()
+
     def _count(self, key: str, value: int) -> None:
         self.totals[key] = self.totals.get(key, 0) + int(value)
 
@@ -320,13 +329,21 @@ class Tracker:
         m = len(b)
         stats = {"plots": m, "rejected": sum(b.rejected.values())}
         bit = self._radar_bit(b.radar_id)
-        x, P = self.estimates()
+        x, P = self._estimates_view()
         inside, t_pred = select_tracks(
             b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma
         )
-        seen, cone = detection_share(b, x, P, self.t_last, self.pos, self.vel, self.height)
-        blind = inside & (cone < self.cfg.blind_share)
-        sel = np.flatnonzero(inside & ~blind)
+        # the detection share of the tracks in coverage only (the others are not used)
+        cand = np.flatnonzero(inside)
+        seen, cone = detection_share(
+            b, x[cand], P[cand], self.t_last[cand], self.pos, self.vel, self.height[cand]
+        )
+        is_blind = cone < self.cfg.blind_share
+        blind = np.zeros(self.n, bool)
+        blind[cand[is_blind]] = True
+        sel = cand[~is_blind]
+        share = np.zeros(self.n)  # by track row; only the rows in coverage are used
+        share[cand] = seen * cone
         stats["tracks_in_coverage"] = len(sel)
         sel, late, t_tau = self.oosm.split(self, b, sel, x, stats)  # plots older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
@@ -336,7 +353,7 @@ class Tracker:
         exist_pred = self.chain.predict(self.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
         table = self.density.likelihoods(pred, b.z, b.R, self.g)
         stats["gated_pairs"] = len(table.tp_track)
-        res = self._associate(b, pred, table, exist_pred[:, 0], (seen * cone)[sel])
+        res = self._associate(b, pred, table, exist_pred[:, 0], share[sel])
         self.density.update(pred, table, res.beta0, res.beta)
         self.oosm.record(self, sel, t_pred, pred)
         stats.update(res.stats)
@@ -347,7 +364,7 @@ class Tracker:
         used = self._used_plots(m, table, res)
         if len(late):
             assigned, used = self.oosm.apply(
-                self, b, late, t_tau, seen * cone, bit, assigned, used, stats
+                self, b, late, t_tau, share, bit, assigned, used, stats
             )
             sel = np.union1d(sel, late)
         self.height = track_heights(self.height, assigned, b.heights)
@@ -373,21 +390,24 @@ class Tracker:
         row without a gated plot scaled by its detection ``share`` (:mod:`.coverage`; a
         plot in the gate shows the radar saw where the track is)."""
         cfg = self.cfg
-        share = np.where(np.isin(np.arange(len(share)), table.tp_track), 1.0, share)
+        share = share.copy()
+        share[table.tp_track] = 1.0
         pdpg = float(b.p_detection) * self.P_G * share
+        # the track-level moments only for the estimated clutter (known: not used)
+        estimated = cfg.clutter == "estimated"
         rho = clutter_density(
             cfg.clutter,
             b.clutter_density,
             cfg.clutter_density_floor,
             table.tp_track,
             table.tp_plot,
-            pred.S0,
+            pred.S0 if estimated else None,
             b.R,
             pdpg,
             psi_det,
             self.g,
             z=b.z,
-            z_mean=pred.z_mean,
+            z_mean=pred.z_mean if estimated else None,
             volume_floor=cfg.clutter_volume,
         )
         problem = AssociationProblem(
@@ -423,7 +443,7 @@ class Tracker:
         if len(res.beta):
             tp_track, tp_plot = table.tp_track, table.tp_plot
             order = np.lexsort((-res.beta, tp_track))
-            first = np.r_[True, tp_track[order][1:] != tp_track[order][:-1]]
+            first = np.concatenate(([True], tp_track[order][1:] != tp_track[order][:-1]))
             best = order[first]
             good = res.beta[best] > res.beta0[tp_track[best]]
             assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
@@ -465,7 +485,7 @@ class Tracker:
         if len(a) == 0:
             return keep
         psi_all = self.existence()
-        x, P = self.estimates()
+        x, P = self._estimates_view()
         loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, self.confirmed, self.g_dup)
         keep[loser] = False
         for lo, wi in zip(loser, winner):
@@ -493,16 +513,14 @@ class Tracker:
             psi_sel, self.confirmed[sel], self.updates[sel], cfg.tau_confirm,
             cfg.confirm_min_updates,
         )  # fmt: skip
-        psi_now = self.existence()
         rows = sel[conf & keep[sel]]
         self.confirmed[rows] = True
+        psi_rows = self.chain.existence(self.exist[rows]) if len(rows) else np.zeros(0)
         previous = self._reidentify(rows, t_batch)
-        for r, old in zip(rows, previous):
+        for r, old, psi_r in zip(rows, previous, psi_rows):
             why = "" if old < 0 else f"re-identified (tentative id {old})"
             events.append(
-                TrackEventRecord(
-                    t_batch, "confirmed", int(self.ids[r]), float(psi_now[r]), reason=why
-                )
+                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_r), reason=why)
             )
 
     def _update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
@@ -542,17 +560,20 @@ class Tracker:
         ``max_coast`` seconds (counted from the later of the last plot and the last batch
         that found the track in a cone of silence, :mod:`.coverage`)."""
         cfg = self.cfg
-        psi_now = self.chain.existence(
-            self.chain.predict(
-                self.exist,
-                np.maximum(t_batch - existence_clock(self.t_last, self.coast_from), 0) * NS,
-            )
-        )
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
             coasting = (t_batch - np.maximum(self.last_update, self.coast_from)) > round(
                 cfg.max_coast / NS
             )
+        # the existence clock stands still in a cone of silence (:mod:`.coverage`)
+        dt = np.maximum(t_batch - existence_clock(self.t_last, self.coast_from), 0) * NS
+        # exact existence prediction only where the closed form says ψ can be near τ_t
+        rows = np.arange(self.n)
+        bound = self.chain.existence_bound(self.exist, dt)
+        if bound is not None:
+            rows = np.flatnonzero((bound < cfg.tau_terminate + TERMINATION_MARGIN) | coasting)
+        psi_now = np.ones(self.n)
+        psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
         term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(

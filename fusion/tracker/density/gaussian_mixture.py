@@ -194,6 +194,10 @@ class GaussianMixtureDensity:
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[rows].copy(), self.P[rows].copy()
 
+    def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
+        return self.x, self.P
+
     def component_counts(self) -> np.ndarray:
         """Mixture components per track (n,)."""
         return comp.components_per_track(self.mix, len(self))

@@ -51,6 +51,7 @@ from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
+from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
 
@@ -177,10 +178,7 @@ class IMMTable(GatedTable):
 
 def _log_gauss(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
     """log N(ν; 0, S) over leading axes."""
-    L = np.linalg.cholesky(S)
-    w = np.linalg.solve(L, nu[..., None])[..., 0]
-    d2 = np.einsum("...i,...i->...", w, w)
-    logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+    d2, logdet = quadratic_and_logdet(S, nu)
     return -0.5 * (d2 + logdet + nu.shape[-1] * np.log(2.0 * np.pi))
 
 
@@ -359,7 +357,7 @@ class IMMMixtureDensity:
         pc, pp = key // max(m, 1), key % max(m, 1)
         nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
         S = pred.HPH[pc] + R[pp][:, None]
-        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        S = 0.5 * (S + S.swapaxes(-1, -2))
         log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
         mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
         p_pair = mix / gate_probability_of(float(g), k)
@@ -375,18 +373,26 @@ class IMMMixtureDensity:
         null = IMMComponents(
             comp.track, comp.w * beta0[pred.loc], _shift(comp.hist, 0), comp.mu, comp.x, comp.P
         )
+        if not (null.w > 0.0).all():  # children of weight 0 are dropped
+            null = null.take(np.flatnonzero(null.w > 0.0))
         if len(t.pair_comp) == 0:
             return null
         c, p = t.pair_comp, t.pair_plot
         w = comp.w[c] * beta[t.pair_row] * t.p_pair / t.p[t.pair_row]
-        lw = t.log_n + np.log(np.maximum(comp.mu[c], 1e-300))
+        # children of weight 0 (GNN: every pair but the chosen one) are dropped by the
+        # update: no Kalman update for them
+        live = np.flatnonzero(w > 0.0)
+        if len(live) == 0:
+            return null
+        c, p, w, log_n, S, nu = c[live], p[live], w[live], t.log_n[live], t.S[live], t.nu[live]
+        lw = log_n + np.log(np.maximum(comp.mu[c], 1e-300))
         mu = np.exp(lw - lw.max(axis=1, keepdims=True))
         mu /= mu.sum(axis=1, keepdims=True)  # eq. 19
         xs, Ps = [], []
         for j in range(self.r):
             Pj = comp.P[j][c]
-            K = gain(Pj, self.H[j], t.S[:, j])
-            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, t.nu[:, j]))
+            K = gain(Pj, self.H[j], S[:, j])
+            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, nu[:, j]))
             Ps.append(joseph_covariance(Pj, K, self.H[j], t.R[p]))
         upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
         return IMMComponents.concat([null, upd])
@@ -396,6 +402,10 @@ class IMMMixtureDensity:
         ξ μ_j; merged μ_j = Σ ξ μ_j / Σ ξ."""
         if len(comp) == 0:
             return comp
+        if np.bincount(comp.track).max() == 1:
+            # one child per track (GNN; no plot gated): in track order every child is
+            # its own group, and the moment matching below copies it
+            comp = comp.take(np.argsort(comp.track, kind="stable"))
         inv, uniq = history_groups(comp.track, comp.hist)
         G = len(uniq)
         W = np.bincount(inv, weights=comp.w, minlength=G)
@@ -414,14 +424,17 @@ class IMMMixtureDensity:
     def update(
         self, pred: IMMPrediction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
     ) -> None:
-        children = self._children(pred, table, beta0, beta)
+        children = self._children(pred, table, beta0, beta)  # all of weight > 0
         self.store_children(pred.rows, children, len(table.pair_comp))
 
     def store_children(self, rows: np.ndarray, children: IMMComponents, pairs: int) -> None:
         """Merge and prune the updated components ``children`` of the tracks ``rows``
         (sorted), which replace their components; track estimates (eq. 20-21). Also the
-        out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`)."""
-        children = children.take(np.flatnonzero(children.w > 0.0))
+        out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`), whose
+        children may carry weight 0 (dropped here)."""
+        positive = children.w > 0.0
+        if not positive.all():
+            children = children.take(np.flatnonzero(positive))
         merged = self._merge(children)
         keep, w = prune_indices(
             merged.track, merged.w, self.prune_threshold, self.max_components, len(self)
@@ -460,6 +473,10 @@ class IMMMixtureDensity:
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[rows].copy(), self.P[rows].copy()
+
+    def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
+        return self.x, self.P
 
     def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
         """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
