@@ -130,7 +130,8 @@ def compare(directory: Path) -> str:
             lo, hi = wilson(int(row["nCases"]), cases)
             th = THESIS.get(scenario, {}).get(key)
             th_s = f"{th[0]} ({100 * th[0] / (targets * THESIS_RUNS):.0f} %)" if th else "–"
-            ok_s = f"{row['nOK']:.1f} / {th[1]:.1f}" if th else f"{row['nOK']:.1f}"
+            ok = "–" if row["nOK"] is None else f"{row['nOK']:.1f}"  # None: no target case
+            ok_s = f"{ok} / {th[1]:.1f}" if th else ok
             mg = row["merged"] * THESIS_RUNS / row["runs"]
             mg_s = f"{mg:.0f} ({th[4]})" if th else f"{mg:.0f}"
             lines.append(
