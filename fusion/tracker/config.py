@@ -144,6 +144,11 @@ class TrackerConfig(BaseModel):
     duplicate_p: float = Field(
         0.99, gt=0.0, lt=1.0, description="Chi² probability of the duplicate-track test"
     )
+    duplicate_survivor: Literal["existence", "established"] = Field(
+        "existence",
+        description="Of two confirmed duplicate tracks, keep the larger ψ (existence, spec "
+        "02 §8) or the one with more scans with a plot and its id (established)",
+    )
     coverage_sigma: float = Field(
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
     )

@@ -7,7 +7,10 @@
   state estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target (targets in
   formation keep their own plots and are not merged); the weaker is deleted
   and logged as merged into the other. "Weaker" ranks confirmed tracks above tentative
-  ones (so a confirmed track's id survives), then by existence (spec: keep the largest ψ).
+  ones (so a confirmed track's id survives), then by existence (spec 02 §8, 03 §2: keep
+  the largest ψ). With ``established`` (``duplicate_survivor``), of two confirmed tracks
+  the one with more scans with a plot survives with its id (the track number an operator
+  has followed longest), ψ breaking ties; tentative pairs still by ψ.
 """
 
 from __future__ import annotations
@@ -49,6 +52,20 @@ def shared_plot_pairs(tp_track: np.ndarray, tp_plot: np.ndarray) -> tuple[np.nda
     return pairs[:, 0], pairs[:, 1]
 
 
+def duplicate_rank(
+    confirmed: np.ndarray, updates: np.ndarray | None, psi: np.ndarray
+) -> np.ndarray:
+    """Rank (n,) of tracks for duplicate removal, larger survives: confirmed first, then
+    ψ; with ``updates`` (the ``established`` rule) confirmed tracks by their number of
+    scans with a plot before ψ. Exact ties go to the earlier row (the older track)."""
+    n = len(psi)
+    scans = np.zeros(n) if updates is None else np.where(confirmed, updates, 0)
+    order = np.lexsort((-np.arange(n), psi, scans, confirmed))
+    rank = np.empty(n, np.int64)
+    rank[order] = np.arange(n)
+    return rank
+
+
 def duplicates(
     a: np.ndarray,
     b: np.ndarray,
@@ -56,9 +73,11 @@ def duplicates(
     P: np.ndarray,
     psi: np.ndarray,
     confirmed: np.ndarray,
+    updates: np.ndarray | None,
     g_dup: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(loser, winner) rows among candidate pairs (a, b) whose estimates coincide."""
+    """(loser, winner) rows among candidate pairs (a, b) whose estimates coincide; the
+    winner has the larger :func:`duplicate_rank` (``updates`` None: by ψ alone)."""
     if len(a) == 0:
         e = np.zeros(0, np.int64)
         return e, e
@@ -67,12 +86,11 @@ def duplicates(
     d2 = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
     close = d2 < g_dup
     a, b = a[close], b[close]
-    rank_a = confirmed[a] * 2.0 + psi[a]
-    rank_b = confirmed[b] * 2.0 + psi[b]
-    a_wins = rank_a >= rank_b
+    rank = duplicate_rank(confirmed, updates, psi)
+    a_wins = rank[a] >= rank[b]
     loser = np.where(a_wins, b, a)
     winner = np.where(a_wins, a, b)
     # one removal per loser: keep its strongest winner
-    order = np.lexsort((-(confirmed[winner] * 2.0 + psi[winner]), loser))
+    order = np.lexsort((-rank[winner], loser))
     first = np.concatenate(([True], loser[order][1:] != loser[order][:-1])) if len(order) else order
     return loser[order][first], winner[order][first]

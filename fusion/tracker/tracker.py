@@ -486,7 +486,8 @@ class Tracker:
             return keep
         psi_all = self.existence()
         x, P = self._estimates_view()
-        loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, self.confirmed, self.g_dup)
+        scans = self.updates if self.cfg.duplicate_survivor == "established" else None
+        loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, self.confirmed, scans, self.g_dup)
         keep[loser] = False
         for lo, wi in zip(loser, winner):
             if self.confirmed[lo]:
