@@ -666,8 +666,7 @@ def _calibration(
                 f"  {k}: ψ_init = {c['psi_init']:.4g}{err}, {c['false_tracks']:g} false "
                 f"tracks ({len(c['evaluations'])} evaluations{note})"
             )
-        if cal_path is not None:
-            save_calibration(cal_path, exp, runs_c, calibration)
+        if cal_path is not None:  # every variant was saved as it finished (``save``)
             print(f"wrote {cal_path}")
     elif cal_path is not None and cal_path.exists():
         try:
