@@ -9,7 +9,9 @@ Two kinds of cases (issue 11's Stone Soup comparison, issue 13's live service):
 * ``large``: the ``regional`` scenario (``--targets`` aircraft, 4 radars, 16 sector
   batches per 4 s revolution), its sector batches in time order through a
   ``TrackPipeline`` with the service defaults (LM-ITS N = 3; ``cv`` and ``imm-cv-ct``);
-  after ``--warmup`` s of simulated time, ``Tracker.step`` alone is timed.
+  after ``--warmup`` s of simulated time, ``Tracker.step`` alone is timed;
+* ``--case SCENARIO:N:CLUTTER:KIND``: any other case of ``compare_stonesoup.py`` run like
+  the small ones (e.g. ``manoeuvring:50:50:gnn:imm-cv-ct``, ``crossing:10:20:gnn``).
 
 Times are CPU time of this process (``time.process_time``), mean ms per scan / batch,
 median and minimum over ``--repeats`` passes (on a shared machine the minimum is the
@@ -102,6 +104,12 @@ def large_case(targets: int, motion: str, duration: float, warmup: float):
     return run, f"regional {targets} aircraft {motion} (Tracker.step per sector batch)"
 
 
+def _parse_case(spec: str) -> tuple[str, int, float, str]:
+    """``SCENARIO:N:CLUTTER:KIND`` (KIND may itself be ``TRACKER:MOTION``)."""
+    scenario, n, clutter, kind = spec.split(":", 3)
+    return scenario, int(n), float(clutter), kind
+
+
 def profile(run, min_share: float = 0.02) -> str:
     from pyinstrument import Profiler
 
@@ -124,7 +132,16 @@ def profile(run, min_share: float = 0.02) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--cases", nargs="+", default=["small", "large"], choices=["small", "large"])
+    ap.add_argument("--cases", nargs="+", default=None, choices=["small", "large"],
+                    help="default: small and large, none when --case is given")  # fmt: skip
+    ap.add_argument(
+        "--case",
+        action="append",
+        default=[],
+        metavar="SCENARIO:N:CLUTTER:KIND",
+        help="an extra small case of compare_stonesoup.py, e.g. manoeuvring:50:50:gnn:imm-cv-ct "
+        "or crossing:10:20:gnn (repeatable; with only --case given, just these run)",
+    )
     ap.add_argument("--scans", type=int, default=60, help="small cases: scans")
     ap.add_argument("--targets", type=int, default=1000, help="large case: aircraft")
     ap.add_argument("--duration", type=float, default=60.0, help="large case: simulated s")
@@ -133,7 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--profile", action="store_true", help="print a call tree per case")
     ap.add_argument("--json", type=Path, default=None)
     a = ap.parse_args(argv)
-    cases = []
+    cases = [small_case(*_parse_case(c), a.scans) for c in a.case]
+    if a.cases is None:
+        a.cases = [] if a.case else ["small", "large"]
     if "small" in a.cases:
         cases += [small_case(*c, a.scans) for c in SMALL]
     if "large" in a.cases:

@@ -67,9 +67,16 @@ def total_cost(cost, miss_cost, track_to_plot) -> float:
 def assign_jv(cost, miss_cost) -> Assignment:
     """Optimal assignment with scipy.optimize.linear_sum_assignment and dummy columns."""
     cost, miss = _check(cost, miss_cost)
-    n, k = cost.shape
-    if n == 0:
+    if cost.shape[0] == 0:
         return Assignment(np.zeros(0, int), 0.0)
+    t2p = _jv_track_to_plot(cost, miss)
+    return Assignment(t2p, total_cost(cost, miss, t2p))
+
+
+def _jv_track_to_plot(cost: np.ndarray, miss: np.ndarray) -> np.ndarray:
+    """:func:`assign_jv`'s plot per track (−1: none) of a checked float cost (n ≥ 1, k)
+    and miss (n,): ``linear_sum_assignment`` on [cost | diag(miss)], +inf elsewhere."""
+    n, k = cost.shape
     big = np.full((n, k + n), np.inf)
     big[:, :k] = cost
     big[np.arange(n), k + np.arange(n)] = miss
@@ -77,7 +84,7 @@ def assign_jv(cost, miss_cost) -> Assignment:
     t2p = np.full(n, -1)
     real = cols < k
     t2p[rows[real]] = cols[real]
-    return Assignment(t2p, total_cost(cost, miss, t2p))
+    return t2p
 
 
 def assign_auction(
@@ -245,6 +252,9 @@ def assign_sparse(
     multi = np.flatnonzero(~single)
     if len(multi) == 0:
         return chosen
+    # assign_jv without its input checks and total cost (C is built here: float, +inf
+    # outside the gates) when the miss costs are finite — the same solver call
+    lean = solve is assign_jv and bool(np.isfinite(miss).all())
     # the rows of each cluster, clusters in label order (one sort, no scan per cluster)
     lab = labels[track[multi]]
     order = np.argsort(lab, kind="stable")
@@ -256,7 +266,7 @@ def assign_sparse(
         C[ti, pi] = cost[r]
         row = np.full(C.shape, -1, dtype=np.int64)
         row[ti, pi] = r
-        t2p = solve(C, miss[trk]).track_to_plot
+        t2p = _jv_track_to_plot(C, miss[trk]) if lean else solve(C, miss[trk]).track_to_plot
         a = np.flatnonzero(t2p >= 0)
         a = a[C[a, t2p[a]] < miss[trk[a]]]
         chosen[trk[a]] = row[a, t2p[a]]

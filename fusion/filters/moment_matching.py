@@ -107,3 +107,23 @@ def moment_match_rows(
     spread = Ps + dx[..., :, None] * dx[..., None, :]
     Pm = np.einsum("nr,nrij->nij", ww, spread) / W[:, None, None]
     return xm, 0.5 * (Pm + Pm.swapaxes(1, 2))
+
+
+def moment_match_rows_each(
+    w: np.ndarray, xs: np.ndarray, Ps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`moment_match_rows` for s weightings at once: w (n, r, s) with columns
+    summing to 1 → x (n, s, d), P (n, s, d, d), column j the mixture Σ_r w[n, r, j]
+    N(xs[n, r], Ps[n, r]) (the IMM mixing of eq. 15-17 for every target mode j in one
+    stacked array; the same sums over the mode axis as s calls of moment_match_rows)."""
+    W = w.sum(axis=1)  # (n, s)
+    ww = w
+    zero = W <= 0.0
+    if zero.any():  # equal weights in weightless columns, as moment_match
+        ww = np.where(zero[:, None, :], 1.0, w)
+        W = ww.sum(axis=1)
+    xm = np.einsum("nrs,nrd->nsd", ww, xs) / W[:, :, None]
+    dx = xs[:, :, None, :] - xm[:, None, :, :]  # (n, r, s, d)
+    spread = Ps[:, :, None] + dx[..., :, None] * dx[..., None, :]
+    Pm = np.einsum("nrs,nrsij->nsij", ww, spread) / W[:, :, None, None]
+    return xm, 0.5 * (Pm + Pm.swapaxes(-1, -2))

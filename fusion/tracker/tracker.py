@@ -574,7 +574,8 @@ class Tracker:
         if bound is not None:
             rows = np.flatnonzero((bound < cfg.tau_terminate + TERMINATION_MARGIN) | coasting)
         psi_now = np.ones(self.n)
-        psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
+        if len(rows):  # (usually none: every track's bound is above τ_t)
+            psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
         term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(

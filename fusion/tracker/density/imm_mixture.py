@@ -50,7 +50,11 @@ from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import gain, joseph_covariance
-from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
+from skyfuse.fusion.filters.moment_matching import (
+    moment_match,
+    moment_match_rows,
+    moment_match_rows_each,
+)
 from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common
@@ -295,9 +299,8 @@ class IMMMixtureDensity:
         else:
             wmix = comp.mu[:, :, None] * Pi / np.maximum(c[:, None, :], 1e-300)
             xc, Pc = self._stack_common(comp)
-            mixed = [
-                self._native(j, *moment_match_rows(wmix[:, :, j], xc, Pc)) for j in range(self.r)
-            ]
+            xm, Pm = moment_match_rows_each(wmix, xc, Pc)  # every target mode at once
+            mixed = [self._native(j, xm[:, j], Pm[:, j]) for j in range(self.r)]
         for j, model in enumerate(self.models):
             xj, Pj = self._predict_mode(model, mixed[j][0], mixed[j][1], dt)
             xs.append(xj)
@@ -404,8 +407,14 @@ class IMMMixtureDensity:
             return comp
         if np.bincount(comp.track).max() == 1:
             # one child per track (GNN; no plot gated): in track order every child is
-            # its own group, and the moment matching below copies it
+            # its own group; the moment matching would copy it (P symmetrised) and give
+            # the same μ_j = ξ μ_j / Σ_j ξ μ_j as below
             comp = comp.take(np.argsort(comp.track, kind="stable"))
+            Ps = [0.5 * (P + P.swapaxes(1, 2)) for P in comp.P]
+            return IMMComponents(
+                comp.track, comp.w, comp.hist, self._merged_mu(comp.w[:, None] * comp.mu),
+                comp.x, Ps,
+            )  # fmt: skip
         inv, uniq = history_groups(comp.track, comp.hist)
         G = len(uniq)
         W = np.bincount(inv, weights=comp.w, minlength=G)
@@ -416,10 +425,13 @@ class IMMMixtureDensity:
             xs.append(xj)
             Ps.append(Pj)
             mass.append(Wj)
-        mu = np.column_stack(mass)
-        tot = mu.sum(axis=1, keepdims=True)
-        mu = np.where(tot > 0, mu / np.where(tot > 0, tot, 1.0), 1.0 / self.r)
+        mu = self._merged_mu(np.column_stack(mass))
         return IMMComponents(uniq[:, 0].copy(), W, uniq[:, 1:].copy(), mu, xs, Ps)
+
+    def _merged_mu(self, mass: np.ndarray) -> np.ndarray:
+        """μ_j = Σ ξ μ_j / Σ_j Σ ξ μ_j from the merged masses (G, r); uniform where 0."""
+        tot = mass.sum(axis=1, keepdims=True)
+        return np.where(tot > 0, mass / np.where(tot > 0, tot, 1.0), 1.0 / self.r)
 
     def update(
         self, pred: IMMPrediction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
@@ -465,6 +477,10 @@ class IMMMixtureDensity:
             xc, Pc = self._stack_common(comp)
             idx = self.cv_index
         C, r, dc = xc.shape
+        if C == ngroups and (C < 2 or (loc[1:] > loc[:-1]).all()):
+            # one component per track (GNN, IPDA, JIPDA): the modes of each row
+            x, P = moment_match_rows(comp.w[:, None] * comp.mu, xc, Pc)
+            return x[:, idx], P[:, idx][:, :, idx]
         w = (comp.w[:, None] * comp.mu).reshape(-1)
         _, x, P = moment_match(
             w, xc.reshape(C * r, dc), Pc.reshape(C * r, dc, dc), np.repeat(loc, r), ngroups
