@@ -75,6 +75,33 @@ def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarr
     raise TypeError(f"no common-format conversion for {type(model).__name__}")
 
 
+def to_cv_layout(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The CV-layout entries [x, vx, y, vy(, z, vz)] of :func:`to_common` (Sᵀ x_c and
+    Sᵀ P_c S with the CV selector S), without the accelerations: for the track output
+    (004 eq. 20-21), whose moments of these entries need only these entries. CT: the
+    rows (x, v cosψ, y, v sinψ(, z, vz)) of the Jacobian of eq. 22."""
+    if isinstance(model, ConstantVelocity):
+        return x, 0.5 * (P + P.swapaxes(-1, -2))
+    if isinstance(model, CoordinatedTurn):
+        psi, v = x[:, 2], x[:, 4]
+        c, s = np.cos(psi), np.sin(psi)
+        vx, vy = v * c, v * s
+        n, ndim = x.shape[0], model.ndim
+        xo = np.empty((n, 2 * ndim))
+        xo[:, 0], xo[:, 1], xo[:, 2], xo[:, 3] = x[:, 0], vx, x[:, 1], vy
+        J = np.zeros((n, 2 * ndim, model.dim))
+        J[:, 0, 0] = J[:, 2, 1] = 1.0
+        J[:, 1, 2], J[:, 1, 4] = -vy, c
+        J[:, 3, 2], J[:, 3, 4] = vx, s
+        if model.vertical:
+            xo[:, 4], xo[:, 5] = x[:, 5], x[:, 6]
+            J[:, 4, 5] = J[:, 5, 6] = 1.0
+        return xo, _sandwich(J, P)
+    xc, Pc = to_common(model, x, P)
+    idx = _cv_common_index(model.ndim)
+    return xc[:, idx], Pc[:, idx[:, None], idx[None, :]]
+
+
 def from_common(model, xc: np.ndarray, Pc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Common-format states/covariances → the model's native format (for re-initialising
     each mode filter after IMM mixing)."""

@@ -85,14 +85,15 @@ def test_track_output_with_one_component_per_track_against_the_equations():
 
     d = _ct_density()
     comp = d.comp
+    cv = [0, 1, 3, 4]  # x, vx, y, vy in the common layout [x, vx, ax, y, vy, ay]
     x, P = d._track_estimates(comp, np.arange(len(comp)), len(comp))
     for t in range(len(comp)):
         common = [to_common(m, comp.x[j][t : t + 1], comp.P[j][t : t + 1])
                   for j, m in enumerate(d.models)]  # fmt: skip
         m, C = _loop_mix(comp.w[t] * comp.mu[t], [c[0][0] for c in common],
                          [c[1][0] for c in common])  # fmt: skip
-        np.testing.assert_allclose(x[t], m[d.cv_index], rtol=1e-12, atol=1e-9)
-        np.testing.assert_allclose(P[t], C[np.ix_(d.cv_index, d.cv_index)], rtol=1e-10, atol=1e-8)
+        np.testing.assert_allclose(x[t], m[cv], rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(P[t], C[np.ix_(cv, cv)], rtol=1e-10, atol=1e-8)
 
 
 def _brute_force(n, k, pairs, miss):
@@ -125,3 +126,25 @@ def test_sparse_assignment_against_brute_force(seed, solve):
     total = cost[chosen].sum() + miss[rows < 0].sum()
     pairs = list(zip(track.tolist(), plot.tolist(), cost.tolist()))
     assert total == pytest.approx(_brute_force(n, k, pairs, miss), abs=1e-6)
+
+
+@pytest.mark.parametrize("vertical", [False, True])
+def test_cv_layout_of_a_turn_state_against_a_numerical_jacobian(vertical):
+    """x = (x, v cosψ, y, v sinψ(, z, vz)) and P = J P Jᵀ with J by central differences."""
+    from skyfuse.fusion.models import CoordinatedTurn
+    from skyfuse.fusion.models.conversions import to_cv_layout
+
+    m = CoordinatedTurn(vertical=vertical)
+    rng = np.random.default_rng(8)
+    x = np.array([[1e3, -2e3, 0.7, 0.03, 150.0, 900.0, -4.0][: m.dim]])
+    P = _spd(rng, 1, m.dim)
+
+    def f(s):
+        out = [s[0], s[4] * np.cos(s[2]), s[1], s[4] * np.sin(s[2])]
+        return np.array(out + ([s[5], s[6]] if vertical else []))
+
+    h = 1e-6
+    J = np.column_stack([(f(x[0] + h * e) - f(x[0] - h * e)) / (2 * h) for e in np.eye(m.dim)])
+    xo, Po = to_cv_layout(m, x, P)
+    np.testing.assert_allclose(xo[0], f(x[0]), rtol=1e-14)
+    np.testing.assert_allclose(Po[0], J @ P[0] @ J.T, rtol=1e-6, atol=1e-6)

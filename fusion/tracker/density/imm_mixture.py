@@ -57,7 +57,7 @@ from skyfuse.fusion.filters.moment_matching import (
 )
 from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
-from skyfuse.fusion.models.conversions import from_common, to_common
+from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 
 from ..components import history_groups, prune_indices, take_concat
 from .base import GatedTable, gate_probability_of
@@ -221,9 +221,8 @@ class IMMMixtureDensity:
         self.coast_after = coast_after
         self.coast_step = coast_step
         self.H = [m.H() for m in self.models]
-        self.pos = [list(m.position_index) for m in self.models]
+        self.pos = [np.array(m.position_index) for m in self.models]
         self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
-        self.cv_index = [3 * a + b for a in range(ndim) for b in (0, 1)]
         r = len(self.models)
         self.comp = IMMComponents(
             np.zeros(0, np.int64),
@@ -344,7 +343,7 @@ class IMMMixtureDensity:
         pred = self._interact(comp, np.asarray(dt, dtype=np.float64)[loc])
         y = np.stack([pred.x[j][:, self.pos[j]] for j in range(self.r)], axis=1)
         HPH = np.stack(
-            [pred.P[j][:, self.pos[j]][:, :, self.pos[j]] for j in range(self.r)], axis=1
+            [pred.P[j][:, p[:, None], p[None, :]] for j, p in enumerate(self.pos)], axis=1
         )
         return IMMPrediction(rows, pred, loc, y, HPH)
 
@@ -472,20 +471,20 @@ class IMMMixtureDensity:
         if self.same_layout and isinstance(self.models[0], ConstantVelocity):
             xc = np.stack(comp.x, axis=1)
             Pc = np.stack(comp.P, axis=1)
-            idx = list(range(self.dim))
         else:
-            xc, Pc = self._stack_common(comp)
-            idx = self.cv_index
+            # the moments of the CV entries of the common layout need only those entries
+            pairs = [to_cv_layout(m, comp.x[j], comp.P[j]) for j, m in enumerate(self.models)]
+            xc = np.stack([a for a, _ in pairs], axis=1)
+            Pc = np.stack([b for _, b in pairs], axis=1)
         C, r, dc = xc.shape
         if C == ngroups and (C < 2 or (loc[1:] > loc[:-1]).all()):
             # one component per track (GNN, IPDA, JIPDA): the modes of each row
-            x, P = moment_match_rows(comp.w[:, None] * comp.mu, xc, Pc)
-            return x[:, idx], P[:, idx][:, :, idx]
+            return moment_match_rows(comp.w[:, None] * comp.mu, xc, Pc)
         w = (comp.w[:, None] * comp.mu).reshape(-1)
         _, x, P = moment_match(
             w, xc.reshape(C * r, dc), Pc.reshape(C * r, dc, dc), np.repeat(loc, r), ngroups
         )
-        return x[:, idx], P[:, idx][:, :, idx]
+        return x, P
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[rows].copy(), self.P[rows].copy()
