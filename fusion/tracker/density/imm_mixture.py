@@ -122,7 +122,10 @@ class IMMComponents:
         )
 
     def replace_tracks(self, others: np.ndarray, new: IMMComponents) -> IMMComponents:
-        """The components ``others`` followed by ``new``, one copy of the kept ones."""
+        """The components ``others`` followed by ``new``, one copy of the kept ones
+        (``new`` itself when no other component is kept: every track was updated)."""
+        if len(others) == 0:
+            return new
         r = len(self.x)
         return IMMComponents(
             *(take_concat(getattr(self, k), others, getattr(new, k)) for k in ("track", "w")),
@@ -338,7 +341,10 @@ class IMMMixtureDensity:
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
         inside = np.zeros(len(self), bool)
         inside[rows] = True
-        comp = self.comp.take(np.flatnonzero(inside[self.comp.track]))
+        mine = inside[self.comp.track]
+        # every component (one sensor seeing all tracks): no copy, the store is never
+        # written in place (the prediction makes new states; update replaces the store)
+        comp = self.comp if mine.all() else self.comp.take(np.flatnonzero(mine))
         loc = np.searchsorted(rows, comp.track)
         pred = self._interact(comp, np.asarray(dt, dtype=np.float64)[loc])
         y = np.stack([pred.x[j][:, self.pos[j]] for j in range(self.r)], axis=1)
