@@ -15,8 +15,10 @@ more tracks, true and false alike). :func:`calibrate_psi_init` searches log ψ_i
 stopping when |count − target| ≤ tolerance or after ``max_evals`` evaluations (then, if no
 evaluation on either side has another count, one probe at 2ψ or ψ/2 for the slope). The
 result is the evaluated ψ with the count nearest the target (:func:`best_evaluation`:
-among equal counts below the target the largest ψ, above it the smallest; so when even
-``hi`` gives fewer false tracks than the target, ψ_init = ``hi``).
+among equal counts below the target the largest ψ, above it the smallest). When no
+evaluation reaches the target, ``hi`` is evaluated (one evaluation beyond ``max_evals``
+if needed) and ψ_init = ``hi`` (all counts above: ``lo``), whatever the noise of the
+small counts says.
 
 **Sampling error** (:func:`sampling_interval`). Over a given set of runs the count is one
 draw of a roughly Poisson number with mean μ(ψ); another set of runs would move the
@@ -83,11 +85,23 @@ def sampling_interval(evals: list[tuple[float, float]], psi: float, count: float
     return {"elasticity": b, "psi_se_log": se, "psi_interval_95": interval}
 
 
-def best_evaluation(evals: list[tuple[float, float]], target: float) -> tuple[float, float]:
+def best_evaluation(
+    evals: list[tuple[float, float]], target: float, tolerance: float = 0.0
+) -> tuple[float, float]:
     """The (ψ, count) nearest the target; among equal counts below the target the largest
-    ψ (it confirms true tracks soonest at that false-track count), above it the smallest."""
+    ψ (it confirms true tracks soonest at that false-track count), above it the smallest.
+
+    When every count is below ``target − tolerance`` (the target is out of reach) the
+    largest ψ evaluated, when every count is above ``target + tolerance`` the smallest:
+    the count is non-decreasing in ψ, so that is where its mean is nearest the target.
+    Small noisy counts (0-4 false tracks over 500 runs) otherwise make the nearest count
+    fall at an arbitrary ψ, e.g. 4 at ψ = 3.5·10⁻⁴ against 0-1 up to ψ = 0.18."""
     if not evals:
         raise ValueError("evals: empty: nothing to choose from")
+    if all(c < target - tolerance for _, c in evals):
+        return max(evals, key=lambda e: e[0])
+    if all(c > target + tolerance for _, c in evals):
+        return min(evals, key=lambda e: e[0])
     return min(evals, key=lambda e: (abs(e[1] - target), -e[0] if e[1] < target else e[0]))
 
 
@@ -125,14 +139,24 @@ def calibrate_psi_init(
         return c
 
     def done() -> Calibration:
-        best = best_evaluation(evals, target)
+        _reach_bound()
+        best = best_evaluation(evals, target, tolerance)
         if len(evals) < max_evals and sampling_interval(evals, *best)["elasticity"] is None:
             # one probe a factor 2 away measures the slope for the sampling error
             f(best[0] * 2.0 if best[0] * 2.0 <= hi else best[0] / 2.0)
-            best = best_evaluation(evals, target)
+            best = best_evaluation(evals, target, tolerance)
         return Calibration(
             best[0], best[1], target, tolerance, abs(best[1] - target) <= tolerance, evals
         )
+
+    def _reach_bound() -> None:
+        # target out of reach on one side: the bound itself is evaluated (one evaluation
+        # beyond max_evals if the bracket ran out of them), so that ψ = hi (or lo)
+        psis = [p for p, _ in evals]
+        if all(c < target - tolerance for _, c in evals) and max(psis) < hi:
+            f(hi)
+        elif all(c > target + tolerance for _, c in evals) and min(psis) > lo:
+            f(lo)
 
     def ok(c: float) -> bool:
         return abs(c - target) <= tolerance

@@ -123,6 +123,29 @@ def test_calibration_finds_a_power_law_count_within_tolerance():
         calibrate_psi_init(count, 15.0, 1.5, psi0=0.9)
 
 
+def test_calibration_out_of_reach_takes_the_bound_despite_noise():
+    """An LM-ITS-like count: 0-4 false tracks at every ψ (Poisson noise around a mean far
+    below the target 15), the largest count by chance at the smallest ψ. The warm start
+    from a tiny ψ with factor 2 runs out of evaluations before ψ = hi; the result must
+    still be ψ = hi (evaluated), not the ψ that happened to give 4."""
+    noise = {0: 4.0}
+
+    def count(psi):
+        return noise.get(round(math.log2(psi / 3.5e-4)), float(round(math.log2(psi / 3.5e-4)) % 2))
+
+    res = calibrate_psi_init(count, 15.0, 1.5, psi0=3.5e-4, factor=2.0, max_evals=10)
+    assert not res.converged
+    assert res.psi_init == 0.5 and (0.5, res.count) in res.evaluations
+    assert len(res.evaluations) <= 11
+    # all counts above the target: the smallest ψ, lo evaluated
+    high = calibrate_psi_init(lambda p: 30.0 + 10 * (p > 0.1), 15.0, 1.5, psi0=0.4, factor=2.0,
+                              lo=1e-3, max_evals=4)  # fmt: skip
+    assert high.psi_init == 1e-3 and (1e-3, 30.0) in high.evaluations
+    # reachable target: the nearest count as before (unchanged rule)
+    near = calibrate_psi_init(lambda p: math.floor(400.0 * p**0.8), 15.0, 1.5, psi0=0.01)
+    assert near.converged
+
+
 def test_tracker_delete_tracks_removes_only_the_given_ids():
     trk = Tracker(TrackerConfig(tracker="its", depth=2))
     ids = [trk.add_track(np.array([x, 0.0, 0.0, 0.0]), np.eye(4) * 25, 0) for x in (0.0, 1e4, 2e4)]
