@@ -55,8 +55,9 @@ from skyfuse.services.runtime.transport import (  # noqa: E402
 def sim_plot_rate(a, duration: float = 30.0) -> float:
     """Plots per simulated second of the scenario (all radars)."""
     sc = build_scenario(
-        "regional", seed=a.seed, duration=duration, targets=a.targets, radars=a.radars
-    )
+        "regional", seed=a.seed, duration=duration, targets=a.targets, radars=a.radars,
+        traffic=getattr(a, "traffic", "mixed"),
+    )  # fmt: skip
     n = sum(len(ev.message.time) for ev in Simulator(sc, seed=a.seed).run() if ev.kind == "plots")
     return n / duration
 
@@ -72,7 +73,8 @@ def make_level_files(rate: float, speed: float, a, work: Path) -> tuple[Path, di
     skyfuse_cli(
         "simulate", "--scenario", "regional", "--seed", str(a.seed), "--duration",
         f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
-        f"radars={a.radars}", "--out", str(rec), "--no-progress",
+        f"radars={a.radars}", "--param", f"traffic={getattr(a, 'traffic', 'mixed')}",
+        "--out", str(rec), "--no-progress",
     )  # fmt: skip
     if a.no_offline:
         return rec, recording_facts(rec)

@@ -2,11 +2,13 @@
 loss, memory growth and latency drift.
 
 One ``skyfuse replay --radars ID`` publisher process per radar (the ``regional``
-scenario, ``--radars`` radars, ``--targets`` aircraft, simulated first into an MCAP file
-whose replay speed gives ``--rate`` plots/s), one ``skyfuse fusion`` (id ``bench``,
-snapshots on, state in the run's directory), one ``skyfuse record`` and one ``skyfuse
-tracks --json`` client, for ``--duration`` wall seconds. The processes and the Zenoh
-sessions are the ones of ``benchmarks/service_pipeline.py`` (its pieces are imported).
+scenario, ``--radars`` radars, ``--targets`` aircraft; by default ``traffic = steady``, so
+the number of aircraft in the air and the plot rate are stationary over the run; simulated
+first into an MCAP file whose replay speed gives ``--rate`` plots/s, :func:`level`), one
+``skyfuse fusion`` (id ``bench``, snapshots on, state in the run's directory), one
+``skyfuse record`` and one ``skyfuse tracks --json`` client, for ``--duration`` wall
+seconds. The processes and the Zenoh sessions are the ones of
+``benchmarks/service_pipeline.py`` (its pieces are imported).
 
 Checks, at the end (after the fusion drained its queue):
 
@@ -53,6 +55,7 @@ from service_pipeline import (  # noqa: E402
     sim_plot_rate,
     start_children,
 )
+from skyfuse.fusion.sim import build_scenario  # noqa: E402
 from skyfuse.services.evaluation.demo import Child  # noqa: E402
 from skyfuse.services.runtime.transport import (  # noqa: E402
     TransportConfig,
@@ -80,11 +83,40 @@ def observers(ep: str, work: Path) -> tuple[Child, Child]:
     return rec, client
 
 
-def run(a, work: Path) -> dict:
-    base = sim_plot_rate(a)
-    speed = a.rate / base
+def level(a, work: Path) -> tuple[Path, dict, float]:
+    """The soak's recording, its facts and the replay speed that gives ``--rate``.
+
+    The speed first comes from the plot rate of a 30 s scenario with ``--targets``
+    aircraft (steady traffic: nearly all of them in the air). Steady traffic: ``--targets`` is
+    the number of aircraft in the air; the scenario gets ``--targets`` / f aircraft over
+    its D = duration × speed simulated seconds, f being the fraction of them in the air
+    at any instant (from the built routes, no simulation), and the speed is then set
+    from the file's own plot count (P plots over D s: speed = rate · D / P), so the
+    offered rate is ``--rate`` and the wall duration P / rate is about ``--duration``."""
+    speed = a.rate / sim_plot_rate(a)
     a.seconds, a.no_offline = a.duration, True
+    if a.traffic == "steady":
+        a.aircraft_in_air = a.targets
+        a.targets = round(a.targets / in_air_fraction(a, a.duration * speed))
     rec, facts = make_level_files(a.rate, speed, a, work)
+    if a.traffic == "steady":
+        speed = a.rate * a.duration * speed / facts["plots_processed"]
+    return rec, facts, speed
+
+
+def in_air_fraction(a, duration: float, n: int = 2000) -> float:
+    """Mean fraction of the steady scenario's aircraft in the air over ``duration`` s."""
+    sc = build_scenario(
+        "regional", seed=a.seed, duration=duration, targets=n, radars=a.radars, traffic="steady"
+    )
+    birth, death = sc.targets.t_birth, sc.targets.t_death
+    times = np.linspace(0.0, duration, 11)
+    return float(np.mean([((birth <= t) & (death >= t)).mean() for t in times]))
+
+
+def run(a, work: Path) -> dict:
+    rec, facts, speed = level(a, work)
+    base = a.rate / speed
     per_window = max(10, round(facts["batches"] / a.duration * a.window))
     frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
     extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
@@ -225,8 +257,19 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=600.0, help="wall seconds of publishing")
     ap.add_argument("--rate", type=float, default=5000.0, help="plots/s offered (all radars)")
     ap.add_argument("--window", type=float, default=60.0, help="s per latency/RSS window")
-    ap.add_argument("--targets", type=int, default=1000)
-    ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 or 4")
+    ap.add_argument(
+        "--targets",
+        type=int,
+        default=1000,
+        help="aircraft: in the air at any time (steady), in the scenario (mixed)",
+    )
+    ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 to 6")
+    ap.add_argument(
+        "--traffic",
+        choices=("steady", "mixed"),
+        default="steady",
+        help="regional traffic: steady (stationary number of aircraft; default) or mixed",
+    )
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=60.0, help="max s to let the fusion catch up")
@@ -236,7 +279,7 @@ def main() -> None:
     path = a.json or ROOT / "benchmarks" / "results" / f"soak-{a.rate:.0f}-{a.duration:.0f}s.json"
     print(
         f"soak: {a.duration:.0f} s at {a.rate:.0f} plots/s, {a.radars} radars, {a.targets} "
-        f"aircraft; {os.cpu_count()} cores, load {os.getloadavg()}",
+        f"aircraft, {a.traffic} traffic; {os.cpu_count()} cores, load {os.getloadavg()}",
         flush=True,
     )
     with tempfile.TemporaryDirectory() as tmp:

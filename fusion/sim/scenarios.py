@@ -409,6 +409,14 @@ _REGIONAL_PARAMS = {
     "airborne_fraction": Param(
         0.6, "fraction of aircraft (not departures) already airborne at t = 0", in_range(0, 1)
     ),
+    "traffic": Param(
+        "mixed",
+        "mixed: most aircraft in the air at t = 0, a third of them leaving during the run, "
+        "departures and arrivals joining in the first 80 %; steady: each aircraft's route "
+        "starts at a uniform time in (-route time, duration), so the expected number of "
+        "aircraft in the air is the same at every instant (soak runs)",
+        choices=("mixed", "steady"),
+    ),
 }
 
 
@@ -419,10 +427,12 @@ def _regional_routes(
     radius: float,
     airport_xy: np.ndarray,
     airborne_fraction: float,
+    steady: bool = False,
 ):
     """Random aircraft: overflights crossing the area (with 1-3 turning waypoints, some
     climbing or descending), arrivals descending to the airport and departures climbing
-    out of it. Returns builders, birth and death times (s)."""
+    out of it, timed by :func:`_mixed_timing` or :func:`_steady_timing` (``steady``).
+    Returns builders, birth and death times (s)."""
     builders, births, deaths = [], [], []
     for _ in range(n):
         kind = rng.choice(["over", "arr", "dep"], p=[0.7, 0.15, 0.15])
@@ -466,18 +476,10 @@ def _regional_routes(
         b = TrajectoryBuilder(0.0, (start[0], start[1], start_alt), (*(speed * heading), 0.0))
         for pt, alt in wps:
             b.fly_to(pt[0], pt[1], alt, g_load=g_load, max_climb_rate=max_climb)
-        route_time = b.t
-        if kind != "dep" and rng.random() < airborne_fraction:
-            # already in the air at t = 0; a third of them leave (or land) during the run
-            if rng.random() < 0.35:
-                remaining = rng.uniform(0.1, 0.9) * duration
-            else:
-                remaining = rng.uniform(duration, max(duration, route_time))
-            shift = min(remaining, route_time) - route_time
-            birth = 0.0
+        if steady:
+            shift, birth = _steady_timing(rng, b.t, duration)
         else:
-            shift = rng.uniform(0.0, 0.8 * duration)
-            birth = shift
+            shift, birth = _mixed_timing(rng, kind, b.t, duration, airborne_fraction)
         for s in b.segments:
             s.t0 += shift
         b.t += shift
@@ -485,6 +487,33 @@ def _regional_routes(
         births.append(birth)
         deaths.append(b.t)
     return builders, np.array(births), np.array(deaths)
+
+
+def _mixed_timing(
+    rng: np.random.Generator, kind: str, route_time: float, duration: float, airborne: float
+) -> tuple[float, float]:
+    """(time shift of the route, birth time) s: an arrival or overflight is in the air at
+    t = 0 with probability ``airborne`` (a third of those leave or land during the run),
+    the others and the departures start at a uniform time in the first 80 % of the run."""
+    if kind != "dep" and rng.random() < airborne:
+        if rng.random() < 0.35:
+            remaining = rng.uniform(0.1, 0.9) * duration
+        else:
+            remaining = rng.uniform(duration, max(duration, route_time))
+        return min(remaining, route_time) - route_time, 0.0
+    shift = rng.uniform(0.0, 0.8 * duration)
+    return shift, shift
+
+
+def _steady_timing(
+    rng: np.random.Generator, route_time: float, duration: float
+) -> tuple[float, float]:
+    """(time shift, birth time) s of a route of length L = ``route_time`` started at
+    s ~ U(−L, duration): the aircraft is in the air at t ∈ [0, duration] with probability
+    P(t − L ≤ s ≤ t) = L / (duration + L), the same at every t, so the expected traffic
+    (and the plot rate) is stationary over the run."""
+    shift = rng.uniform(-route_time, duration)
+    return shift, max(shift, 0.0)
 
 
 def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
@@ -534,6 +563,7 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
         p["area_radius"],
         np.array([float(ax), float(ay)]),
         p["airborne_fraction"],
+        steady=p["traffic"] == "steady",
     )
     has_mode_s = rng.random(n) < p["mode_s_fraction"]
     addresses = 1 + rng.choice((1 << 24) - 1, size=n, replace=False)  # unique, 24-bit, != 0

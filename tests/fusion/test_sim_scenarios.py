@@ -269,3 +269,24 @@ def test_regional_scenario_takes_up_to_six_radars_at_their_scan_periods():
         assert abs(scans[sensor.site.radar_id] - expected) <= 1.0
     with pytest.raises(ValueError, match="radars"):
         build_scenario("regional", seed=3, duration=60.0, targets=20, radars=7)
+
+
+def test_regional_steady_traffic_is_stationary():
+    """traffic = steady: route starts uniform in (−L, D) give every instant the same
+    expected number of aircraft in the air, P(alive at t) = L_i / (D + L_i) for every t
+    (scenarios._steady_timing). The counts at seven instants must each lie within 4
+    binomial σ of their mean; the default (mixed) traffic thins out over a long run."""
+    duration = 3600.0
+    times = np.linspace(0.0, duration, 7)
+    for traffic, stationary in (("steady", True), ("mixed", False)):
+        sc = build_scenario("regional", seed=5, duration=duration, targets=2000, traffic=traffic)
+        birth, death = sc.targets.t_birth, sc.targets.t_death
+        alive = np.array([((birth <= t) & (death >= t)).sum() for t in times])
+        if not stationary:
+            assert alive[-1] < 0.6 * alive[0]
+            continue
+        mean = alive.mean()
+        p = mean / len(birth)
+        sigma = np.sqrt(len(birth) * p * (1 - p))
+        assert mean > 100
+        assert np.all(np.abs(alive - mean) < 4 * sigma), (alive, mean, sigma)
