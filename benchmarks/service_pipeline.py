@@ -262,14 +262,18 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
     frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
     ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate)
     load0 = os.getloadavg()
+    # a fresh state directory per level: the fusion must not resume the picture, the
+    # watermarks and the seen batches of an earlier level (or of another run of the
+    # script on the same host) saved less than resume_max_age ago
+    state = work / f"state-{rate:.0f}"
     with open_session(TransportConfig(listen=[ep])) as s:
-        fusion.start()
+        fusion.start(state_home=state)
         f = Follower(s, 0)
         assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
         f.pid = fusion.proc.pid
         rss0 = rss_mb(f.pid)
         for c in pubs:
-            c.start()
+            c.start(state_home=state)
         cpu = CpuMeter(f.pid, pubs)
         go = declare_liveliness(s, service_alive_key("bench"))
         spy = _profile(fusion, a.profile, rate, a.seconds)
@@ -291,7 +295,9 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         fusion.terminate()
         f.inbox.close()
     res = level_result(rate, speed, offline, f, t_sent, t_done, rss0, load0)
-    return {**res, **cpu.result(res["plots_applied"], t_done)}
+    snap = state / "skyfuse" / "fusion-bench" / "state.npz"
+    size = snap.stat().st_size if snap.exists() else None
+    return {**res, **cpu.result(res["plots_applied"], t_done), "state_snapshot_bytes": size}
 
 
 def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0) -> dict:
