@@ -18,7 +18,10 @@ fusion's resident memory (VmRSS, start of the level and maximum), feed message c
 level: of the fusion process, of its main thread (the single thread that decodes,
 converts and tracks: its plots per CPU second is the capacity of one dedicated core),
 and of all publisher processes (which compete with the fusion for the cores on a small
-machine); ``fusion_cpu_share`` = fusion / (fusion + publishers).
+machine); ``fusion_cpu_share`` = fusion / (fusion + publishers). ``batches_late_applied``:
+batches that arrived behind the service time and went through the tracker's
+out-of-sequence update (publishers started a few ms apart are seconds apart in data time
+at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
         [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2] [--json out.json]
@@ -318,6 +321,8 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "caught_up": f.caught_up(offline["batches"]),
         "backlog_plots_end": offline["plots_processed"] - applied,
         "plots_applied": applied,
+        "batches_late_applied": None if fs.late is None else fs.late.batches_late,
+        "oosm_track_updates": None if fs.late is None else fs.late.track_updates_oosm,
         "sustained_plots_per_s": round(live, 1),
         "offline_plots_per_s": off,
         "live_over_offline": round(live / off, 3) if off else None,
