@@ -14,10 +14,17 @@ backlog is reported), latency percentiles from the publisher's sweep-end stamp t
 publication of the delta that contains the batch (fusion Status, over every batch; it
 includes the reorder wait), the largest backlog and whether Status said "behind", the
 fusion's resident memory (VmRSS, start of the level and maximum), feed message counts
-(delta/full), and the load average.
+(delta/full), and the load average. CPU (utime + stime from ``/proc/PID/stat``) over the
+level: of the fusion process, of its main thread (the single thread that decodes,
+converts and tracks: its plots per CPU second is the capacity of one dedicated core),
+and of all publisher processes (which compete with the fusion for the cores on a small
+machine); ``fusion_cpu_share`` = fusion / (fusion + publishers). ``batches_late_applied``:
+batches that arrived behind the service time and went through the tracker's
+out-of-sequence update (publishers started a few ms apart are seconds apart in data time
+at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
-        [--targets 1000] [--radars 6] [--reorder-wait 0.2] [--json out.json]
+        [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -56,7 +63,7 @@ def sim_plot_rate(a, duration: float = 30.0) -> float:
     """Plots per simulated second of the scenario (all radars)."""
     sc = build_scenario(
         "regional", seed=a.seed, duration=duration, targets=a.targets, radars=a.radars,
-        traffic=getattr(a, "traffic", "mixed"),
+        traffic=getattr(a, "traffic", "mixed"), n_sectors=getattr(a, "sectors", 16),
     )  # fmt: skip
     n = sum(len(ev.message.time) for ev in Simulator(sc, seed=a.seed).run() if ev.kind == "plots")
     return n / duration
@@ -74,7 +81,7 @@ def make_level_files(rate: float, speed: float, a, work: Path) -> tuple[Path, di
         "simulate", "--scenario", "regional", "--seed", str(a.seed), "--duration",
         f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
         f"radars={a.radars}", "--param", f"traffic={getattr(a, 'traffic', 'mixed')}",
-        "--out", str(rec), "--no-progress",
+        "--param", f"n_sectors={getattr(a, 'sectors', 16)}", "--out", str(rec), "--no-progress",
     )  # fmt: skip
     if a.no_offline:
         return rec, recording_facts(rec)
@@ -114,6 +121,62 @@ def rss_mb(pid: int) -> float | None:
     except OSError:
         return None
     return None
+
+
+_TICK = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_s(pid: int, thread: int | None = None) -> float | None:
+    """CPU seconds (utime + stime, fields 14 and 15 of ``/proc/PID/stat``, all threads) of
+    a process, or of one of its threads (``/proc/PID/task/TID/stat``); None once it is
+    gone. A zombie (exited, not yet reaped) still reports its final times."""
+    path = f"/proc/{pid}/stat" if thread is None else f"/proc/{pid}/task/{thread}/stat"
+    try:
+        fields = Path(path).read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _TICK
+
+
+class CpuMeter:
+    """CPU seconds of the fusion process (whole, and its main thread, the one that runs
+    the tracker) and of the publisher processes over the level. A publisher's last
+    figure is read when it has exited but is not yet reaped (``waitid`` with
+    ``WNOWAIT``), so its whole run is counted."""
+
+    def __init__(self, fusion_pid: int, pubs) -> None:
+        self.fusion_pid, self.pubs = fusion_pid, pubs
+        self.f0 = cpu_s(fusion_pid) or 0.0
+        self.m0 = cpu_s(fusion_pid, fusion_pid) or 0.0
+        self.pub_cpu = {c.name: cpu_s(c.proc.pid) or 0.0 for c in pubs}
+        self.fusion = self.main = 0.0
+
+    def running(self, c) -> bool:
+        """Whether publisher ``c`` still runs; record its CPU seconds (final at exit)."""
+        pid = c.proc.pid
+        exited = c.rc is not None or os.waitid(
+            os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT
+        ) is not None  # fmt: skip
+        if c.rc is None and (v := cpu_s(pid)) is not None:
+            self.pub_cpu[c.name] = v
+        return not exited or c.poll() is None
+
+    def stop_fusion(self) -> None:
+        self.fusion = (cpu_s(self.fusion_pid) or 0.0) - self.f0
+        self.main = (cpu_s(self.fusion_pid, self.fusion_pid) or 0.0) - self.m0
+
+    def result(self, applied: int, wall: float) -> dict:
+        pub = sum(self.pub_cpu.values())
+        r3 = lambda v: round(v, 3)  # noqa: E731
+        return {
+            "fusion_cpu_s": r3(self.fusion),
+            "fusion_main_thread_cpu_s": r3(self.main),
+            "publishers_cpu_s": r3(pub),
+            "fusion_cores": r3(self.fusion / wall) if wall > 0 else None,
+            "fusion_cpu_share": r3(self.fusion / (self.fusion + pub)) if pub else None,
+            "plots_per_fusion_cpu_s": round(applied / self.fusion, 1) if self.fusion else None,
+            "plots_per_main_thread_cpu_s": round(applied / self.main, 1) if self.main else None,
+        }
 
 
 class Follower:
@@ -202,18 +265,23 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
     frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
     ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate)
     load0 = os.getloadavg()
+    # a fresh state directory per level: the fusion must not resume the picture, the
+    # watermarks and the seen batches of an earlier level (or of another run of the
+    # script on the same host) saved less than resume_max_age ago
+    state = work / f"state-{rate:.0f}"
     with open_session(TransportConfig(listen=[ep])) as s:
-        fusion.start()
+        fusion.start(state_home=state)
         f = Follower(s, 0)
         assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
         f.pid = fusion.proc.pid
         rss0 = rss_mb(f.pid)
         for c in pubs:
-            c.start()
+            c.start(state_home=state)
+        cpu = CpuMeter(f.pid, pubs)
         go = declare_liveliness(s, service_alive_key("bench"))
         spy = _profile(fusion, a.profile, rate, a.seconds)
         t0 = time.monotonic()
-        while any(c.poll() is None for c in pubs):
+        while [c for c in pubs if cpu.running(c)]:
             f.pump(0.2)
         t_sent = time.monotonic() - t0
         published = offline["batches"]
@@ -221,6 +289,7 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         while time.monotonic() < deadline and not f.caught_up(published):
             f.pump(0.2)
         t_done = time.monotonic() - t0
+        cpu.stop_fusion()
         time.sleep(0.7)
         f.pump(0.1)
         go.undeclare()
@@ -228,7 +297,10 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
             spy.wait(timeout=60)
         fusion.terminate()
         f.inbox.close()
-    return level_result(rate, speed, offline, f, t_sent, t_done, rss0, load0)
+    res = level_result(rate, speed, offline, f, t_sent, t_done, rss0, load0)
+    snap = state / "skyfuse" / "fusion-bench" / "state.npz"
+    size = snap.stat().st_size if snap.exists() else None
+    return {**res, **cpu.result(res["plots_applied"], t_done), "state_snapshot_bytes": size}
 
 
 def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0) -> dict:
@@ -248,6 +320,9 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "measured_s": round(t_done, 2),
         "caught_up": f.caught_up(offline["batches"]),
         "backlog_plots_end": offline["plots_processed"] - applied,
+        "plots_applied": applied,
+        "batches_late_applied": None if fs.late is None else fs.late.batches_late,
+        "oosm_track_updates": None if fs.late is None else fs.late.track_updates_oosm,
         "sustained_plots_per_s": round(live, 1),
         "offline_plots_per_s": off,
         "live_over_offline": round(live / off, 3) if off else None,
@@ -287,6 +362,7 @@ def main() -> None:
     ap.add_argument("--targets", type=int, default=1000)
     ap.add_argument("--radars", type=int, default=6, help="regional scenario: 3 to 6 radars")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--sectors", type=int, default=16, help="regional n_sectors: batches/scan")
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
@@ -294,7 +370,8 @@ def main() -> None:
     ap.add_argument("--no-offline", action="store_true", help="skip skyfuse track (soak runs)")
     a = ap.parse_args()
     base = sim_plot_rate(a)
-    print(f"regional, {a.radars} radars, {a.targets} aircraft: {base:.0f} plots per simulated s;"
+    print(f"regional, {a.radars} radars, {a.targets} aircraft, {a.sectors} sectors: "
+          f"{base:.0f} plots per simulated s;"
           f" {os.cpu_count()} cores, load {os.getloadavg()}", flush=True)  # fmt: skip
     results = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -38,9 +38,15 @@ def check_range(
     hi_open: bool = False,
     allow_nan: bool = False,
     unit: str = "",
-) -> None:
-    """Reject values outside ``[lo, hi]`` (or ``[lo, hi)`` with ``hi_open``)."""
-    arr = as_float_array(name, values, allow_nan=allow_nan)
+) -> np.ndarray:
+    """Reject values outside ``[lo, hi]`` (or ``[lo, hi)`` with ``hi_open``); return the
+    values as float64 (None → NaN). Values in range take two reductions (their minimum
+    and maximum, NaN ignored with ``allow_nan``); only a batch with a bad value goes
+    through the checks that name the first offending index."""
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.size and _within(arr, lo, hi, hi_open, allow_nan):
+        return arr
+    as_float_array(name, values, allow_nan=allow_nan)
     with np.errstate(invalid="ignore"):
         if lo is not None:
             bad = arr < lo
@@ -55,6 +61,33 @@ def check_range(
                 op = "<" if hi_open else "<="
                 msg = f"{name}[{i}] = {float(arr[i])!r}: must be {op} {hi} {unit}"
                 raise ValueError(msg.rstrip())
+    return arr
+
+
+def _within(arr: np.ndarray, lo, hi, hi_open: bool, allow_nan: bool) -> bool:
+    """Whether every value is finite (or NaN with ``allow_nan``) and within the bounds:
+    min and max (``fmin``/``fmax`` skip NaN; a NaN min/max, or ±inf, fails a bound;
+    compared as Python floats, cheaper than NumPy scalars)."""
+    low = float(np.fmin.reduce(arr) if allow_nan else arr.min())
+    high = float(np.fmax.reduce(arr) if allow_nan else arr.max())
+    if low != low:  # NaN: every value null (allow_nan), or a NaN present (not allowed)
+        return allow_nan and bool(np.isnan(arr).all())
+    if not (low >= lo if lo is not None else low > -math.inf):
+        return False
+    if hi is None:
+        return high < math.inf
+    return high < hi if hi_open else high <= hi
+
+
+def check_codes(name: str, values: list[int | None], hi: int) -> None:
+    """Reject integer codes outside ``0..hi`` (None = no code; Mode-S addresses,
+    Mode-3/A codes): the minimum and maximum of the codes present, then, only when one
+    is out of range, the search for the first offending index."""
+    present = [v for v in values if v is not None]
+    if present and not (0 <= min(present) and max(present) <= hi):
+        for i, v in enumerate(values):
+            if v is not None and not 0 <= v <= hi:
+                raise ValueError(f"{name}[{i}] = {v}: must be in 0..{hi}")
 
 
 def check_non_decreasing(name: str, values: list[int]) -> None:

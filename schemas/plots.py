@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, PrivateAttr, model_validator
 
 from . import columns as col
 from .base import INT64_MAX, Int64, NonNegInt64, WireModel
@@ -21,6 +21,22 @@ from .keys import ID_PATTERN
 
 _FLOAT_COLUMNS = ("range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude")
 _ALL_COLUMNS = ("time", *_FLOAT_COLUMNS, "mode_s", "mode_3a", "target_id")
+_RANGES = (  # column, lower bound, upper bound, upper bound open, null allowed, unit
+    ("range", 0.0, None, False, False, "m"),
+    ("azimuth", 0.0, 2 * math.pi, True, False, "rad"),
+    ("elevation", -math.pi / 2, math.pi / 2, False, True, "rad"),
+    ("altitude", -1_000.0, 100_000.0, False, True, "m"),
+)
+
+
+class _ColumnArrays(dict):
+    """Cache of a batch's columns as arrays: not part of the batch's value, so any two
+    caches compare equal (batches compare by their fields only)."""
+
+    def __eq__(self, other: object) -> bool:
+        return other is None or isinstance(other, _ColumnArrays)
+
+    __hash__ = None
 
 
 class PlotBatch(WireModel):
@@ -92,6 +108,13 @@ class PlotBatch(WireModel):
         "(for evaluation; never used by the tracker)",
     )
 
+    _arrays: _ColumnArrays | None = PrivateAttr(None)
+    """The columns as read-only NumPy arrays, built once by the validator (or on the
+    first :meth:`column` call), each with the list it was built from: an entry is used
+    only while the field still holds that very list (a copy with an updated field, or
+    a field assigned afterwards, builds its array anew). A plain default (no factory):
+    pydantic creates private defaults on every validation, a factory costs ≈ 10 µs."""
+
     def __len__(self) -> int:
         return len(self.time)
 
@@ -122,47 +145,57 @@ class PlotBatch(WireModel):
             raise ValueError(f"column {missing!r} is missing: cartesian plots need x and y")
         if n == 0:
             return self
-        times = np.asarray(self.time, dtype=np.int64)
+        self._check_time()
+        for name, lo, hi, hi_open, allow_nan, unit in _RANGES:
+            if getattr(self, name) is not None:
+                self._keep(name, col.check_range(name, getattr(self, name), lo, hi,
+                                                 hi_open=hi_open, allow_nan=allow_nan,
+                                                 unit=unit))  # fmt: skip
+        for name, allow_nan in (("x", False), ("y", False), ("doppler", True), ("amplitude", True)):
+            if getattr(self, name) is not None:
+                self._keep(name, col.as_float_array(name, getattr(self, name), allow_nan=allow_nan))
+        for name, hi in (("mode_s", 0xFFFFFF), ("mode_3a", 0o7777)):
+            if getattr(self, name) is not None:
+                col.check_codes(name, getattr(self, name), hi)
+        return self
+
+    def _check_time(self) -> None:
+        """Times ≥ 0 ns and non-decreasing (one comparison when they are)."""
+        times = self._keep("time", np.asarray(self.time, dtype=np.int64))
+        if times[0] >= 0 and (times[1:] >= times[:-1]).all():
+            return
         if (times < 0).any():
             i = int(np.flatnonzero(times < 0)[0])
             raise ValueError(f"time[{i}] = {int(times[i])}: must be >= 0 ns")
         col.check_non_decreasing("time", self.time)
-        if self.range is not None:
-            col.check_range("range", self.range, 0.0, unit="m")
-        if self.azimuth is not None:
-            col.check_range("azimuth", self.azimuth, 0.0, 2 * math.pi, hi_open=True, unit="rad")
-        if self.elevation is not None:
-            col.check_range(
-                "elevation", self.elevation, -math.pi / 2, math.pi / 2, allow_nan=True, unit="rad"
-            )
-        if self.altitude is not None:
-            col.check_range(
-                "altitude", self.altitude, -1_000.0, 100_000.0, allow_nan=True, unit="m"
-            )
-        for name in ("x", "y"):
-            if getattr(self, name) is not None:
-                col.as_float_array(name, getattr(self, name))
-        for name in ("doppler", "amplitude"):
-            if getattr(self, name) is not None:
-                col.as_float_array(name, getattr(self, name), allow_nan=True)
-        for name, hi in (("mode_s", 0xFFFFFF), ("mode_3a", 0o7777)):
-            values = getattr(self, name)
-            if values is None:
-                continue
-            for i, v in enumerate(values):
-                if v is not None and not 0 <= v <= hi:
-                    raise ValueError(f"{name}[{i}] = {v}: must be in 0..{hi}")
-        return self
+
+    def _keep(self, name: str, arr: np.ndarray) -> np.ndarray:
+        """Store ``arr`` (read-only) as the array of column ``name``; return it. (The
+        private dict is read directly: attribute access to a private goes through
+        pydantic's ``__getattr__``, ≈ 30 times slower.)"""
+        arr.flags.writeable = False
+        private = self.__pydantic_private__
+        if private.get("_arrays") is None:
+            private["_arrays"] = _ColumnArrays()
+        private["_arrays"][name] = (getattr(self, name), arr)
+        return arr
 
     # --- NumPy views -------------------------------------------------------------------
     def column(self, name: str) -> np.ndarray | None:
         """Return a column as a NumPy array (float64, int64 for time/target_id), or None.
-        Optional integer columns (mode_s, mode_3a) use -1 for null, float columns NaN."""
+        Optional integer columns (mode_s, mode_3a) use -1 for null, float columns NaN.
+        The array is read-only and shared by every call (copy it to modify it)."""
         values = getattr(self, name)
         if values is None:
             return None
+        arrays = self.__pydantic_private__.get("_arrays")
+        kept = None if arrays is None else arrays.get(name)
+        if kept is not None and kept[0] is values and len(kept[1]) == len(values):
+            return kept[1]
         if name in ("time", "target_id"):
-            return np.asarray(values, dtype=np.int64)
-        if name in ("mode_s", "mode_3a"):
-            return np.asarray([-1 if v is None else v for v in values], dtype=np.int64)
-        return np.asarray(values, dtype=np.float64)
+            arr = np.asarray(values, dtype=np.int64)
+        elif name in ("mode_s", "mode_3a"):
+            arr = np.asarray([-1 if v is None else v for v in values], dtype=np.int64)
+        else:
+            arr = np.asarray(values, dtype=np.float64)
+        return self._keep(name, arr)

@@ -60,11 +60,30 @@ def ecef_to_enu_rotation(lat_deg, lon_deg) -> np.ndarray:
     return np.moveaxis(np.asarray(rows, dtype=float), (0, 1), (-2, -1))
 
 
+@functools.lru_cache(maxsize=4096)
+def _site_frame(lat0: float, lon0: float, alt0: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """ECEF → ENU rotation at one geodetic point and, with ``alt0``, its ECEF position:
+    the same arithmetic as :func:`ecef_to_enu_rotation` / :func:`geodetic_to_ecef`, done
+    once per radar site (a batch converts hundreds of plots of one site, and the scalar
+    set-up is ≈ 20 small NumPy calls). Read-only arrays, shared by the callers."""
+    rot = ecef_to_enu_rotation(lat0, lon0)
+    origin = np.zeros(3) if alt0 is None else geodetic_to_ecef(lat0, lon0, alt0)
+    rot.flags.writeable = origin.flags.writeable = False
+    return rot, origin
+
+
+def _rotation(lat_deg, lon_deg) -> np.ndarray:
+    """:func:`ecef_to_enu_rotation`, from the per-site cache for one scalar point."""
+    if np.ndim(lat_deg) == 0 and np.ndim(lon_deg) == 0:
+        return _site_frame(float(lat_deg), float(lon_deg), None)[0]
+    return ecef_to_enu_rotation(lat_deg, lon_deg)
+
+
 def enu_to_enu_rotation(lat_from, lon_from, lat_to, lon_to) -> np.ndarray:
     """Rotation (…, 3, 3) taking ENU components at (lat_from, lon_from) to ENU components
     at (lat_to, lon_to): R_to · R_fromᵀ."""
-    r_from = ecef_to_enu_rotation(lat_from, lon_from)
-    r_to = ecef_to_enu_rotation(lat_to, lon_to)
+    r_from = _rotation(lat_from, lon_from)
+    r_to = _rotation(lat_to, lon_to)
     return r_to @ np.swapaxes(r_from, -1, -2)
 
 
@@ -87,8 +106,8 @@ def geodetic_to_ecef(lat_deg, lon_deg, alt_m) -> np.ndarray:
 
 def enu_to_ecef(enu: np.ndarray, lat0: float, lon0: float, alt0: float) -> np.ndarray:
     """Points (m, 3) in the local ENU frame at (lat0, lon0, alt0) → ECEF (m, 3), m."""
-    rot = ecef_to_enu_rotation(lat0, lon0)
-    return geodetic_to_ecef(lat0, lon0, alt0) + np.asarray(enu, float).reshape(-1, 3) @ rot
+    rot, origin = _site_frame(float(lat0), float(lon0), float(alt0))
+    return origin + np.asarray(enu, float).reshape(-1, 3) @ rot
 
 
 @functools.lru_cache(maxsize=1)

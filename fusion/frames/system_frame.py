@@ -137,8 +137,9 @@ class SystemFrame:
         return np.asarray(y, float), np.asarray(x, float), -np.asarray(z, float)
 
     def site_position(self, lat: float, lon: float, alt: float) -> np.ndarray:
-        """A radar site's position in the frame, shape (3,)."""
-        return np.array([float(v) for v in self.from_geodetic(lat, lon, alt)])
+        """A radar site's position in the frame, shape (3,) (a new array; computed once
+        per frame and site: every batch of a radar needs it)."""
+        return _site_position(self, float(lat), float(lon), float(alt)).copy()
 
     def enu_to_frame(self, enu: np.ndarray, lat_s: float, lon_s: float, alt_s: float):
         """Points given in the local ENU frame of a site (m, 3) → frame positions (m, 3).
@@ -230,3 +231,10 @@ class SystemFrame:
         J[:, 1, 1] = np.asarray(f.dy_dphi) * dn
         J[:, 2, 2] = 1.0
         return J
+
+
+@functools.lru_cache(maxsize=1024)
+def _site_position(frame: SystemFrame, lat: float, lon: float, alt: float) -> np.ndarray:
+    """:meth:`SystemFrame.site_position`, cached by (frame spec, site): frames compare
+    and hash by their spec, so equal frames share the entry."""
+    return np.array([float(v) for v in frame.from_geodetic(lat, lon, alt)])

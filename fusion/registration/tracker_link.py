@@ -18,12 +18,8 @@ from .estimator import RegistrationEstimator
 
 
 def _popcount(mask: np.ndarray) -> np.ndarray:
-    m = np.asarray(mask, np.int64).copy()
-    c = np.zeros_like(m)
-    while m.any():
-        c += m & 1
-        m >>= 1
-    return c
+    """Radars per track: the set bits of the (non-negative, 63-bit) radar masks."""
+    return np.bitwise_count(np.asarray(mask, np.int64))
 
 
 def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_index) -> int:

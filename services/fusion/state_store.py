@@ -19,7 +19,8 @@ Two files in the state directory of one fusion id (``--state-dir``, default
   host receives on ``fusion/{id}/state`` (:mod:`~skyfuse.services.fusion.standby`).
 * ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
   Before any output is published, the service checks that its tracker's next id is below
-  the persisted ceiling, else it first writes a new one (next id + ``ID_RESERVE``); at
+  the persisted ceiling, else it first writes a new one (next id + a reserve: ``ID_RESERVE``,
+  or the ids of two snapshot intervals while ids are given faster); at
   start a tracker — resumed or new (the state too old to resume) — numbers from the
   ceiling. Tracks created after the last snapshot are lost by a ``kill -9``, but their
   ids are never given again: **track ids are never reused** while this file is younger
@@ -61,7 +62,15 @@ FORMAT = 2
 """Version of what a snapshot holds (1: the pickle of earlier versions)."""
 STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
-"""Ids reserved by one write of ``ids.json`` (a jump of at most this at a restart)."""
+"""Ids reserved by one write of ``ids.json`` at least (the jump at a restart is at most
+the reserve in force: this, or more while ids are given fast, see ``ID_RESERVE_MAX``)."""
+ID_RESERVE_MAX = 1_000_000
+"""Bound on the reserve of one write. While the tracker gives ids fast (thousands of
+tentative tracks per second in clutter or under overload), the reserve is the ids of
+about two snapshot intervals at the rate seen since the last write, so the ceiling — and,
+with a standby, the snapshot published with it — is written about once per two
+intervals instead of every ``ID_RESERVE`` ids (each write is an fsync'd file and a
+snapshot serialised on the service loop)."""
 
 
 def default_state_dir(fusion_id: str) -> Path:
@@ -367,6 +376,8 @@ class Persistence:
         self._pending: tuple | None = None
         self._cond = threading.Condition()
         self._writer: threading.Thread | None = None
+        self._last_raise: tuple[float, int] | None = None
+        """(monotonic s, next id) at the last id-ceiling write or the start (:meth:`reserve`)."""
         self._closing = False
         self.publish = None
         """``publish(blob)``: also send each snapshot (the active instance's
@@ -415,6 +426,7 @@ class Persistence:
             n, store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline),
         )  # fmt: skip
         self._next = time.monotonic() + self.interval
+        self._last_raise = (time.monotonic(), store.next_id_floor)
 
     def tick(self, now: float) -> None:
         """If a snapshot is due: serialise the state here (consistent: the loop is not
@@ -480,14 +492,26 @@ class Persistence:
         core, store = self.core, self.store
         if core.pipeline is None or next_track_id(core.pipeline) < store.next_id_floor:
             return
+        nid = next_track_id(core.pipeline)
         try:
-            store.write_ids(core.epoch or 0, raise_to=next_track_id(core.pipeline) + ID_RESERVE)
+            store.write_ids(core.epoch or 0, raise_to=nid + self.reserve(nid, time.monotonic()))
         except OSError as e:
             core.counters["state_save_errors"] += 1
             log.error("state: cannot save the track id ceiling to %s: %s", store.dir, e)
         if self.publish is not None:  # standbys on other hosts learn the new ceiling now
             self._next = 0.0
             self.tick(time.monotonic())
+
+    def reserve(self, next_id: int, now: float) -> int:
+        """Ids to reserve at a ceiling write when the next id is ``next_id`` at monotonic
+        time ``now``: ``ID_RESERVE``, or the ids of two snapshot intervals at the rate
+        since the previous write (or the start), at most ``ID_RESERVE_MAX``."""
+        t0, n0 = self._last_raise if self._last_raise is not None else (now, next_id)
+        self._last_raise = (now, next_id)
+        if now <= t0 or next_id <= n0:
+            return ID_RESERVE
+        rate = (next_id - n0) / (now - t0)
+        return int(min(ID_RESERVE_MAX, max(ID_RESERVE, rate * 2.0 * self.interval)))
 
     def save(self) -> None:
         """Save now, in this thread (at a clean stop: after the writer thread's last
