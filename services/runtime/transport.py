@@ -426,15 +426,37 @@ def wait_for_tokens(
     stop: threading.Event | None = None,
 ) -> list[str]:
     """Wait until a liveliness token is alive under every key expression; return the ones
-    still missing after ``timeout`` seconds (empty list: all present)."""
-    deadline = time.monotonic() + timeout
-    missing = list(key_exprs)
-    while missing:
-        missing = [k for k in missing if not alive_tokens(session, k, timeout=0.5)]
-        if not missing or time.monotonic() >= deadline or (stop is not None and stop.is_set()):
-            break
-        time.sleep(0.05)
-    return missing
+    still missing after ``timeout`` seconds (empty list: all present).
+
+    A liveliness subscriber per key (with history: the tokens already alive count) wakes
+    the wait as soon as the last token appears, so several processes waiting for the same
+    token start within milliseconds of each other (a poll every 50 ms plus a query each
+    would spread them by ~0.1 s: seconds of data time for replays at ×50)."""
+    present: set[str] = set()
+    changed = threading.Event()
+
+    def seen(k: str):
+        def callback(sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                present.add(k)
+                changed.set()
+
+        return callback
+
+    subs = [session.liveliness().declare_subscriber(k, seen(k), history=True) for k in key_exprs]
+    try:
+        deadline = time.monotonic() + timeout
+        while len(present) < len(key_exprs):
+            left = deadline - time.monotonic()
+            if left <= 0 or (stop is not None and stop.is_set()):
+                break
+            changed.wait(min(left, 0.05))
+            changed.clear()
+    finally:
+        for sub in subs:
+            with contextlib.suppress(Exception):
+                sub.undeclare()
+    return [k for k in key_exprs if k not in present]
 
 
 def free_port(host: str = "127.0.0.1") -> int:

@@ -4,6 +4,7 @@ attachment, liveliness appearance/disappearance, and queryables, on loopback."""
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import pytest
@@ -22,6 +23,7 @@ from skyfuse.services.runtime.transport import (
     open_session,
     query,
     read_wall_stamp,
+    wait_for_tokens,
     wall_stamp,
     zenoh_config,
 )
@@ -103,3 +105,26 @@ def test_listen_port_taken_is_a_clear_error():
         with pytest.raises(TransportError, match="cannot open"):
             with open_session(peer(listen=ep)):
                 pass
+
+
+def test_wait_for_tokens_wakes_on_a_later_token_and_reports_the_missing():
+    """Tokens already alive (history) and one declared later by another session both count;
+    a key nobody declares is returned as missing after the timeout; a set stop ends it."""
+    ep = loopback_endpoint(free_port())
+    with open_session(peer(listen=ep)) as a, open_session(peer(connect=ep)) as b:
+        early = declare_liveliness(b, "skyfuse/@v1/service/early/alive")
+        later: list = []
+        t = threading.Timer(
+            0.3, lambda: later.append(declare_liveliness(b, "skyfuse/@v1/service/late/alive"))
+        )
+        t.start()
+        keys = ["skyfuse/@v1/service/early/alive", "skyfuse/@v1/service/late/alive"]
+        assert wait_for_tokens(a, keys, 10.0) == []
+        assert later, "returned before the late token was declared"
+        absent = "skyfuse/@v1/service/nobody/alive"
+        assert wait_for_tokens(a, [keys[0], absent], 0.5) == [absent]
+        stop = threading.Event()
+        stop.set()
+        assert wait_for_tokens(a, [absent], 30.0, stop) == [absent]
+        t.join()
+        early.undeclare()
