@@ -224,6 +224,12 @@ class TrackerConfig(BaseModel):
         "aircraft flies straight; fusion/tracker/density/imm_mixture.py); None: one step",
     )
     imm_coast_step: float = Field(10.0, gt=0.0, description="IMM: step of a coast's prediction, s")
+    reach_gate: bool = Field(
+        True,
+        description="IMM: a plot farther from the track's last fix than v_max × the time "
+        "since plus the gate's σ of both is not gated (fusion/tracker/density/imm_mixture.py "
+        "ReachGate)",
+    )
 
     # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
     particles: int = Field(
