@@ -88,7 +88,10 @@ class TrackerConfig(BaseModel):
         "are below this (None: only plots no track gated)",
     )
     v_max: float = Field(
-        350.0, gt=0.0, description="Maximum target speed for two-point pairing, m/s"
+        350.0,
+        gt=0.0,
+        description="Maximum target speed, m/s: two-point pairing and the IMM reachability "
+        "gate (reach_gate)",
     )
     init_min_dt: float = Field(
         0.5, ge=0.0, description="Shortest time between the two plots of a pair, s"
