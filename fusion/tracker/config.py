@@ -88,7 +88,10 @@ class TrackerConfig(BaseModel):
         "are below this (None: only plots no track gated)",
     )
     v_max: float = Field(
-        350.0, gt=0.0, description="Maximum target speed for two-point pairing, m/s"
+        350.0,
+        gt=0.0,
+        description="Maximum target speed, m/s: two-point pairing and the IMM reachability "
+        "gate (reach_gate)",
     )
     init_min_dt: float = Field(
         0.5, ge=0.0, description="Shortest time between the two plots of a pair, s"
@@ -224,6 +227,12 @@ class TrackerConfig(BaseModel):
         "aircraft flies straight; fusion/tracker/density/imm_mixture.py); None: one step",
     )
     imm_coast_step: float = Field(10.0, gt=0.0, description="IMM: step of a coast's prediction, s")
+    reach_gate: bool = Field(
+        True,
+        description="IMM: a plot farther from the track's last fix than v_max × the time "
+        "since plus the gate's σ of both is not gated (fusion/tracker/density/imm_mixture.py "
+        "ReachGate)",
+    )
 
     # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
     particles: int = Field(

@@ -28,7 +28,10 @@ Per batch, for the components of the tracks in coverage over their dt:
    track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
    per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
-   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10).
+   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
+   :class:`ReachGate`, eq. C1): a pair whose plot is farther from the track's last fix
+   than v_max times the time since, plus √g times the largest σ of the fix and of the
+   plot, is dropped first.
 4. **Update**: the "no plot" child keeps the predicted modes with μ = c; the child of plot
    i has every mode Kalman-updated (Joseph form) and μ_j ∝ c_j N_j(z_i) (eq. 19), weight
    ξ^{c,i} = β_i ξ^c p^c_i / p^τ_i (5.15). The Singer merge moment-matches each mode of the
@@ -62,6 +65,61 @@ from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layo
 from ..components import history_groups, prune_indices, take_concat
 from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
+
+
+class ReachGate:
+    """Reachability gate from the last plot [IMPL] (issue 17, eq. C1): a plot z_i can be
+    the track's aircraft only if
+
+        ‖z_i − p_f‖ ≤ v_max Δt + √g (σ_f + σ_i),
+
+    p_f the track's position estimate after its last plot of weight > 0.5 (the fix), Δt
+    the time since (the sum of the predictions' dt), σ_f and σ_i the largest standard
+    deviations (√λ_max) of the fix's position and of the plot's R, g the gate. An
+    aircraft moves at most v_max; the fix and the plot are each off by at most √g σ
+    with probability P_G per axis of largest spread. Pairs outside are dropped before
+    the likelihoods: they hold only after a long, loose coast, where the mixture's
+    prediction (its covariance from the linearised turn mode) has outgrown the distance
+    an aircraft can fly. ``speed`` None: no gate. The out-of-sequence update (a plot older
+    than the fix, :mod:`fusion.tracker.oosm_density`) is not gated."""
+
+    def __init__(self, speed: float | None, ndim: int) -> None:
+        self.speed = speed
+        self.pos = [2 * a for a in range(ndim)]  # CV layout [x, vx, y, vy(, z, vz)]
+        self.p = np.zeros((0, ndim))
+        self.sigma = np.zeros(0)
+        self.since = np.zeros(0)
+
+    def _sigma(self, P: np.ndarray) -> np.ndarray:
+        Pp = P[:, self.pos][:, :, self.pos]
+        return np.sqrt(np.maximum(np.linalg.eigvalsh(Pp)[:, -1], 0.0))
+
+    def add(self, x: np.ndarray, P: np.ndarray) -> None:
+        self.p = np.concatenate([self.p, x[:, self.pos]])
+        self.sigma = np.concatenate([self.sigma, self._sigma(P)])
+        self.since = np.concatenate([self.since, np.zeros(len(x))])
+
+    def keep(self, mask: np.ndarray) -> None:
+        self.p, self.sigma, self.since = self.p[mask], self.sigma[mask], self.since[mask]
+
+    def predict(self, rows: np.ndarray, dt: np.ndarray) -> None:
+        self.since[rows] += np.maximum(dt, 0.0)
+
+    def fix(self, rows: np.ndarray, x: np.ndarray, P: np.ndarray) -> None:
+        if len(rows):
+            self.p[rows], self.sigma[rows], self.since[rows] = x[:, self.pos], self._sigma(P), 0.0
+
+    def reachable(
+        self, rows: np.ndarray, since: np.ndarray, z: np.ndarray, R: np.ndarray, g: float
+    ) -> np.ndarray:
+        """(P,) True where plot z (P, k), R (P, k, k) is reachable ``since`` (P,) s after
+        the fix of ``rows``."""
+        if self.speed is None or len(rows) == 0:
+            return np.ones(len(rows), bool)
+        k = z.shape[1]
+        dist = np.linalg.norm(z - self.p[rows][:, :k], axis=1)
+        sr = np.sqrt(np.maximum(np.linalg.eigvalsh(R)[:, -1], 0.0))
+        return dist <= self.speed * since + np.sqrt(g) * (self.sigma[rows] + sr)
 
 
 class ModeTransition:
@@ -154,9 +212,10 @@ class IMMPrediction(MixturePrediction):
     y (C, r, k) and H P Hᵀ (C, r, k, k); z_mean, S0 from the mode-mixed (eq. 20-21)
     component predictions, on first use."""
 
-    def __init__(self, rows, comp: IMMComponents, loc, y, HPH) -> None:
+    def __init__(self, rows, comp: IMMComponents, loc, y, HPH, since=None) -> None:
         super().__init__(rows, comp.w, loc, y, HPH)
         self.comp = comp
+        self.since = since  # (s,) time since each row's fix (ReachGate); None: no gate
 
     def _track_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None:
@@ -209,6 +268,7 @@ class IMMMixtureDensity:
         init_acceleration: float = 5.0,
         coast_after: float | None = None,
         coast_step: float = 10.0,
+        reach_speed: float | None = None,
     ) -> None:
         if transition.r != len(models):
             raise ValueError(f"{len(models)} modes but a {transition.r}-mode transition matrix")
@@ -223,6 +283,7 @@ class IMMMixtureDensity:
         self.init_acceleration = init_acceleration
         self.coast_after = coast_after
         self.coast_step = coast_step
+        self.reach = ReachGate(reach_speed, ndim)
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
         self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
@@ -283,12 +344,14 @@ class IMMMixtureDensity:
         self.comp = IMMComponents.concat([self.comp, new])
         self.x = np.concatenate([self.x, x])
         self.P = np.concatenate([self.P, P])
+        self.reach.add(x, P)
 
     def keep(self, mask: np.ndarray) -> None:
         new_row = np.cumsum(mask) - 1
         self.comp = self.comp.take(np.flatnonzero(mask[self.comp.track]))
         self.comp.track = new_row[self.comp.track]
         self.x, self.P = self.x[mask], self.P[mask]
+        self.reach.keep(mask)
 
     # ------------------------------------------------------------------ predict
     def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
@@ -346,12 +409,14 @@ class IMMMixtureDensity:
         # written in place (the prediction makes new states; update replaces the store)
         comp = self.comp if mine.all() else self.comp.take(np.flatnonzero(mine))
         loc = np.searchsorted(rows, comp.track)
-        pred = self._interact(comp, np.asarray(dt, dtype=np.float64)[loc])
+        dt = np.asarray(dt, dtype=np.float64)
+        self.reach.predict(rows, dt)
+        pred = self._interact(comp, dt[loc])
         y = np.stack([pred.x[j][:, self.pos[j]] for j in range(self.r)], axis=1)
         HPH = np.stack(
             [pred.P[j][:, p[:, None], p[None, :]] for j, p in enumerate(self.pos)], axis=1
         )
-        return IMMPrediction(rows, pred, loc, y, HPH)
+        return IMMPrediction(rows, pred, loc, y, HPH, self.reach.since[rows].copy())
 
     # ------------------------------------------------------------------ likelihoods
     def likelihoods(self, pred: IMMPrediction, z: np.ndarray, R: np.ndarray, g: float) -> IMMTable:
@@ -363,6 +428,11 @@ class IMMMixtureDensity:
         g_pairs = gate(pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), z, R, g)
         key = np.unique((g_pairs.state // r) * max(m, 1) + g_pairs.plot)
         pc, pp = key // max(m, 1), key % max(m, 1)
+        if pred.since is not None:
+            reachable = self.reach.reachable(
+                pred.rows[pred.loc[pc]], pred.since[pred.loc[pc]], z[pp], R[pp], g
+            )
+            pc, pp = pc[reachable], pp[reachable]
         nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
         S = pred.HPH[pc] + R[pp][:, None]
         S = 0.5 * (S + S.swapaxes(-1, -2))
@@ -443,6 +513,8 @@ class IMMMixtureDensity:
     ) -> None:
         children = self._children(pred, table, beta0, beta)  # all of weight > 0
         self.store_children(pred.rows, children, len(table.pair_comp))
+        hit = pred.rows[beta0 < 0.5]
+        self.reach.fix(hit, self.x[hit], self.P[hit])
 
     def store_children(self, rows: np.ndarray, children: IMMComponents, pairs: int) -> None:
         """Merge and prune the updated components ``children`` of the tracks ``rows``
@@ -543,4 +615,5 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         cfg.imm_init_acceleration,
         cfg.imm_coast_after,
         cfg.imm_coast_step,
+        cfg.v_max if cfg.reach_gate else None,
     )
