@@ -82,6 +82,7 @@ CLASSES = frozenset(
         _T + "density.imm_mixture.IMMMixtureDensity",
         _T + "density.imm_mixture.IMMComponents",
         _T + "density.imm_mixture.ModeTransition",
+        _T + "density.imm_mixture.ReachGate",
         _F + "particles.density.ParticleDensity",
         _F + "models.cv.ConstantVelocity",
         _F + "models.coordinated_turn.CoordinatedTurn",
