@@ -118,6 +118,23 @@ def _check_search(
         raise ValueError(f"max_evals = {max_evals}: must be >= 1")
 
 
+def _evaluate_bound(
+    evals: list[tuple[float, float]],
+    f: Callable[[float], float],
+    target: float,
+    tolerance: float,
+    lo: float,
+    hi: float,
+) -> None:
+    """Target out of reach on one side: evaluate the bound itself (one evaluation beyond
+    ``max_evals`` if the bracket ran out of them), so that the result is ψ = hi (or lo)."""
+    psis = [p for p, _ in evals]
+    if all(c < target - tolerance for _, c in evals) and max(psis) < hi:
+        f(hi)
+    elif all(c > target + tolerance for _, c in evals) and min(psis) > lo:
+        f(lo)
+
+
 def calibrate_psi_init(
     count: Callable[[float], float],
     target: float,
@@ -139,7 +156,7 @@ def calibrate_psi_init(
         return c
 
     def done() -> Calibration:
-        _reach_bound()
+        _evaluate_bound(evals, f, target, tolerance, lo, hi)
         best = best_evaluation(evals, target, tolerance)
         if len(evals) < max_evals and sampling_interval(evals, *best)["elasticity"] is None:
             # one probe a factor 2 away measures the slope for the sampling error
@@ -148,15 +165,6 @@ def calibrate_psi_init(
         return Calibration(
             best[0], best[1], target, tolerance, abs(best[1] - target) <= tolerance, evals
         )
-
-    def _reach_bound() -> None:
-        # target out of reach on one side: the bound itself is evaluated (one evaluation
-        # beyond max_evals if the bracket ran out of them), so that ψ = hi (or lo)
-        psis = [p for p, _ in evals]
-        if all(c < target - tolerance for _, c in evals) and max(psis) < hi:
-            f(hi)
-        elif all(c > target + tolerance for _, c in evals) and min(psis) > lo:
-            f(lo)
 
     def ok(c: float) -> bool:
         return abs(c - target) <= tolerance
