@@ -37,7 +37,10 @@ def _live(rec: Path, tmp_path: Path, n_batches: int) -> tuple[list, list, int]:
     """(registration messages, statuses, plot batches applied) of a live run over ``rec``."""
     ep = loopback_endpoint(free_port())
     proc = skyfuse(
-        "fusion", "--listen", ep, "--reorder-wait", "0.3", "--status-interval", "0.5",
+        # a reorder wait well above the inbox delays of a loaded CI machine: the replay is
+        # as fast as it goes, and a batch applied out of order (OOSM) would differ from
+        # the offline run, which the equality below assumes in time order
+        "fusion", "--listen", ep, "--reorder-wait", "3.0", "--status-interval", "0.5",
         "--registration-reference", "LYBE", log_path=tmp_path / "fusion.log",
     )  # fmt: skip
     got: list = []
