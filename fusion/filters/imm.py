@@ -32,7 +32,7 @@ from .model_filter import (
     common_one_point,
     common_two_point,
 )
-from .moment_matching import moment_match_rows
+from .moment_matching import moment_match_rows, moment_match_rows_each
 
 G0 = 9.80665
 
@@ -145,10 +145,10 @@ class IMM:
         common = [self._to_common(i, state.x[i], state.P[i]) for i in range(self.r)]
         xs = np.stack([cx for cx, _ in common], axis=1)  # (n, r, dc)
         Ps = np.stack([cP for _, cP in common], axis=1)
+        xm, Pm = moment_match_rows_each(w, xs, Ps)  # every target mode j at once
         x0, P0 = [], []
         for j in range(self.r):
-            xm, Pm = moment_match_rows(w[:, :, j], xs, Ps)
-            xj, Pj = self._from_common(j, xm, Pm)
+            xj, Pj = self._from_common(j, xm[:, j], Pm[:, j])
             x0.append(xj)
             P0.append(Pj)
         return x0, P0, c

@@ -95,18 +95,10 @@ def moment_match_rows(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Σ_r w[n, r] N(xs[n, r], Ps[n, r]) → (x (n, d), P (n, d, d)) for weights w (n, r)
     summing to 1 per row (IMM mixing and output): :func:`moment_match` with group = row,
-    written as sums over the mode axis (no grouping needed: every row is a group)."""
-    W = w.sum(axis=1)
-    ww = w
-    zero = W <= 0.0
-    if zero.any():  # equal weights in weightless rows, as moment_match
-        ww = np.where(zero[:, None], 1.0, w)
-        W = ww.sum(axis=1)
-    xm = np.einsum("nr,nrd->nd", ww, xs) / W[:, None]
-    dx = xs - xm[:, None, :]
-    spread = Ps + dx[..., :, None] * dx[..., None, :]
-    Pm = np.einsum("nr,nrij->nij", ww, spread) / W[:, None, None]
-    return xm, 0.5 * (Pm + Pm.swapaxes(1, 2))
+    written as sums over the mode axis (no grouping needed: every row is a group);
+    :func:`moment_match_rows_each` with one weighting."""
+    xm, Pm = moment_match_rows_each(w[:, :, None], xs, Ps)
+    return xm[:, 0], Pm[:, 0]
 
 
 def moment_match_rows_each(
