@@ -91,8 +91,7 @@ class ReachGate:
         self.since = np.zeros(0)
 
     def _sigma(self, P: np.ndarray) -> np.ndarray:
-        Pp = P[:, self.pos][:, :, self.pos]
-        return np.sqrt(np.maximum(np.linalg.eigvalsh(Pp)[:, -1], 0.0))
+        return largest_sigma(P[:, self.pos][:, :, self.pos])
 
     def add(self, x: np.ndarray, P: np.ndarray) -> None:
         self.p = np.concatenate([self.p, x[:, self.pos]])
@@ -110,16 +109,20 @@ class ReachGate:
             self.p[rows], self.sigma[rows], self.since[rows] = x[:, self.pos], self._sigma(P), 0.0
 
     def reachable(
-        self, rows: np.ndarray, since: np.ndarray, z: np.ndarray, R: np.ndarray, g: float
+        self, rows: np.ndarray, since: np.ndarray, z: np.ndarray, sigma_z: np.ndarray, g: float
     ) -> np.ndarray:
-        """(P,) True where plot z (P, k), R (P, k, k) is reachable ``since`` (P,) s after
-        the fix of ``rows``."""
+        """(P,) True where plot z (P, k), of largest σ ``sigma_z`` (P,), is reachable
+        ``since`` (P,) s after the fix of ``rows``."""
         if self.speed is None or len(rows) == 0:
             return np.ones(len(rows), bool)
         k = z.shape[1]
         dist = np.linalg.norm(z - self.p[rows][:, :k], axis=1)
-        sr = np.sqrt(np.maximum(np.linalg.eigvalsh(R)[:, -1], 0.0))
-        return dist <= self.speed * since + np.sqrt(g) * (self.sigma[rows] + sr)
+        return dist <= self.speed * since + np.sqrt(g) * (self.sigma[rows] + sigma_z)
+
+
+def largest_sigma(C: np.ndarray) -> np.ndarray:
+    """√λ_max (n,) of covariances C (n, k, k): the standard deviation along the widest axis."""
+    return np.sqrt(np.maximum(np.linalg.eigvalsh(C)[:, -1], 0.0))
 
 
 class ModeTransition:
@@ -428,9 +431,10 @@ class IMMMixtureDensity:
         g_pairs = gate(pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), z, R, g)
         key = np.unique((g_pairs.state // r) * max(m, 1) + g_pairs.plot)
         pc, pp = key // max(m, 1), key % max(m, 1)
-        if pred.since is not None:
+        if pred.since is not None and len(pp):
+            sigma_z = largest_sigma(R)[pp]  # once per plot, not per pair
             reachable = self.reach.reachable(
-                pred.rows[pred.loc[pc]], pred.since[pred.loc[pc]], z[pp], R[pp], g
+                pred.rows[pred.loc[pc]], pred.since[pred.loc[pc]], z[pp], sigma_z, g
             )
             pc, pp = pc[reachable], pp[reachable]
         nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
