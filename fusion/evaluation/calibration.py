@@ -98,9 +98,10 @@ def best_evaluation(
     fall at an arbitrary ψ, e.g. 4 at ψ = 3.5·10⁻⁴ against 0-1 up to ψ = 0.18."""
     if not evals:
         raise ValueError("evals: empty: nothing to choose from")
-    if all(c < target - tolerance for _, c in evals):
+    side = _out_of_reach(evals, target, tolerance)
+    if side == "below":
         return max(evals, key=lambda e: e[0])
-    if all(c > target + tolerance for _, c in evals):
+    if side == "above":
         return min(evals, key=lambda e: e[0])
     return min(evals, key=lambda e: (abs(e[1] - target), -e[0] if e[1] < target else e[0]))
 
@@ -129,10 +130,21 @@ def _evaluate_bound(
     """Target out of reach on one side: evaluate the bound itself (one evaluation beyond
     ``max_evals`` if the bracket ran out of them), so that the result is ψ = hi (or lo)."""
     psis = [p for p, _ in evals]
-    if all(c < target - tolerance for _, c in evals) and max(psis) < hi:
+    side = _out_of_reach(evals, target, tolerance)
+    if side == "below" and max(psis) < hi:
         f(hi)
-    elif all(c > target + tolerance for _, c in evals) and min(psis) > lo:
+    elif side == "above" and min(psis) > lo:
         f(lo)
+
+
+def _out_of_reach(evals: list[tuple[float, float]], target: float, tolerance: float) -> str | None:
+    """ "below" when every count is below ``target − tolerance``, "above" when every count
+    is above ``target + tolerance``, else None (the target is within the counts' range)."""
+    if all(c < target - tolerance for _, c in evals):
+        return "below"
+    if all(c > target + tolerance for _, c in evals):
+        return "above"
+    return None
 
 
 def calibrate_psi_init(
