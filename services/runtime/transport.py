@@ -443,10 +443,11 @@ def wait_for_tokens(
 
         return callback
 
-    subs = [session.liveliness().declare_subscriber(k, seen(k), history=True) for k in key_exprs]
+    wanted = set(key_exprs)
+    subs = [session.liveliness().declare_subscriber(k, seen(k), history=True) for k in wanted]
     try:
         deadline = time.monotonic() + timeout
-        while len(present) < len(key_exprs):
+        while not wanted <= present:
             left = deadline - time.monotonic()
             if left <= 0 or (stop is not None and stop.is_set()):
                 break
