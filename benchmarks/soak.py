@@ -265,6 +265,9 @@ def main() -> None:
     )
     ap.add_argument("--radars", type=int, default=4, help="regional scenario: 3 to 6")
     ap.add_argument(
+        "--sectors", type=int, default=16, help="regional n_sectors: batches per revolution"
+    )
+    ap.add_argument(
         "--traffic",
         choices=("steady", "mixed"),
         default="steady",
@@ -279,7 +282,8 @@ def main() -> None:
     path = a.json or ROOT / "benchmarks" / "results" / f"soak-{a.rate:.0f}-{a.duration:.0f}s.json"
     print(
         f"soak: {a.duration:.0f} s at {a.rate:.0f} plots/s, {a.radars} radars, {a.targets} "
-        f"aircraft, {a.traffic} traffic; {os.cpu_count()} cores, load {os.getloadavg()}",
+        f"aircraft, {a.sectors} sectors, {a.traffic} traffic; {os.cpu_count()} cores, "
+        f"load {os.getloadavg()}",
         flush=True,
     )
     with tempfile.TemporaryDirectory() as tmp:

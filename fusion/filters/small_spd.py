@@ -7,7 +7,8 @@ For k = 2 (horizontal position plots, the service's default) the closed forms
     det S = s₀₀ s₁₁ − s₀₁²,   S⁻¹ = [[s₁₁, −s₀₁], [−s₀₁, s₀₀]] / det S,
     d² = νᵀ S⁻¹ ν = (s₁₁ ν₀² − 2 s₀₁ ν₀ ν₁ + s₀₀ ν₁²) / det S
 
-replace LAPACK's Cholesky factorisation and triangular solves: over the tens to hundreds
+(and λ_max = (a + c)/2 + √(((a − c)/2)² + b²) for the largest eigenvalue) replace
+LAPACK's Cholesky factorisation and triangular solves: over the tens to hundreds
 of pairs of one sector batch, NumPy's per-call and per-matrix overhead of
 ``np.linalg`` costs several times the arithmetic (measured 117 µs against 18 µs for
 150 pairs). They agree with the factorisations to rounding (≈1e-15 relative for the
@@ -52,3 +53,14 @@ def right_solve(B: np.ndarray, S: np.ndarray) -> np.ndarray:
         out[:, :, 1] = b0 * i01 + b1 * i11
         return out
     return np.swapaxes(np.linalg.solve(S, B.swapaxes(-1, -2)), -1, -2)
+
+
+def largest_eigenvalue(C: np.ndarray) -> np.ndarray:
+    """λ_max (n,) of symmetric C (n, k, k): for k = 2 the closed form
+    (a + c)/2 + √(((a − c)/2)² + b²), otherwise LAPACK's ``eigvalsh``."""
+    if C.shape[-1] == 2:
+        a, b, c = C[:, 0, 0], C[:, 0, 1], C[:, 1, 1]
+        return 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
+    if C.shape[-1] == 1:
+        return C[:, 0, 0].copy()
+    return np.linalg.eigvalsh(C)[:, -1]

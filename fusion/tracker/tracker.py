@@ -529,7 +529,7 @@ class Tracker:
         their new estimates, unless the old fix stays more informative (R1')."""
         x, P = self.density.estimate(hit)
         cfg = self.cfg
-        old = keeps_fix(self.fix_P[hit], self.fix_t[hit], P, t, cfg.reid_q, self.model)
+        old = keeps_fix(self.fix_P[hit], self.fix_t[hit], P, t, cfg.reid_q)
         new = hit[~old]
         self.fix_x[new], self.fix_P[new], self.fix_t[new] = x[~old], P[~old], t[~old]
 

@@ -120,7 +120,6 @@ def test_an_aircraft_lost_for_60_s_keeps_its_id(reid):
 def test_a_weak_fix_does_not_replace_a_good_one():
     from skyfuse.fusion.tracker.reidentification import FIX_HORIZON, keeps_fix
 
-    model = ConstantVelocity(q=25.0)
     q, H = 4.0, FIX_HORIZON
     good = np.diag([50.0**2, 5.0**2, 50.0**2, 5.0**2])[None]
 
@@ -130,14 +129,30 @@ def test_a_weak_fix_does_not_replace_a_good_one():
     old = pos_var(50.0, 5.0, 20.0 + H)
     for p_new, v_new in [(60.0, 250.0), (40.0, 4.0), (300.0, 5.0)]:
         new = np.diag([p_new**2, v_new**2, p_new**2, v_new**2])[None]
-        got = keeps_fix(good, np.array([0]), new, np.array([20 * S]), q, model)
+        got = keeps_fix(good, np.array([0]), new, np.array([20 * S]), q)
         assert got.tolist() == [old < pos_var(p_new, v_new, H)]
     # the weak post-coast estimate (velocity σ 250 m/s) keeps the old fix, a good new
     # one replaces it
     weak = np.diag([60.0**2, 250.0**2, 60.0**2, 250.0**2])[None]
     sharp = np.diag([40.0**2, 4.0**2, 40.0**2, 4.0**2])[None]
-    assert keeps_fix(good, np.array([0]), weak, np.array([20 * S]), q, model).tolist() == [True]
-    assert keeps_fix(good, np.array([0]), sharp, np.array([20 * S]), q, model).tolist() == [False]
+    assert keeps_fix(good, np.array([0]), weak, np.array([20 * S]), q).tolist() == [True]
+    assert keeps_fix(good, np.array([0]), sharp, np.array([20 * S]), q).tolist() == [False]
+
+
+@pytest.mark.parametrize("ndim", [2, 3])
+def test_predicted_position_variances_are_the_diagonal_of_the_matrix_prediction(ndim):
+    from skyfuse.fusion.tracker.reidentification import predicted_position_variances
+
+    rng = np.random.default_rng(ndim)
+    d, q = 2 * ndim, 4.0
+    A = rng.normal(size=(7, d, d)) * np.array([300.0, 20.0] * ndim)
+    P = A @ np.swapaxes(A, 1, 2)  # full SPD covariances, cross-axis terms included
+    dt = rng.uniform(0.0, 200.0, 7)
+    model = ConstantVelocity(q=25.0, ndim=ndim)
+    F = model.F(dt)
+    full = F @ P @ np.swapaxes(F, 1, 2) + white_noise_acceleration_q(dt, q, ndim)
+    ref = full[:, list(model.position_index), list(model.position_index)]
+    np.testing.assert_allclose(predicted_position_variances(P, dt, q), ref, rtol=1e-12)
 
 
 def test_still_aircraft_are_not_reidentified():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from skyfuse.fusion.filters.kalman import gain
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
-from skyfuse.fusion.filters.small_spd import quadratic_and_logdet, right_solve
+from skyfuse.fusion.filters.small_spd import largest_eigenvalue, quadratic_and_logdet, right_solve
 from skyfuse.fusion.models import ConstantVelocity
 from skyfuse.fusion.models.conversions import from_common, to_common
 from skyfuse.fusion.tracker.existence import markov_chain_one, markov_chain_two
@@ -45,6 +45,14 @@ def test_right_solve_and_gain_against_inverse(k):
     H[np.arange(k), np.arange(k)] = 1.0
     ref = P @ H.T @ np.linalg.inv(S)
     np.testing.assert_allclose(gain(P, H, S), ref, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_largest_eigenvalue_against_lapack(k):
+    rng = np.random.default_rng(3)
+    C = _spd(rng, 40, k) * 1e4
+    C[0] = np.eye(k) * 7.0  # equal eigenvalues
+    np.testing.assert_allclose(largest_eigenvalue(C), np.linalg.eigvalsh(C)[:, -1], rtol=1e-12)
 
 
 def _loop_match(w, x, P):

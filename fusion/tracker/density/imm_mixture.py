@@ -58,7 +58,7 @@ from skyfuse.fusion.filters.moment_matching import (
     moment_match_rows,
     moment_match_rows_each,
 )
-from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
+from skyfuse.fusion.filters.small_spd import largest_eigenvalue, quadratic_and_logdet
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 
@@ -122,7 +122,7 @@ class ReachGate:
 
 def largest_sigma(C: np.ndarray) -> np.ndarray:
     """√λ_max (n,) of covariances C (n, k, k): the standard deviation along the widest axis."""
-    return np.sqrt(np.maximum(np.linalg.eigvalsh(C)[:, -1], 0.0))
+    return np.sqrt(np.maximum(largest_eigenvalue(C), 0.0))
 
 
 class ModeTransition:
