@@ -16,6 +16,13 @@ JSON to ``docs/reproduction/`` (the cache for resuming goes to
     python benchmarks/reproduction.py --compare DIR     # nCases/CTT beside the thesis
 
     python benchmarks/reproduction.py --delay   # confirmation-delay diagnostic only
+    python benchmarks/reproduction.py mtt50 --false-origin   # where the false tracks are
+
+``--false-origin`` reads the runs of ``OUT/SCENARIO.json`` back from the cache (each
+variant at its ψ_init there, and at the largest ψ_init its calibration evaluated) and
+writes ``OUT/false-origin-SCENARIO.json``: for the tracks false at confirmation, the
+distance to the nearest target at the confirming scan and the share labelled true
+within 3 scans (``fusion.evaluation.summary.false_origin``).
 
 Interrupted runs continue from the cache. ``docs/reproduction/timing.json`` records the
 wall time of every experiment (calibration and runs) on this machine. ``--compare`` reads
@@ -170,6 +177,39 @@ def confirmation_delay(runs: int = 15, seed: int = 7) -> dict:
     return out
 
 
+def false_origins(directory: Path, scenario: str) -> dict:
+    """:func:`false_origin` figures per variant of ``directory/SCENARIO.json`` (module
+    docstring), runs read back from :data:`CACHE` (computed if absent)."""
+    import numpy as np
+    from skyfuse.fusion.evaluation import Experiment, Variant
+    from skyfuse.fusion.evaluation.summary import false_origin
+    from skyfuse.services.evaluation.montecarlo import run_variant_cached
+
+    summary = json.loads((directory / f"{scenario}.json").read_text())
+    exp = Experiment.model_validate(summary["experiment"])
+    cal = summary.get("calibration", {})
+    out = {}
+    for row in summary["rows"]:
+        v = Variant(row["tracker"], int(row["depth"]))
+        psis = {float(row["psi_init"])}
+        psis |= {max(float(p) for p, _ in cal.get(v.key, {}).get("evaluations", [[0, 0]]))}
+        for psi in sorted(p for p in psis if p > 0):
+            block = run_variant_cached(exp, v, psi, exp.runs, CACHE)
+            o = false_origin(block.tracks, block.truth)
+            d = o["distance_m"]
+            pct = np.percentile(d, [10, 50, 90]).round(1).tolist() if len(d) else []
+            out[f"{v.key} psi_init={psi:.3g}"] = {
+                "false_at_confirmation": len(d),
+                "within_100_m": int((d < 100).sum()),
+                "within_1_km": int((d < 1000).sum()),
+                "distance_m_p10_p50_p90": pct,
+                "true_within_3_scans": int(o["true_within_3_scans"].sum()),
+            }
+            print(scenario, f"{v.key} ψ_init={psi:.3g}", out[f"{v.key} psi_init={psi:.3g}"],
+                  flush=True)  # fmt: skip
+    return out
+
+
 def _argv(a: argparse.Namespace, scenario: str, trackers: str, depths: str) -> list[str]:
     argv = ["eval", scenario, "--trackers", trackers, "--depths", depths,
             "--runs", str(a.runs), "--seed", str(a.seed), "--workers", str(a.workers),
@@ -203,6 +243,7 @@ def main() -> int:
     ap.add_argument("--timing", type=Path, default=None, help="Default: OUT/timing.json")
     ap.add_argument("--delay", action="store_true", help="Only the confirmation-delay diagnostic")
     ap.add_argument("--compare", type=Path, default=None, help="Only print the comparison")
+    ap.add_argument("--false-origin", action="store_true", help="Only the false-track origins")
     a = ap.parse_args()
     if a.compare is not None:
         print(compare(a.compare))
@@ -210,6 +251,12 @@ def main() -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     if a.delay:
         (a.out / "confirmation-delay.json").write_text(json.dumps(confirmation_delay(), indent=1))
+        return 0
+    if a.false_origin:
+        for name in a.experiments or list(EXPERIMENTS):
+            scenario = EXPERIMENTS[name][0]
+            res = false_origins(a.out, scenario)
+            (a.out / f"false-origin-{scenario}.json").write_text(json.dumps(res, indent=1))
         return 0
     timing_path = a.timing or a.out / "timing.json"
     timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
