@@ -22,7 +22,8 @@ JSON to ``docs/reproduction/`` (the cache for resuming goes to
 variant at its ψ_init there, and at the largest ψ_init its calibration evaluated) and
 writes ``OUT/false-origin-SCENARIO.json``: for the tracks false at confirmation, the
 distance to the nearest target at the confirming scan and the share labelled true
-within 3 scans (``fusion.evaluation.summary.false_origin``).
+within 3 scans (``fusion.evaluation.summary.false_origin``), with nCases and nOK of the
+same runs.
 
 Interrupted runs continue from the cache. ``docs/reproduction/timing.json`` records the
 wall time of every experiment (calibration and runs) on this machine. ``--compare`` reads
@@ -182,7 +183,7 @@ def false_origins(directory: Path, scenario: str) -> dict:
     docstring), runs read back from :data:`CACHE` (computed if absent)."""
     import numpy as np
     from skyfuse.fusion.evaluation import Experiment, Variant
-    from skyfuse.fusion.evaluation.summary import false_origin
+    from skyfuse.fusion.evaluation.summary import false_origin, summarise
     from skyfuse.services.evaluation.montecarlo import run_variant_cached
 
     summary = json.loads((directory / f"{scenario}.json").read_text())
@@ -198,7 +199,10 @@ def false_origins(directory: Path, scenario: str) -> dict:
             o = false_origin(block.tracks, block.truth)
             d = o["distance_m"]
             pct = np.percentile(d, [10, 50, 90]).round(1).tolist() if len(d) else []
+            row = summarise(block, exp, v, psi)["row"]
             out[f"{v.key} psi_init={psi:.3g}"] = {
+                "nCases": row["nCases"],
+                "nOK": row["nOK"],
                 "false_at_confirmation": len(d),
                 "within_100_m": int((d < 100).sum()),
                 "within_1_km": int((d < 1000).sum()),
