@@ -199,10 +199,10 @@ def false_origins(directory: Path, scenario: str) -> dict:
             o = false_origin(block.tracks, block.truth)
             d = o["distance_m"]
             pct = np.percentile(d, [10, 50, 90]).round(1).tolist() if len(d) else []
-            row = summarise(block, exp, v, psi)["row"]
+            measured = summarise(block, exp, v, psi)["row"]
             out[f"{v.key} psi_init={psi:.3g}"] = {
-                "nCases": row["nCases"],
-                "nOK": row["nOK"],
+                "nCases": measured["nCases"],
+                "nOK": measured["nOK"],
                 "false_at_confirmation": len(d),
                 "within_100_m": int((d < 100).sum()),
                 "within_1_km": int((d < 1000).sum()),
