@@ -8,8 +8,9 @@ false tracks from one run into the next (spec 03 §2 "Across runs"). Per run r:
    the scans (plots z, origin ``target_id``, −1 for clutter) and the true states at the
    scan times; the time axis is shifted by r·duration (run r + 1 follows run r);
 2. every scan is one :class:`~fusion.tracker.MeasurementBatch` (R = σ² I, the sensor's
-   P_D) stepped through the tracker; CPU time (``time.process_time``) is summed over the
-   tracker steps only;
+   P_D, the true clutter density at each plot for a known-clutter tracker) stepped
+   through the tracker; CPU time (``time.process_time``) is summed over the tracker
+   steps only;
 3. each track is labelled with :class:`~fusion.metrics.labelling.TruthLabeller` (7.1)
    using the origin target of the plot the track selected this scan
    (``TrackerOutput.assigned_plot``: the most likely plot, when more likely than a miss);
@@ -34,6 +35,7 @@ import numpy as np
 from skyfuse.fusion.metrics.history import TrackHistory, TruthHistory
 from skyfuse.fusion.metrics.labelling import FALSE, TruthLabeller, two_point_covariance
 from skyfuse.fusion.sim import Simulator, build_scenario
+from skyfuse.fusion.sim.cartesian import clutter_density_at
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker
 from skyfuse.fusion.tracker.initiation import PlotBuffer
 
@@ -105,7 +107,11 @@ class RunInput:
     """The simulated data of one run, shared by all variants: per scan the scan number,
     time (ns, unshifted), plots z (m, 2) and their origin target ids; the true states
     (K, n, 4) interleaved [x, vx, y, vy] with alive (K, n) and target ids (n,); σ² and
-    P_D of the sensor; the scenario duration (s) and scan period T (s)."""
+    P_D of the sensor; the scenario duration (s) and scan period T (s); ``clutter_density``
+    per scan the true clutter density at each plot (m⁻² per scan, the scenario's clutter
+    regions, :func:`fusion.sim.cartesian.clutter_density_at`), what a tracker with
+    ``clutter = "known"`` is told (the default non-parametric estimate ignores it); None
+    = 0 at every plot."""
 
     scan: np.ndarray
     time_ns: np.ndarray
@@ -118,6 +124,7 @@ class RunInput:
     p_detection: float
     duration: float
     period: float
+    clutter_density: list[np.ndarray] | None = None
 
 
 def simulate_run(exp: Experiment, run: int) -> RunInput:
@@ -126,7 +133,7 @@ def simulate_run(exp: Experiment, run: int) -> RunInput:
     sc = build_scenario(exp.scenario, seed=rs, **exp.scenario_params)
     if len(sc.sites) != 1 or sc.sites[0].kind != "cartesian":
         raise ValueError(f"scenario {exp.scenario!r}: needs one planar cartesian sensor")
-    site = sc.sites[0]
+    site, sensor = sc.sites[0], sc.sensors[0]
     sim = Simulator(sc, seed=rs)
     scans = list(sim.scans())
     times = np.array([s.time_end for s in scans], dtype=np.int64)
@@ -144,6 +151,7 @@ def simulate_run(exp: Experiment, run: int) -> RunInput:
         p_detection=float(site.p_detection),
         duration=float(sc.duration),
         period=float(site.scan_period),
+        clutter_density=[clutter_density_at(sensor, s.z[:, 0], s.z[:, 1]) for s in scans],
     )
 
 
@@ -186,7 +194,7 @@ class VariantRunner:
                 z=d.z[j],
                 R=R,
                 p_detection=d.p_detection,
-                clutter_density=0.0,
+                clutter_density=0.0 if d.clutter_density is None else d.clutter_density[j],
                 target_ids=d.origin[j],
             )
             t0 = time.process_time()

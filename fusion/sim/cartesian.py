@@ -12,6 +12,23 @@ from .sensor import RectRegion, SensorConfig
 from .trajectories import TargetSet
 
 
+def clutter_regions(cfg: SensorConfig) -> list[RectRegion]:
+    """The sensor's clutter rectangles: its coverage at ``site.clutter_density`` and its
+    extra ``regions``; densities add where they overlap."""
+    x0, x1, y0, y1 = cfg.coverage
+    return [RectRegion(x0, x1, y0, y1, cfg.site.clutter_density), *cfg.regions]
+
+
+def clutter_density_at(cfg: SensorConfig, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The true clutter density (expected false plots per m² per scan) at points (x, y) m:
+    the sum over :func:`clutter_regions` of each rectangle's density where it contains the
+    point. It is what a known-clutter tracker (``clutter = "known"``) is told per plot."""
+    total = np.zeros(np.broadcast(np.asarray(x), np.asarray(y)).shape)
+    for reg in clutter_regions(cfg):
+        total = total + reg.density_at(x, y)
+    return total
+
+
 def cartesian_scan(
     cfg: SensorConfig,
     k: int,
@@ -41,8 +58,7 @@ def cartesian_scan(
     det = u_det < site.p_detection
     tx = pos[det, 0] + site.sigma_cartesian * noise[det, 0]
     ty = pos[det, 1] + site.sigma_cartesian * noise[det, 1]
-    x0, x1, y0, y1 = cfg.coverage
-    regions = [RectRegion(x0, x1, y0, y1, site.clutter_density), *cfg.regions]
+    regions = clutter_regions(cfg)
     samples = [reg.sample(rng) for reg in regions]
     cx = np.concatenate([s[0] for s in samples])
     cy = np.concatenate([s[1] for s in samples])

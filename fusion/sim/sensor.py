@@ -34,6 +34,14 @@ class RectRegion:
         """m²"""
         return (self.x_max - self.x_min) * (self.y_max - self.y_min)
 
+    def density_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The region's clutter density (m⁻² per scan) at points (x, y) in m: ``density``
+        inside the half-open rectangle [x_min, x_max) × [y_min, y_max), else 0 (so two
+        rectangles that share an edge never both count a point on it)."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        inside = (x >= self.x_min) & (x < self.x_max) & (y >= self.y_min) & (y < self.y_max)
+        return np.where(inside, self.density, 0.0)
+
     def sample(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Poisson(density × area) points uniform over the rectangle: (x, y) in m."""
         n = rng.poisson(self.density * self.area)

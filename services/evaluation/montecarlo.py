@@ -63,6 +63,10 @@ Advance = Callable[[int], None]
 #: Bumped when the tracker's numbers change for the same settings (2: m̂ of 2.35 counted
 #: in the track-level gate, issue 16), so that older cached blocks are not reused.
 CACHE_VERSION = 2
+#: Version of the known-clutter runs alone (2: the runner tells a ``clutter = "known"``
+#: tracker the scenario's true density at each plot, it used to pass 0), so that the
+#: still valid non-parametric caches keep being reused.
+KNOWN_CLUTTER_VERSION = 2
 EngineKind = Literal["auto", "dask", "processes"]
 
 
@@ -87,6 +91,9 @@ class TrackerEvalConfig(BaseModel):
     out: Path | None = Field(None, description="Directory for tables, figures, JSON, cache")
     trackers: list[str] = Field(["its", "lmits"], description="Trackers to compare")
     depths: list[int] = Field([1, 3, 5, 7, 9], description="Singer memory depths N")
+    param: list[str] = Field(
+        default_factory=list, description="Scenario parameter overrides KEY=VALUE,KEY=VALUE"
+    )
     calibrate: bool = Field(
         False, description="Search ψ_init per tracker and depth for the source's false tracks"
     )
@@ -283,6 +290,8 @@ def experiment_key(exp: Experiment) -> str:
         k: v for k, v in shared.items() if k not in ("tracker", "depth", "psi_init")
     }
     d["cache_version"] = CACHE_VERSION
+    if shared["clutter"] == "known":
+        d["known_clutter_version"] = KNOWN_CLUTTER_VERSION
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
@@ -682,13 +691,19 @@ def _calibration(
 
 def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
     from pydantic import ValidationError
-    from skyfuse.services.cli.config import ConfigError, format_validation_error
+    from skyfuse.fusion.sim import build_scenario
+    from skyfuse.services.cli.config import (
+        ConfigError,
+        format_validation_error,
+        parse_key_values,
+    )
     from skyfuse.services.cli.progress import progress_bar
 
     settings, psi = _tracker_settings(args)
     try:
         exp = Experiment(
             scenario=cfg.scenario,
+            scenario_params=parse_key_values(cfg.param),
             trackers=cfg.trackers,
             depths=cfg.depths,
             runs=cfg.runs,
@@ -699,8 +714,11 @@ def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
         )
         for v in exp.variants():
             exp.tracker_config(v)
+        build_scenario(exp.scenario, seed=exp.seed, **exp.scenario_params)
     except ValidationError as e:
         raise ConfigError(format_validation_error(e)) from None
+    except (ValueError, TypeError) as e:  # a scenario parameter, named by the builder
+        raise ConfigError(f"param: {e}") from None
     out = cfg.out
     cache = cfg.cache or (out / "cache" if out is not None else None)
     variants = exp.variants()

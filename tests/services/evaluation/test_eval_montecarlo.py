@@ -304,3 +304,41 @@ def test_calibration_through_the_cache_is_reused_by_the_runs_and_a_warm_restart(
     seen = {p for p, _ in cached["its:1"]["evaluations"]}
     new = [p for p, _ in again["its:1"]["evaluations"] if p not in seen]
     assert len(calls) == 2 * len(new)
+
+
+def test_known_clutter_runs_are_told_the_true_density_at_each_plot():
+    """thesis-stt: each plot's density is the region it falls in (weak left of split_x,
+    strong right of it, none outside the area); the non-parametric estimate ignores it (same numbers with and
+    without), a known-clutter tracker does not (the densities reach the tracker)."""
+    from dataclasses import replace
+
+    from skyfuse.fusion.evaluation.runner import simulate_run
+
+    exp = Experiment(scenario="thesis-stt", trackers=["ipda"], runs=1, seed=2)
+    d = simulate_run(exp, 0)
+    split = exp.scenario_params.get("split_x", 900.0 / 2.7)
+    outside = 0
+    for z, rho in zip(d.z, d.clutter_density, strict=True):
+        inside = ((z >= 0.0) & (z < 900.0)).all(axis=1)  # a target plot may fall outside
+        outside += int((~inside).sum())
+        expected = np.where(z[:, 0] < split, 2e-5, 2e-4)
+        np.testing.assert_array_equal(rho, np.where(inside, expected, 0.0))
+    assert outside < 5
+    blind = replace(d, clutter_density=None)
+    v = Variant("ipda", 0)
+    for clutter, same in (("estimated", True), ("known", False)):
+        e = exp.model_copy(update={"tracker_settings": {"clutter": clutter}})
+        a = VariantRunner(e, v, 0.05).run(0, d).tracks
+        b = VariantRunner(e, v, 0.05).run(0, blind).tracks
+        equal = len(a.existence) == len(b.existence) and np.array_equal(a.existence, b.existence)
+        assert equal is same, clutter
+
+
+def test_eval_passes_scenario_parameters_and_names_a_bad_one(tmp_path, capsys):
+    out = tmp_path / "d.json"
+    argv = ["eval", "thesis-stt", "--trackers", "ipda", "--runs", "1", "--json", str(out)]
+    assert main([*argv, "--param", "weak_density=1e-5,strong_density=3e-4"]) == 0
+    params = json.loads(out.read_text())["experiment"]["scenario_params"]
+    assert params == {"weak_density": 1e-5, "strong_density": 3e-4}
+    assert main([*argv, "--param", "weak_dens=1e-5"]) == 2
+    assert "unknown parameter 'weak_dens'" in capsys.readouterr().err
