@@ -308,8 +308,9 @@ def test_calibration_through_the_cache_is_reused_by_the_runs_and_a_warm_restart(
 
 def test_known_clutter_runs_are_told_the_true_density_at_each_plot():
     """thesis-stt: each plot's density is the region it falls in (weak left of split_x,
-    strong right of it, none outside the area); the non-parametric estimate ignores it (same numbers with and
-    without), a known-clutter tracker does not (the densities reach the tracker)."""
+    strong right of it, none outside the area); the non-parametric estimate ignores it
+    (same numbers with and without), a known-clutter tracker does not (the densities
+    reach the tracker)."""
     from dataclasses import replace
 
     from skyfuse.fusion.evaluation.runner import simulate_run
