@@ -9,7 +9,10 @@ JSON to ``docs/reproduction/`` (the cache for resuming goes to
 * ``stt``:   thesis-stt, IPDA vs ITS N = 1, 2, 3;
 * ``mtt5``:  thesis-mtt-5, ITS vs LM-ITS, N = 1, 3, 5, 7, 9, 11;
 * ``mtt15``: thesis-mtt-15, ITS vs LM-ITS, N = 1, 3, 5, 7, 9;
-* ``mtt50``: thesis-mtt-50, ITS vs LM-ITS, N = 1, 3, 5, 7, 9.
+* ``mtt50``: thesis-mtt-50, ITS vs LM-ITS, N = 1, 3, 5, 7, 9;
+* ``stt-known``: thesis-stt as ``stt`` under the reading that reproduces the source's
+  single-target table (known clutter density, weak region 1e-5 m⁻²), in
+  ``OUT/stt-known-clutter/``.
 
     python benchmarks/reproduction.py                   # every table and figure, 500 runs
     python benchmarks/reproduction.py mtt5 --runs 100 --scheduler tcp://HOST:8786
@@ -39,6 +42,7 @@ import os
 import platform
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from skyfuse.services.cli.main import main as skyfuse
 
@@ -46,12 +50,36 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "reproduction"
 CACHE = ROOT / "out" / "reproduction-cache"
 
+
+class Spec(NamedTuple):
+    """One experiment: the scenario, trackers and depths of ``skyfuse eval``, the number
+    of targets; a reading of the source other than the stated model writes to its own
+    sub-directory of OUT with the extra ``skyfuse eval`` arguments that define it."""
+
+    scenario: str
+    trackers: str
+    depths: str
+    targets: int
+    subdir: str = ""
+    extra: tuple[str, ...] = ()
+
+
 EXPERIMENTS = {
-    # name: (scenario, trackers, depths, targets)
-    "stt": ("thesis-stt", "ipda,its", "1,2,3", 1),
-    "mtt5": ("thesis-mtt-5", "its,lmits", "1,3,5,7,9,11", 5),
-    "mtt15": ("thesis-mtt-15", "its,lmits", "1,3,5,7,9", 15),
-    "mtt50": ("thesis-mtt-50", "its,lmits", "1,3,5,7,9", 50),
+    "stt": Spec("thesis-stt", "ipda,its", "1,2,3", 1),
+    "mtt5": Spec("thesis-mtt-5", "its,lmits", "1,3,5,7,9,11", 5),
+    "mtt15": Spec("thesis-mtt-15", "its,lmits", "1,3,5,7,9", 15),
+    "mtt50": Spec("thesis-mtt-50", "its,lmits", "1,3,5,7,9", 50),
+    # the reading that reproduces the single-target table (docs/reproduction.md "Single
+    # target: the reading that reproduces it"): the true clutter density known at each
+    # plot, and the weak region at the 1e-5 m⁻² of the thesis's §7.2
+    "stt-known": Spec(
+        "thesis-stt",
+        "ipda,its",
+        "1,2,3",
+        1,
+        "stt-known-clutter",
+        ("--clutter", "known", "--param", "weak_density=1e-5"),
+    ),
 }
 
 #: The source's retention tables, 500 runs each: thesis ch. 7, Tables 7.2.1 (STT),
@@ -125,8 +153,10 @@ def compare(directory: Path) -> str:
         "thesis nCases (share) | nOK / thesis | merged / 500 runs (thesis) |",
         "|---|---|---:|---:|---:|---:|---|---:|---|---|---|",
     ]
-    for scenario, _, _, targets in EXPERIMENTS.values():
-        path = directory / f"{scenario}.json"
+    for spec in EXPERIMENTS.values():
+        scenario, targets = spec.scenario, spec.targets
+        label = f"{scenario} ({spec.subdir})" if spec.subdir else scenario
+        path = directory / spec.subdir / f"{scenario}.json"
         if not path.exists():
             continue
         d = json.loads(path.read_text())
@@ -143,7 +173,7 @@ def compare(directory: Path) -> str:
             mg = row["merged"] * THESIS_RUNS / row["runs"]
             mg_s = f"{mg:.0f} ({th[4]})" if th else f"{mg:.0f}"
             lines.append(
-                f"| {scenario} | {key[0]} | {key[1]} | {row['runs']} | {row['psi_init']:.3g} | "
+                f"| {label} | {key[0]} | {key[1]} | {row['runs']} | {row['psi_init']:.3g} | "
                 f"{row['nCases']} | {100 * row['nCases'] / cases:.0f} % [{100 * lo:.0f}, "
                 f"{100 * hi:.0f}] | {ctt14:.1f} % | {th_s} | {ok_s} | {mg_s} |"
             )
@@ -214,11 +244,11 @@ def false_origins(directory: Path, scenario: str) -> dict:
     return out
 
 
-def _argv(a: argparse.Namespace, scenario: str, trackers: str, depths: str) -> list[str]:
+def _argv(a: argparse.Namespace, out: Path, scenario: str, trackers: str, depths: str) -> list[str]:
     argv = ["eval", scenario, "--trackers", trackers, "--depths", depths,
             "--runs", str(a.runs), "--seed", str(a.seed), "--workers", str(a.workers),
-            "--engine", a.engine, "--out", str(a.out), "--cache", str(CACHE),
-            "--calibration-file", str(a.out / f"calibration-{scenario}.json"),
+            "--engine", a.engine, "--out", str(out), "--cache", str(CACHE),
+            "--calibration-file", str(out / f"calibration-{scenario}.json"),
             "--no-progress"]  # fmt: skip
     if a.scheduler:
         argv += ["--scheduler", a.scheduler]
@@ -258,9 +288,10 @@ def main() -> int:
         return 0
     if a.false_origin:
         for name in a.experiments or list(EXPERIMENTS):
-            scenario = EXPERIMENTS[name][0]
-            res = false_origins(a.out, scenario)
-            (a.out / f"false-origin-{scenario}.json").write_text(json.dumps(res, indent=1))
+            spec = EXPERIMENTS[name]
+            res = false_origins(a.out / spec.subdir, spec.scenario)
+            path = a.out / spec.subdir / f"false-origin-{spec.scenario}.json"
+            path.write_text(json.dumps(res, indent=1))
         return 0
     timing_path = a.timing or a.out / "timing.json"
     timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
@@ -268,14 +299,16 @@ def main() -> int:
     if unknown:
         ap.error(f"experiment {unknown[0]!r}: choose from {', '.join(EXPERIMENTS)}")
     for name in a.experiments or list(EXPERIMENTS):
-        scenario, trackers, depths, _ = EXPERIMENTS[name]
-        argv = _argv(a, scenario, trackers, a.depths or depths)
+        spec = EXPERIMENTS[name]
+        scenario, out = spec.scenario, a.out / spec.subdir
+        out.mkdir(parents=True, exist_ok=True)
+        argv = [*_argv(a, out, scenario, spec.trackers, a.depths or spec.depths), *spec.extra]
         print(f"== {name}: skyfuse {' '.join(argv)}", flush=True)
         t0 = time.perf_counter()
         code = skyfuse(argv)
         if code:
             return code
-        summary = json.loads((a.out / f"{scenario}.json").read_text())
+        summary = json.loads((out / f"{scenario}.json").read_text())
         timing[name] = {
             "scenario": scenario,
             "runs": a.runs,

@@ -29,23 +29,28 @@ def predicted_s() -> np.ndarray:
     return pp[0, 0] * np.eye(2) + R
 
 
-def closed_form_gain(psi0: float, p_d: float, volume: float, S: np.ndarray) -> float:
-    """E[logit ψ_{k|k} − logit ψ_{k−1|k−1}] for one scan (MC1 Δ11 = 0.98)."""
+def closed_form_gain(
+    psi0: float, p_d: float, volume: float, S: np.ndarray, rho: float | None = None
+) -> float:
+    """E[logit ψ_{k|k} − logit ψ_{k−1|k−1}] for one scan (MC1 Δ11 = 0.98); ``rho``: a
+    known clutter density instead of the estimate m̂/V."""
     p_g = chi2.cdf(G, 2)
     a = p_d * p_g
     psi_pred = 0.98 * psi0
-    m_hat = 1.0 - a * psi_pred
+    rho = (1.0 - a * psi_pred) / volume if rho is None else rho
     norm = 1.0 / (2.0 * np.pi * np.sqrt(np.linalg.det(S)))
 
     def integrand(x: float) -> float:
-        lam = 1.0 - a + a * volume * norm * np.exp(-x / 2.0) / (p_g * m_hat)
+        lam = 1.0 - a + a * norm * np.exp(-x / 2.0) / (p_g * rho)
         return chi2.pdf(x, 2) * np.log(lam)
 
     hit = p_d * quad(integrand, 0.0, G)[0]
     return hit + (1.0 - a) * np.log(1.0 - a) + logit(psi_pred) - logit(psi0)
 
 
-def simulated_gain(psi0: float, p_d: float, clutter_volume: float | None, n: int = 1500):
+def simulated_gain(
+    psi0: float, p_d: float, clutter_volume: float | None, n: int = 1500, rho: float = 0.0
+):
     cfg = TrackerConfig(
         tracker="ipda",
         motion="cv",
@@ -53,7 +58,7 @@ def simulated_gain(psi0: float, p_d: float, clutter_volume: float | None, n: int
         psi_init=psi0,
         tau_terminate=1e-9,
         initiation="none",
-        clutter="estimated",
+        clutter="known" if rho else "estimated",
         clutter_volume=clutter_volume,
         delta11=0.98,
         delta21=0.0,
@@ -70,7 +75,7 @@ def simulated_gain(psi0: float, p_d: float, clutter_volume: float | None, n: int
     S = predicted_s()
     det = rng.random(n) < p_d
     z = centres[det] + rng.multivariate_normal(np.zeros(2), S, size=int(det.sum()))
-    out = trk.step(MeasurementBatch(1_000_000_000, "r", z, R, p_d))
+    out = trk.step(MeasurementBatch(1_000_000_000, "r", z, R, p_d, clutter_density=rho))
     assert len(out) == n
     gain = logit(out.existence) - logit(psi0)
     return gain.mean(), gain.std(ddof=1) / np.sqrt(n)
@@ -87,6 +92,19 @@ def test_one_scan_gain_matches_closed_form(psi0, p_d, kappa):
     mean, se = simulated_gain(psi0, p_d, None if kappa is None else volume)
     expected = closed_form_gain(psi0, p_d, volume, S)
     assert abs(mean - expected) < 4.0 * se + 1e-3, (mean, se, expected)
+
+
+@pytest.mark.parametrize(("psi0", "rho"), [(0.001, 1e-5), (0.01, 2e-4)])
+def test_one_scan_gain_with_a_known_density_matches_closed_form(psi0, rho):
+    """The reading that reproduces the single-target table: ρ known (thesis-stt's weak
+    and strong regions) at P_D = 0.6, first update after the two-point start. Gain
+    > 1 nat per scan in the weak region, against < 0 under the estimate (next test)."""
+    S = predicted_s()
+    mean, se = simulated_gain(psi0, 0.6, None, rho=rho)
+    expected = closed_form_gain(psi0, 0.6, 0.0, S, rho=rho)
+    assert abs(mean - expected) < 4.0 * se + 1e-3, (mean, se, expected)
+    if rho == 1e-5:
+        assert expected > 1.0
 
 
 def test_stated_model_loses_existence_at_low_detection():
