@@ -12,7 +12,10 @@ JSON to ``docs/reproduction/`` (the cache for resuming goes to
 * ``mtt50``: thesis-mtt-50, ITS vs LM-ITS, N = 1, 3, 5, 7, 9;
 * ``stt-known``: thesis-stt as ``stt`` under the reading that reproduces the source's
   single-target table (known clutter density, weak region 1e-5 m⁻²), in
-  ``OUT/stt-known-clutter/``.
+  ``OUT/stt-known-clutter/``;
+* ``mtt50-its-psi0.5``: thesis-mtt-50, ITS at ψ_init = 0.5, the reading of its 50-target
+  row (false = on no target, none at any ψ_init, so the bound), in
+  ``OUT/mtt50-its-psi0.5/``.
 
     python benchmarks/reproduction.py                   # every table and figure, 500 runs
     python benchmarks/reproduction.py mtt5 --runs 100 --scheduler tcp://HOST:8786
@@ -62,6 +65,7 @@ class Spec(NamedTuple):
     targets: int
     subdir: str = ""
     extra: tuple[str, ...] = ()
+    calibrate: bool = True
 
 
 EXPERIMENTS = {
@@ -79,6 +83,17 @@ EXPERIMENTS = {
         1,
         "stt-known-clutter",
         ("--clutter", "known", "--param", "weak_density=1e-5"),
+    ),
+    # the reading of the 50-target ITS row: the source's false tracks are tracks on no
+    # target, of which there are none at any ψ_init, so ψ_init takes the bound 0.5
+    "mtt50-its-psi0.5": Spec(
+        "thesis-mtt-50",
+        "its",
+        "1,3,5,7,9",
+        50,
+        "mtt50-its-psi0.5",
+        ("--psi-init", "0.5"),
+        calibrate=False,
     ),
 }
 
@@ -244,7 +259,9 @@ def false_origins(directory: Path, scenario: str) -> dict:
     return out
 
 
-def _argv(a: argparse.Namespace, out: Path, scenario: str, trackers: str, depths: str) -> list[str]:
+def _argv(
+    a: argparse.Namespace, out: Path, scenario: str, trackers: str, depths: str, calibrate: bool
+) -> list[str]:
     argv = ["eval", scenario, "--trackers", trackers, "--depths", depths,
             "--runs", str(a.runs), "--seed", str(a.seed), "--workers", str(a.workers),
             "--engine", a.engine, "--out", str(out), "--cache", str(CACHE),
@@ -256,7 +273,7 @@ def _argv(a: argparse.Namespace, out: Path, scenario: str, trackers: str, depths
         argv += ["--calibration-runs", str(a.calibration_runs)]
     if a.clutter_volume:
         argv += ["--clutter-volume", str(a.clutter_volume)]
-    if not a.no_calibrate:
+    if calibrate and not a.no_calibrate:
         argv.append("--calibrate")
     return argv
 
@@ -302,7 +319,8 @@ def main() -> int:
         spec = EXPERIMENTS[name]
         scenario, out = spec.scenario, a.out / spec.subdir
         out.mkdir(parents=True, exist_ok=True)
-        argv = [*_argv(a, out, scenario, spec.trackers, a.depths or spec.depths), *spec.extra]
+        argv = _argv(a, out, scenario, spec.trackers, a.depths or spec.depths, spec.calibrate)
+        argv += spec.extra
         print(f"== {name}: skyfuse {' '.join(argv)}", flush=True)
         t0 = time.perf_counter()
         code = skyfuse(argv)
@@ -312,7 +330,9 @@ def main() -> int:
         timing[name] = {
             "scenario": scenario,
             "runs": a.runs,
-            "calibration_runs": None if a.no_calibrate else (a.calibration_runs or a.runs),
+            "calibration_runs": (
+                None if a.no_calibrate or not spec.calibrate else (a.calibration_runs or a.runs)
+            ),
             "variants": len(summary["rows"]),
             "wall_s": round(time.perf_counter() - t0, 1),
             "calibration_s": summary.get("calibration_s"),
