@@ -277,6 +277,10 @@ def main() -> None:
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=60.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument(
+        "--keep", type=Path, default=None,
+        help="work directory to keep (input file, recording, client lines, logs, state)",
+    )  # fmt: skip
     a = ap.parse_args()
     a.profile = None
     path = a.json or ROOT / "benchmarks" / "results" / f"soak-{a.rate:.0f}-{a.duration:.0f}s.json"
@@ -286,8 +290,12 @@ def main() -> None:
         f"load {os.getloadavg()}",
         flush=True,
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        out = run(a, Path(tmp))
+    if a.keep is not None:  # the simulated file, the recording, logs and state, kept
+        a.keep.mkdir(parents=True, exist_ok=True)
+        out = run(a, a.keep)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = run(a, Path(tmp))
     for w in out["windows"]:
         print(json.dumps(w))
     print(json.dumps({k: out[k] for k in ("accounting", "rss", "offered_plots_per_s", "send_s",

@@ -35,6 +35,14 @@ def _split_list(text: str) -> list[str]:
     return [part.strip() for part in text.split(",") if part.strip()]
 
 
+class _ExtendList(argparse.Action):
+    """A list flag: ``--param a=1,b=2`` and ``--param a=1 --param b=2`` give the same
+    list (a repeated flag adds to the list; it used to replace it silently)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, [*getattr(namespace, self.dest, []), *values])
+
+
 def parse_key_values(items: list[str]) -> dict[str, Any]:
     """``["a=1", "b=x"]`` → ``{"a": 1, "b": "x"}``: values parsed as JSON where they are
     (numbers, booleans, lists), else kept as strings."""
@@ -59,7 +67,8 @@ def add_model_arguments(
     short: dict[str, str] | None = None,
 ) -> None:
     """Add one flag per field of ``model``. Defaults are left to the model (argparse uses
-    SUPPRESS) so that TOML values are not overridden by flags that were not given."""
+    SUPPRESS) so that TOML values are not overridden by flags that were not given. A
+    list field takes ``A,B,...`` and may be repeated (the values add up)."""
     short = short or {}
     for name, field in model.model_fields.items():
         if name in skip:
@@ -88,7 +97,9 @@ def add_model_arguments(
             kwargs["action"] = argparse.BooleanOptionalAction
         elif typing.get_origin(ann) is list:
             kwargs["type"] = _split_list
+            kwargs["action"] = _ExtendList
             kwargs["metavar"] = "A,B,..."
+            kwargs["help"] = help_text + "; repeatable"
         elif isinstance(ann, type) and issubclass(ann, Enum):
             kwargs["choices"] = [e.value for e in ann]
         elif typing.get_origin(ann) is typing.Literal:

@@ -138,3 +138,16 @@ def test_replay_honours_a_stop_while_waiting_for_a_subscriber(simulated_recordin
     threading.Timer(0.2, stop.set).start()
     with open_session(peer()) as s:
         assert _wait_subscriber(s, keys.radar_plots("R1"), 30.0, stop) is False
+
+
+def test_a_repeated_list_flag_adds_to_the_list_instead_of_replacing_it():
+    """``--param radars=3 --param traffic=steady`` used to keep only the last flag (the
+    soak benchmark's 'steady' traffic was silently dropped); both spellings now agree."""
+    parser = build_parser()
+    base = ["simulate", "--scenario", "regional"]
+    once = parser.parse_args([*base, "--param", "radars=3,traffic=steady"])
+    twice = parser.parse_args([*base, "--param", "radars=3", "--param", "traffic=steady"])
+    assert once.param == twice.param == ["radars=3", "traffic=steady"]
+    track = parser.parse_args(["eval", "thesis-mtt-5", "--trackers", "its", "--trackers", "lmits"])
+    assert track.trackers == ["its", "lmits"]
+    assert not hasattr(parser.parse_args(base), "param")  # not given: the model's default
