@@ -714,9 +714,10 @@ def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
         )
         for v in exp.variants():
             exp.tracker_config(v)
-        build_scenario(exp.scenario, seed=exp.seed, **exp.scenario_params)
     except ValidationError as e:
         raise ConfigError(format_validation_error(e)) from None
+    try:
+        build_scenario(exp.scenario, seed=exp.seed, **exp.scenario_params)
     except (ValueError, TypeError) as e:  # a scenario parameter, named by the builder
         raise ConfigError(f"param: {e}") from None
     out = cfg.out
