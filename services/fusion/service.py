@@ -439,10 +439,11 @@ class FusionCore:
             return False
         n = len(batch.time)
         self._waiting[id(batch)] = (arrival, n)
-        self.rate_in.add(n)
+        # the rates run on the clock of ``arrival`` (monotonic in the live path)
+        self.rate_in.add(n, arrival)
         r.batches += 1
         r.plots += n
-        r.rate.add(n)
+        r.rate.add(n, arrival)
         r.last_time = batch.time_end if r.last_time is None else max(r.last_time, batch.time_end)
         self.counters["batches_in"] += 1
         self.counters["plots_in"] += n
@@ -469,7 +470,7 @@ class FusionCore:
                 ready = self.buffer.pop_ready(now, limit=self.cfg.bulk_max)
             if not ready:
                 break
-            out = self.cycle_group(ready)
+            out = self.cycle_group(ready, now)
             if out is not None:
                 outs.append(out)
             if flush or (t_end is not None and time.monotonic() >= t_end):
@@ -480,8 +481,9 @@ class FusionCore:
         """Run the cycle of one released batch (see :meth:`poll`)."""
         return self.cycle_group([p])
 
-    def cycle_group(self, ready: list[_Pending]) -> CycleOutput | None:
-        """Apply released batches (in their order) in one pass; ``None`` if none applied."""
+    def cycle_group(self, ready: list[_Pending], now: float | None = None) -> CycleOutput | None:
+        """Apply released batches (in their order) in one pass; ``None`` if none applied.
+        ``now``: the monotonic time of the output rate (default: now)."""
         for p in ready:
             self._left_buffer(p)
         ready = [p for p in ready if self._has_site(p.batch)]
@@ -516,7 +518,7 @@ class FusionCore:
         if late:  # behind the service time, within max_lateness: applied (reorder.py)
             self.counters["batches_late_applied"] += late
         self.counters["events"] += len(events)
-        self.rate_out.add(n)
+        self.rate_out.add(n, now)
         full = None
         if time.monotonic() >= self._next_full:
             self._next_full = time.monotonic() + self.cfg.full_interval
