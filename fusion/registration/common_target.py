@@ -104,21 +104,7 @@ class PairBuffer:
         if t_now is not None:
             self._expire(t_now)
         s = self.store
-        dt = new.time[:, None] - s.time[None, :]
-        ok = (
-            (new.track[:, None] == s.track[None, :])
-            & (new.radar[:, None] != s.radar[None, :])
-            & (np.abs(dt) <= self.max_dt_ns)
-        )
-        cost = np.where(ok, np.abs(dt), np.iinfo(np.int64).max)
-        best = np.argmin(cost, axis=1) if len(s) else np.zeros(len(new), np.int64)
-        has = ok[np.arange(len(new)), best] if len(s) else np.zeros(len(new), bool)
-        # a stored plot partners at most one new plot (the nearest in time)
-        ia = np.flatnonzero(has)
-        ib = best[ia]
-        order = np.lexsort((cost[ia, ib], ib))
-        first = np.r_[True, ib[order][1:] != ib[order][:-1]] if len(order) else order
-        ia, ib = ia[order][first], ib[order][first]
+        ia, ib = self._partners(new, s)
         pairs = self._residuals(new.take(ia), s.take(ib))
         keep_store = np.ones(len(s), bool)
         keep_store[ib] = False
@@ -132,6 +118,31 @@ class PairBuffer:
             self.dropped += n_drop
             self.store = self.store.take(np.arange(n_drop, len(self.store)))
         return pairs
+
+    def _partners(self, new: PlotColumns, s: PlotColumns) -> tuple[np.ndarray, np.ndarray]:
+        """Rows (ia of ``new``, ib of ``s``) of the pairs: each new plot takes the stored
+        plot of the same track from another radar nearest in time (within max_pair_dt;
+        ties: the older stored row), and a stored plot partners at most one new plot (the
+        nearest in time; ties: the first new row). The candidates are the stored rows of
+        the same track, found by binary search on the store sorted by track (a few per
+        plot: at most one per radar), not a new × store table."""
+        order = np.argsort(s.track, kind="stable")
+        st = s.track[order]
+        lo = np.searchsorted(st, new.track, "left")
+        cnt = np.searchsorted(st, new.track, "right") - lo
+        a = np.repeat(np.arange(len(new)), cnt)  # candidate pairs (a new, b stored)
+        b = order[np.arange(len(a)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)]
+        cost = np.abs(new.time[a] - s.time[b])
+        ok = (new.radar[a] != s.radar[b]) & (cost <= self.max_dt_ns)
+        a, b, cost = a[ok], b[ok], cost[ok]
+        # the best stored row of each new plot: least |dt|, then the lowest stored row
+        best = np.lexsort((b, cost, a))
+        first = np.r_[True, a[best][1:] != a[best][:-1]] if len(best) else best
+        ia, ib, c = a[best][first], b[best][first], cost[best][first]
+        # the best new plot of each stored row: least |dt|, then the first new row
+        order = np.lexsort((ia, c, ib))
+        first = np.r_[True, ib[order][1:] != ib[order][:-1]] if len(order) else order
+        return ia[order][first], ib[order][first]
 
     def _expire(self, t_now: int) -> None:
         fresh = np.flatnonzero(t_now - self.store.time <= self.max_dt_ns)
