@@ -234,6 +234,23 @@ def sites_toml(rec: Path, work: Path) -> Path:
     return path
 
 
+START_LEAD_S = 4.0
+"""The replays' common start is this long after they are launched (start-up, tokens)."""
+
+
+def start_replays(pubs, state_home: Path) -> float:
+    """Launch the replay processes with one common ``--start-at``: their own start-ups
+    differ by tens of ms, which is seconds of data time at high speed (the reorder buffer
+    would hold the batches of the early ones until the late ones catch up). Returns the
+    common start on the monotonic clock (the start of the level's timing)."""
+    start_at = round(time.time() + START_LEAD_S, 3)
+    t0 = time.monotonic() + (start_at - time.time())
+    for c in pubs:
+        c.args += ["--start-at", f"{start_at:.3f}"]
+        c.start(state_home=state_home)
+    return t0
+
+
 def start_children(
     rec: Path, speed: float, radars: list[str], frame, a, work: Path, rate, fusion_extra=()
 ):
@@ -275,12 +292,10 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
         f.pid = fusion.proc.pid
         rss0 = rss_mb(f.pid)
-        for c in pubs:
-            c.start(state_home=state)
+        t0 = start_replays(pubs, state)
         cpu = CpuMeter(f.pid, pubs)
         go = declare_liveliness(s, service_alive_key("bench"))
         spy = _profile(fusion, a.profile, rate, a.seconds)
-        t0 = time.monotonic()
         while [c for c in pubs if cpu.running(c)]:
             f.pump(0.2)
         t_sent = time.monotonic() - t0

@@ -54,6 +54,7 @@ from service_pipeline import (  # noqa: E402
     make_level_files,
     sim_plot_rate,
     start_children,
+    start_replays,
 )
 from skyfuse.fusion.sim import build_scenario  # noqa: E402
 from skyfuse.services.evaluation.demo import Child  # noqa: E402
@@ -132,10 +133,8 @@ def run(a, work: Path) -> dict:
         assert wait_for_tokens(s, names, 60.0) == [], "fusion or recorder did not start"
         f = Follower(s, fusion.proc.pid)
         time.sleep(1.0)  # the client's subscription propagates
-        for c in pubs:
-            c.start(state_home=work / "state-home")
+        t0 = start_replays(pubs, work / "state-home")
         go = declare_liveliness(s, service_alive_key("bench"))
-        t0 = time.monotonic()
         while any(c.poll() is None for c in pubs):
             f.pump(0.2)
         t_sent = time.monotonic() - t0

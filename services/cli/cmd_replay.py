@@ -40,6 +40,12 @@ class ReplayConfig(BaseModel):
     speed: float = Field(1.0, gt=0, le=10_000, description="Time scale: 2 = twice as fast")
     fast: bool = Field(False, description="Publish as fast as possible, ignoring timing")
     radars: list[str] | None = Field(None, description="Only these radar ids (default: all)")
+    start_at: float | None = Field(
+        None,
+        ge=0,
+        description="Unix time, s, at which the recording's start is due (default: when the "
+        "replay starts): replays of one file given the same value stay in phase",
+    )
     truth: bool = Field(False, description="Also publish the simulation truth")
     wait_for: list[str] = Field(
         default_factory=list,
@@ -122,8 +128,9 @@ def _replay(session, cfg: ReplayConfig, path: Path, topics: list[str], stop) -> 
         return EXIT_FAILED
     radars = set(cfg.radars) if cfg.radars else None
     result = replay(
-        session, path, speed=cfg.speed, fast=cfg.fast, radars=radars, truth=cfg.truth, stop=stop
-    )
+        session, path, speed=cfg.speed, fast=cfg.fast, radars=radars, truth=cfg.truth, stop=stop,
+        start_at=cfg.start_at,
+    )  # fmt: skip
     if not stop.is_set():
         stop.wait(cfg.linger)
     log.info(

@@ -1,7 +1,12 @@
 """Re-publish a recording's radar sites and plot batches on Zenoh in their original timing.
 
 Timing: the message with log time ``t`` is published at ``wall0 + (t - t0) / speed``
-(``fast``: as fast as the BLOCK publishers allow). Message contents — including plot
+(``fast``: as fast as the BLOCK publishers allow), ``t0`` the start of the whole recording
+(the first site or plots message of any radar), not of the radars this replay publishes: several
+``skyfuse replay --radars ID`` processes of one file started together stay in phase
+(with the first replayed message as ``t0``, a radar whose first batch comes 3 s into the
+file was published 3 s / speed early against the others, and the fusion's reorder buffer
+held every other radar's batches that long). Message contents — including plot
 times — are published unchanged, so a live replay through the fusion service sees the
 same data as ``skyfuse track FILE.mcap`` offline. Each PlotBatch carries the wall-clock
 publication instant as its attachment (:func:`services.transport.wall_stamp`), from which
@@ -16,6 +21,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +49,19 @@ class ReplayResult:
     @property
     def plot_batches(self) -> int:
         return sum(n for k, n in self.published.items() if k.endswith("/plots"))
+
+
+def replay_start(path: str | Path, kinds: tuple[str, ...]) -> int | None:
+    """First log time, ns, of the messages of ``kinds`` of *every* radar in ``path`` (the
+    time origin shared by replays of different radars of one file), or ``None`` if there
+    is none (an unindexed file: the first replayed message is the origin)."""
+    topics = replay_topics(path, kinds, None)
+    if not topics:
+        return None
+    with closing(iter_recording(path, topics=topics, decode=False)) as first:
+        for rec in first:
+            return int(rec.log_time)
+    return None
 
 
 def replay_topics(
@@ -79,11 +98,14 @@ def replay(
     truth: bool = False,
     stop=None,
     liveliness: bool = True,
+    start_at: float | None = None,
 ) -> ReplayResult:
     """Publish the sites and plots (and ``truth``) of ``path``; return what was sent.
 
     ``radars`` restricts the replay to those radar ids. ``stop`` (an Event-like object)
-    ends the replay early."""
+    ends the replay early. ``start_at``: the Unix time (s, this host's clock) at which the
+    recording's start is due (default: now); replays given the same value, in one or
+    several processes, publish in phase (messages already due are published at once)."""
     if speed <= 0:
         raise ValueError(f"speed = {speed}: must be > 0")
     kinds = (*REPLAYED_KINDS, "truth") if truth else REPLAYED_KINDS
@@ -91,8 +113,8 @@ def replay(
     topics = replay_topics(path, kinds, radars)
     publishers: dict[str, object] = {}
     tokens: dict[str, object] = {}
-    wall0 = time.monotonic()
-    t0: int | None = None
+    wall0 = time.monotonic() + (0.0 if start_at is None else start_at - time.time())
+    t0 = replay_start(path, kinds)  # None: the first replayed message
     source = iter_recording(path, topics=topics or None, stats=result.read)
     try:
         for rec in source:

@@ -1,0 +1,94 @@
+"""Replay timing (services.sensors.replay): the time origin is the recording's first site
+or plots message of any radar, so replays of different radars of one file, started
+together, publish each batch at the same wall time after their start as one replay of
+every radar would."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from service_support import EPOCH, make_batch, make_site
+from skyfuse.schemas import keys
+from skyfuse.services.recording.mcap_io import RecordingWriter
+from skyfuse.services.sensors import replay as replay_mod
+
+SPEED = 4.0
+
+
+class _Pub:
+    def __init__(self, log, topic):
+        self.log, self.topic = log, topic
+        self.matching_status = type("M", (), {"matching": False})()
+
+    def put(self, data, attachment=None):
+        self.log.append((time.monotonic(), self.topic))
+
+    def undeclare(self):
+        pass
+
+
+def _recording(path):
+    """R1 from EPOCH; R2's site and batches only from EPOCH + 2 s (its first sector)."""
+    rng = np.random.default_rng(0)
+    with RecordingWriter(path, metadata={"command": "test"}) as w:
+        w.write(keys.radar_site("R1"), make_site("R1", 45.0, 20.0), EPOCH)
+        w.write(keys.radar_site("R2"), make_site("R2", 45.2, 20.0), EPOCH + 2_000_000_000)
+        for sector in range(4):
+            for r in ("R1", "R2"):
+                b = make_batch(r, 0, sector, 4, 3, rng)
+                if r == "R2" and b.time_end < EPOCH + 2_000_000_000:
+                    continue
+                w.write(keys.radar_plots(r), b, b.time_end)
+
+
+def _publish_offsets(monkeypatch, path, radars):
+    """Seconds from the call to each plots publication of a replay of ``radars``."""
+    log = []
+    monkeypatch.setattr(replay_mod, "declare_publisher", lambda s, topic: _Pub(log, topic))
+    monkeypatch.setattr(replay_mod, "declare_liveliness", lambda s, key: _Pub([], key))
+    t0 = time.monotonic()
+    replay_mod.replay(None, path, speed=SPEED, radars=radars)
+    return [(t - t0, topic) for t, topic in log if topic.endswith("/plots")]
+
+
+def test_replays_of_single_radars_keep_the_recording_phase(tmp_path, monkeypatch):
+    path = tmp_path / "two.mcap"
+    _recording(path)
+    assert replay_mod.replay_start(path, replay_mod.REPLAYED_KINDS) == EPOCH
+    both = _publish_offsets(monkeypatch, path, None)
+    only_r2 = _publish_offsets(monkeypatch, path, {"R2"})
+    r2_in_both = [t for t, topic in both if topic == keys.radar_plots("R2")]
+    assert len(only_r2) == len(r2_in_both) == 3
+    # R2's batches end 2, 3 and 4 s into the file: published (2, 3, 4) s / SPEED after the
+    # start, alone as in the replay of both radars (before the fix, 1 s / SPEED earlier)
+    for k, ((t_alone, _), t_both) in enumerate(zip(only_r2, r2_in_both)):
+        assert (2.0 + k) / SPEED - 0.01 <= t_alone < (2.0 + k) / SPEED + 0.1
+        assert abs(t_alone - t_both) < 0.1
+
+
+def _offsets_from(monkeypatch, path, radars, start_at):
+    log = []
+    monkeypatch.setattr(replay_mod, "declare_publisher", lambda s, topic: _Pub(log, topic))
+    monkeypatch.setattr(replay_mod, "declare_liveliness", lambda s, key: _Pub([], key))
+    replay_mod.replay(None, path, speed=SPEED, radars=radars, start_at=start_at)
+    return [t for t, topic in log if topic.endswith("/plots")]
+
+
+def test_start_at_puts_every_replay_on_one_clock(tmp_path, monkeypatch):
+    """``start_at`` (Unix time): R1's batches end 1, 2, 3, 4 s into the file, so they are
+    due at start_at + (1, 2, 3, 4) s / SPEED whenever the replay itself begins; a start in
+    the past publishes what is already due at once, then keeps the same clock."""
+    path = tmp_path / "two.mcap"
+    _recording(path)
+    start = time.time() + 0.4
+    mono_start = time.monotonic() + (start - time.time())
+    got = [t - mono_start for t in _offsets_from(monkeypatch, path, {"R1"}, start)]
+    assert len(got) == 4
+    for k, t in enumerate(got):
+        assert (1.0 + k) / SPEED - 0.01 <= t < (1.0 + k) / SPEED + 0.1
+    start = time.time() - 0.6  # R1's first two batches (0.25, 0.5 s) are already due
+    mono_start = time.monotonic() + (start - time.time())
+    got = [t - mono_start for t in _offsets_from(monkeypatch, path, {"R1"}, start)]
+    assert got[0] < 0.7 and got[1] < 0.7  # at once
+    assert 0.75 - 0.01 <= got[2] < 0.85 and 1.0 - 0.01 <= got[3] < 1.1
