@@ -66,7 +66,8 @@ def test_replays_of_single_radars_keep_the_recording_phase(tmp_path, monkeypatch
     r2_in_both = [t for t, topic in both if topic == keys.radar_plots("R2")]
     assert len(only_r2) == len(r2_in_both) == 3
     # R2's batches end 2, 3 and 4 s into the file: published (2, 3, 4) s / SPEED after the
-    # start, alone as in the replay of both radars (before the fix, 1 s / SPEED earlier)
+    # start, alone as in the replay of both radars (before the fix 2 s / SPEED earlier:
+    # the origin was R2's own site, 2 s into the file)
     for k, ((t_alone, _), t_both) in enumerate(zip(only_r2, r2_in_both)):
         assert (2.0 + k) / SPEED - 0.01 <= t_alone < (2.0 + k) / SPEED + 0.2
         assert abs(t_alone - t_both) < 0.2
