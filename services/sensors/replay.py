@@ -6,7 +6,8 @@ Timing: the message with log time ``t`` is published at ``wall0 + (t - t0) / spe
 ``skyfuse replay --radars ID`` processes of one file started together stay in phase
 (with the first replayed message as ``t0``, a radar whose first batch comes 3 s into the
 file was published 3 s / speed early against the others, and the fusion's reorder buffer
-held every other radar's batches that long). Message contents — including plot
+held every other radar's batches that long). ``start_at`` puts replays started at
+different instants on one clock. Message contents — including plot
 times — are published unchanged, so a live replay through the fusion service sees the
 same data as ``skyfuse track FILE.mcap`` offline. Each PlotBatch carries the wall-clock
 publication instant as its attachment (:func:`services.transport.wall_stamp`), from which
@@ -114,6 +115,9 @@ def replay(
     publishers: dict[str, object] = {}
     tokens: dict[str, object] = {}
     wall0 = time.monotonic() + (0.0 if start_at is None else start_at - time.time())
+    if start_at is not None and start_at < time.time():
+        log.warning("start_at is %.1f s in the past: what is already due is published at "
+                    "once", time.time() - start_at)  # fmt: skip
     t0 = replay_start(path, kinds)  # None: the first replayed message
     source = iter_recording(path, topics=topics or None, stats=result.read)
     try:
