@@ -42,7 +42,7 @@ class ReplayConfig(BaseModel):
     radars: list[str] | None = Field(None, description="Only these radar ids (default: all)")
     start_at: float | None = Field(
         None,
-        ge=0,
+        gt=0,
         description="Unix time, s, at which the recording's start is due (default: when the "
         "replay starts): replays of one file given the same value stay in phase",
     )

@@ -28,7 +28,7 @@ from skyfuse.services.runtime.transport import (
     service_alive_key,
     wait_for_tokens,
 )
-from skyfuse.services.sensors.config import SensorServiceConfig
+from skyfuse.services.sensors.config import SensorServiceConfig, start_time_ns
 
 log = logging.getLogger("skyfuse.sensor")
 
@@ -81,7 +81,10 @@ def _replay(session, cfg: SensorServiceConfig, stop) -> int:
     try:
         if not _waited(session, cfg, stop):
             return EXIT_FAILED
-        res = replay(session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop)
+        start = start_time_ns(cfg) / 1e9  # --start-at / --align, else now
+        res = replay(
+            session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop, start_at=start
+        )
     finally:
         ready.undeclare()
     log.info("radar %s: replayed %d plot batches", cfg.radar, res.plot_batches)

@@ -69,8 +69,8 @@ class SensorServiceConfig(ScenarioSelection):
     start_at: float | None = Field(
         None,
         gt=0,
-        description="Unix time (s) the scenario start maps to; sensors given the same value "
-        "run in step (default: now)",
+        description="Unix time (s) the scenario start (--replay: the recording's start) maps "
+        "to; sensors given the same value run in step (default: now)",
     )
     align: float | None = Field(
         None,

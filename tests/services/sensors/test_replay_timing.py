@@ -93,3 +93,29 @@ def test_start_at_puts_every_replay_on_one_clock(tmp_path, monkeypatch):
     got = _offsets_from(monkeypatch, path, {"R1"}, time.time() - 0.6)
     assert got[0] < 0.7 and got[1] < 0.7  # at once
     assert 0.75 - 0.01 <= got[2] < 0.95 and 1.0 - 0.01 <= got[3] < 1.2
+
+
+def test_sensor_replay_takes_start_at_and_align(tmp_path, monkeypatch):
+    """``skyfuse sensor --replay FILE --radar ID`` maps the recording's start to
+    ``--start-at`` (or the next ``--align`` multiple), like the simulated sensor."""
+    from skyfuse.services.cli import cmd_sensor
+    from skyfuse.services.sensors.config import SensorServiceConfig
+
+    path = tmp_path / "two.mcap"
+    _recording(path)
+    seen = {}
+
+    def fake_replay(session, file, **kw):
+        seen.update(kw)
+        return replay_mod.ReplayResult(published={keys.radar_plots("R1"): 1})
+
+    monkeypatch.setattr(replay_mod, "replay", fake_replay)
+    monkeypatch.setattr(cmd_sensor, "declare_liveliness", lambda s, key: _Pub([], key))
+    monkeypatch.setattr(cmd_sensor, "_waited", lambda session, cfg, stop: True)
+    cfg = SensorServiceConfig(radar="R1", replay=path, start_at=1_800_000_000.5)
+    assert cmd_sensor._replay(None, cfg, None) == 0
+    assert seen["start_at"] == 1_800_000_000.5 and seen["radars"] == {"R1"}
+    cfg = SensorServiceConfig(radar="R1", replay=path, align=10.0)
+    before = time.time()
+    assert cmd_sensor._replay(None, cfg, None) == 0
+    assert seen["start_at"] % 10.0 == 0.0 and before + 1.0 <= seen["start_at"] <= before + 11.0
