@@ -460,6 +460,7 @@ class FusionCore:
         group (:meth:`CyclePipeline.process_group`). ``budget_s`` bounds the time spent
         (at least one group runs): the rest stays queued for the next call, so a service
         that falls behind still reads its input and publishes its Status in between."""
+        clock = now  # the caller's clock for the output rate (None: each group's own now)
         now = time.monotonic() if now is None else now
         t_end = None if budget_s is None else time.monotonic() + budget_s
         outs = []
@@ -470,7 +471,7 @@ class FusionCore:
                 ready = self.buffer.pop_ready(now, limit=self.cfg.bulk_max)
             if not ready:
                 break
-            out = self.cycle_group(ready, now)
+            out = self.cycle_group(ready, clock)
             if out is not None:
                 outs.append(out)
             if flush or (t_end is not None and time.monotonic() >= t_end):

@@ -114,10 +114,11 @@ def replay(
     topics = replay_topics(path, kinds, radars)
     publishers: dict[str, object] = {}
     tokens: dict[str, object] = {}
-    wall0 = time.monotonic() + (0.0 if start_at is None else start_at - time.time())
-    if start_at is not None and start_at < time.time():
+    lead = 0.0 if start_at is None else start_at - time.time()  # s until the start
+    if lead < 0:
         log.warning("start_at is %.1f s in the past: what is already due is published at "
-                    "once", time.time() - start_at)  # fmt: skip
+                    "once", -lead)  # fmt: skip
+    wall0 = time.monotonic() + lead
     t0 = replay_start(path, kinds)  # None: the first replayed message
     source = iter_recording(path, topics=topics or None, stats=result.read)
     try:
