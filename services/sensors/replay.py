@@ -2,13 +2,13 @@
 
 Timing: the message with log time ``t`` is published at ``wall0 + (t - t0) / speed``
 (``fast``: as fast as the BLOCK publishers allow), ``t0`` the start of the whole recording
-(the first site or plots message of any radar), not of the radars this replay publishes: several
-``skyfuse replay --radars ID`` processes of one file started together stay in phase
-(with the first replayed message as ``t0``, a radar whose first batch comes 3 s into the
-file was published 3 s / speed early against the others, and the fusion's reorder buffer
-held every other radar's batches that long). ``start_at`` puts replays started at
-different instants on one clock. Message contents — including plot
-times — are published unchanged, so a live replay through the fusion service sees the
+(the first site or plots message of any radar), not of the radars this replay
+publishes: several ``skyfuse replay --radars ID`` processes of one file started together
+stay in phase (with the first replayed message as ``t0``, a radar whose first message,
+site included, comes 3 s into the file was published 3 s / speed early against the
+others, and the fusion's reorder buffer held every other radar's batches that long).
+``start_at`` puts replays started at different instants on one clock. Message contents —
+including plot times — are published unchanged, so a live replay through the fusion service sees the
 same data as ``skyfuse track FILE.mcap`` offline. Each PlotBatch carries the wall-clock
 publication instant as its attachment (:func:`services.transport.wall_stamp`), from which
 the fusion service measures latency.
