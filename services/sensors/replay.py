@@ -8,10 +8,10 @@ stay in phase (with the first replayed message as ``t0``, a radar whose first me
 site included, comes 3 s into the file was published 3 s / speed early against the
 others, and the fusion's reorder buffer held every other radar's batches that long).
 ``start_at`` puts replays started at different instants on one clock. Message contents —
-including plot times — are published unchanged, so a live replay through the fusion service sees the
-same data as ``skyfuse track FILE.mcap`` offline. Each PlotBatch carries the wall-clock
-publication instant as its attachment (:func:`services.transport.wall_stamp`), from which
-the fusion service measures latency.
+including plot times — are published unchanged, so a live replay through the fusion
+service sees the same data as ``skyfuse track FILE.mcap`` offline. Each PlotBatch carries
+the wall-clock publication instant as its attachment (:func:`services.transport.
+wall_stamp`), from which the fusion service measures latency.
 
 Every radar whose site is replayed gets a liveliness token ``radar/{id}/alive`` for the
 duration of the replay, as a live sensor would.
