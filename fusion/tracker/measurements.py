@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import ndtr
+from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 
 TWO_PI = 2.0 * np.pi
 #: Effective Earth radius k R with k = 4/3 (standard refraction), R = 6,371,008.8 m (mean).
@@ -163,22 +164,6 @@ class SectorCoverage:
         return self.time_start + np.round(frac * span).astype(np.int64)
 
 
-def _positive_definite(R: np.ndarray) -> np.ndarray:
-    """Sylvester's criterion for symmetric (m, k, k) matrices: all leading principal minors
-    positive (closed form for k ≤ 3, the smallest eigenvalue otherwise)."""
-    k = R.shape[-1]
-    if len(R) == 0:
-        return np.zeros(0, bool)
-    if k > 3:
-        return np.linalg.eigvalsh(R)[:, 0] > 0.0
-    ok = R[:, 0, 0] > 0.0
-    if k >= 2:
-        ok &= R[:, 0, 0] * R[:, 1, 1] - R[:, 0, 1] * R[:, 1, 0] > 0.0
-    if k == 3:
-        ok &= np.linalg.det(R) > 0.0
-    return ok
-
-
 def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
     """True when every plot passes every test of :meth:`MeasurementBatch._plot_mask`
     (finite position and covariance, non-negative finite clutter density, symmetric and
@@ -190,7 +175,7 @@ def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
     asym = np.abs(flat - R.swapaxes(1, 2).reshape(flat.shape)).max(axis=1, initial=0.0)
     if (asym > 1e-6 * (1.0 + np.abs(flat).max(axis=1, initial=0.0))).any():
         return False
-    return bool(_positive_definite(R).all())
+    return bool(positive_definite(R).all())
 
 
 @dataclass
@@ -298,5 +283,5 @@ class MeasurementBatch:
         )
         reject(asym, "covariance not symmetric")
         Rs = Rs if ok.all() else np.where(ok[:, None, None], Rs, np.eye(ndim))
-        reject(~_positive_definite(Rs), "covariance not positive definite")
+        reject(~positive_definite(Rs), "covariance not positive definite")
         return ok

@@ -54,9 +54,9 @@ track id, bounded by the number of live tracks.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+
+from .oosm_kernel import a1_terms_into
 
 NS = 1e-9
 
@@ -73,15 +73,6 @@ def backward(model, x: np.ndarray, lag: np.ndarray) -> tuple[np.ndarray, np.ndar
         return xb, Fb, model.Q(lag, x)
     Fb = np.linalg.inv(model.F(lag))
     return np.einsum("nij,nj->ni", Fb, x), Fb, model.Q(lag)
-
-
-def _positive_definite(A: np.ndarray) -> np.ndarray:
-    """(n,) whether each symmetric (n, d, d) matrix is finite and positive definite."""
-    ok = np.isfinite(A).all(axis=(1, 2))
-    out = np.zeros(len(A), bool)
-    if ok.any():
-        out[ok] = np.linalg.eigvalsh(_sym(A[ok])).min(axis=1) > 0.0
-    return out
 
 
 def _sym(A: np.ndarray) -> np.ndarray:
@@ -102,25 +93,16 @@ def noise_terms(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(P_xv, P_vv, Q P⁻¹(k|k−1) (x̂(k|k) − x̂(k|k−1))) per state (O1-O2 in the
     prior/posterior form of the module docstring); the independent-noise fallback
-    (0, Q, 0) where ``known`` is False or the A1 conditional noise covariance is not PSD."""
-    Pxv = np.zeros_like(P)
-    Pvv = Q.copy()
-    corr = np.zeros_like(x)
+    (0, Q, 0) where ``known`` is False, where P(k|k−1) or P(k|k) is not positive definite
+    (or not finite), or where the A1 conditional noise covariance is not PSD
+    (:mod:`.oosm_kernel`)."""
+    f8 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    Pxv = np.zeros(P.shape)
+    Pvv = f8(Q).copy()
+    corr = np.zeros(x.shape)
     rows = np.flatnonzero(known)
-    if len(rows):  # A1 needs P(k|k−1) and P(k|k) positive definite (and finite)
-        rows = rows[_positive_definite(P_prior[rows]) & _positive_definite(P[rows])]
     if len(rows):
-        Pp_inv = np.linalg.inv(P_prior[rows])
-        Qr = Q[rows]
-        QPi = Qr @ Pp_inv
-        a_xv = P[rows] @ Pp_inv @ Qr
-        a_vv = _sym(Qr - QPi @ (P_prior[rows] - P[rows]) @ _tr(QPi))
-        cond = a_vv - _tr(a_xv) @ np.linalg.solve(P[rows], a_xv)
-        scale = np.maximum(np.abs(np.diagonal(Qr, axis1=1, axis2=2)).max(axis=1), 1e-300)
-        ok = np.linalg.eigvalsh(_sym(cond)).min(axis=1) >= -1e-6 * scale
-        good = rows[ok]
-        Pxv[good], Pvv[good] = a_xv[ok], a_vv[ok]
-        corr[good] = np.einsum("nij,nj->ni", QPi[ok], x[good] - x_prior[good])
+        a1_terms_into(f8(x), f8(P), Pvv.copy(), f8(x_prior), f8(P_prior), rows, Pxv, Pvv, corr)
     return Pxv, Pvv, corr
 
 
@@ -164,66 +146,110 @@ def oosm_update(
     return x_new, _sym(P - W @ _tr(Pxz))
 
 
-@dataclass
 class LastStep:
     """The prior of every track's last update, per mode (one mode for a Gaussian
-    mixture): ids (n,) sorted, t (n,) ns the update time, x[j] (n, d_j), P[j] (n, d_j,
-    d_j) the track-level predicted state of mode j at t (moment-matched over the
-    track's components with weights ξ^c μ^c_j)."""
+    mixture), keyed by track id: slot s holds ids[s], t[s] ns the update time, x[j][s]
+    (d_j,) and P[j][s] (d_j, d_j) the track-level predicted state of mode j at t
+    (moment-matched over the track's components with weights ξ^c μ^c_j). Slots
+    0 … len − 1 are used, in the order the tracks were first stored; ``keys`` are their ids
+    sorted and ``order`` the slot of each key, so a new track is a write into the next
+    free slot (the arrays grow by doubling) and never a copy of the stored states."""
 
-    ids: np.ndarray
-    t: np.ndarray
-    x: list[np.ndarray]
-    P: list[np.ndarray]
+    def __init__(self, dims: list[int], capacity: int = 64) -> None:
+        self.n = 0
+        self.ids = np.zeros(capacity, np.int64)
+        self.t = np.zeros(capacity, np.int64)
+        self.x = [np.zeros((capacity, d)) for d in dims]
+        self.P = [np.zeros((capacity, d, d)) for d in dims]
+        self.keys = np.zeros(0, np.int64)
+        self.order = np.zeros(0, np.int64)
 
     @classmethod
     def empty(cls, dims: list[int]) -> LastStep:
-        return cls(
-            np.zeros(0, np.int64),
-            np.zeros(0, np.int64),
-            [np.zeros((0, d)) for d in dims],
-            [np.zeros((0, d, d)) for d in dims],
-        )
+        return cls(dims)
 
     def __len__(self) -> int:
-        return len(self.ids)
+        return self.n
+
+    def _slots(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(stored (m,), slot (m,)) of track ids (m,); slot is a placeholder (0) where
+        not stored."""
+        if self.n == 0:
+            return np.zeros(len(ids), bool), np.zeros(len(ids), np.int64)
+        pos = np.minimum(np.searchsorted(self.keys, ids), self.n - 1)
+        return self.keys[pos] == ids, self.order[pos]
 
     def record(self, ids: np.ndarray, t: np.ndarray, x: list, P: list, live: np.ndarray) -> None:
         """Store the priors of tracks ``ids`` (unique) updated at ``t``: in place for the
-        ids stored, appended (in id order) for the others; the ids no longer ``live``
-        (the tracker's ids) are forgotten once the store exceeds 2 × live + 64 entries,
-        so it stays bounded by the tracks."""
+        ids stored, in new slots for the others; the ids no longer ``live`` (the tracker's
+        ids) are forgotten once the store exceeds 2 × live + 64 entries, so it stays
+        bounded by the tracks."""
         ids = np.asarray(ids, dtype=np.int64)
         t = np.asarray(t, dtype=np.int64)
-        pos = np.minimum(np.searchsorted(self.ids, ids), max(len(self.ids) - 1, 0))
-        have = (self.ids[pos] == ids) if len(self.ids) else np.zeros(len(ids), bool)
-        p = pos[have]
-        self.t[p] = t[have]
+        have, slot = self._slots(ids)
+        s = slot[have]
+        self.t[s] = t[have]
         for j in range(len(self.x)):
-            self.x[j][p], self.P[j][p] = x[j][have], P[j][have]
-        if (~have).any():
+            self.x[j][s], self.P[j][s] = x[j][have], P[j][have]
+        if not have.all():
             new = ~have
-            self._merge(ids[new], t[new], [a[new] for a in x], [a[new] for a in P])
-        if len(self.ids) > 2 * len(live) + 64:
-            keep = np.isin(self.ids, live)
-            self.ids, self.t = self.ids[keep], self.t[keep]
-            self.x = [a[keep] for a in self.x]
-            self.P = [a[keep] for a in self.P]
+            self._append(ids[new], t[new], [a[new] for a in x], [a[new] for a in P])
+        if self.n > 2 * len(live) + 64:
+            self._compact(np.isin(self.ids[: self.n], live))
 
-    def _merge(self, ids: np.ndarray, t: np.ndarray, x: list, P: list) -> None:
-        all_ids = np.concatenate([self.ids, ids])
-        order = np.argsort(all_ids, kind="stable")
-        self.ids = all_ids[order]
-        self.t = np.concatenate([self.t, t])[order]
-        self.x = [np.concatenate([a, b])[order] for a, b in zip(self.x, x)]
-        self.P = [np.concatenate([a, b])[order] for a, b in zip(self.P, P)]
+    def _append(self, ids: np.ndarray, t: np.ndarray, x: list, P: list) -> None:
+        lo, hi = self.n, self.n + len(ids)
+        if hi > len(self.ids):
+            self._resize(max(hi, 2 * len(self.ids)))
+        self.ids[lo:hi], self.t[lo:hi] = ids, t
+        for j in range(len(self.x)):
+            self.x[j][lo:hi], self.P[j][lo:hi] = x[j], P[j]
+        self.n = hi
+        by_id = np.argsort(ids, kind="stable")
+        at = np.searchsorted(self.keys, ids[by_id])
+        self.keys = np.insert(self.keys, at, ids[by_id])
+        self.order = np.insert(self.order, at, lo + by_id)
+
+    def _resize(self, capacity: int) -> None:
+        def grow(a: np.ndarray) -> np.ndarray:
+            b = np.zeros((capacity, *a.shape[1:]), a.dtype)
+            b[: self.n] = a[: self.n]
+            return b
+
+        self.ids, self.t = grow(self.ids), grow(self.t)
+        self.x, self.P = [grow(a) for a in self.x], [grow(a) for a in self.P]
+
+    def _compact(self, keep: np.ndarray) -> None:
+        """Keep the used slots where ``keep`` (n,), in their order."""
+        idx = np.flatnonzero(keep)
+        self.ids[: len(idx)], self.t[: len(idx)] = self.ids[idx], self.t[idx]
+        for j in range(len(self.x)):
+            self.x[j][: len(idx)], self.P[j][: len(idx)] = self.x[j][idx], self.P[j][idx]
+        self.n = len(idx)
+        self._index()
+
+    def _index(self) -> None:
+        self.order = np.argsort(self.ids[: self.n], kind="stable")
+        self.keys = self.ids[self.order]
+
+    def problem(self) -> str | None:
+        """Why the store's arrays are inconsistent (a restored state), ``None`` if not."""
+        cap = len(self.ids)
+        sizes = [len(self.t), *map(len, self.x), *map(len, self.P)]
+        if not 0 <= self.n <= cap or any(k != cap for k in sizes):
+            return f"last-step store of {self.n} in {cap} slots, arrays of {sizes} rows"
+        if len(self.keys) != self.n or len(self.order) != self.n:
+            return f"last-step index of {len(self.keys)} keys for {self.n} slots"
+        if self.n and not np.array_equal(self.ids[self.order], self.keys):
+            return "last-step index does not match the stored ids"
+        return None
 
     def lookup(self, ids: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, list, list]:
         """(known (s,), x[j] (s, d_j), P[j]) of tracks ``ids`` whose stored step is the
         one at their current time ``t`` (else known False and the rows are placeholders)."""
         ids = np.asarray(ids, dtype=np.int64)
-        if len(self.ids) == 0:
+        if self.n == 0:
             return np.zeros(len(ids), bool), None, None
-        pos = np.minimum(np.searchsorted(self.ids, ids), len(self.ids) - 1)
-        known = (self.ids[pos] == ids) & (self.t[pos] == np.asarray(t, dtype=np.int64))
-        return known, [a[pos] for a in self.x], [a[pos] for a in self.P]
+        have, slot = self._slots(ids)
+        known = have & (self.t[slot] == np.asarray(t, dtype=np.int64))
+        return known, [a[slot] for a in self.x], [a[slot] for a in self.P]

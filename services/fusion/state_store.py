@@ -58,8 +58,11 @@ from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
-FORMAT = 2
-"""Version of what a snapshot holds (1: the pickle of earlier versions)."""
+FORMAT = 3
+"""Version of what a snapshot holds (1: the pickle of earlier versions; 2: the
+out-of-sequence store kept sorted by track id; 3: that store in slots with a sorted
+index). A snapshot of another version is refused (``format version``) and the service
+starts empty."""
 STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
 """Ids reserved by one write of ``ids.json`` at least (the jump at a restart is at most
@@ -338,6 +341,10 @@ def track_rows_problem(pipe) -> str | None:
         a = getattr(tr, name, None)
         if a is not None and (not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != n):
             return f"tracker.{name} has {getattr(a, 'shape', None)} rows for {n} tracks"
+    oosm = getattr(tr, "oosm", None)
+    last = getattr(oosm, "last", None)
+    if last is not None and (why := last.problem()) is not None:
+        return why
     try:
         if len(tr.density) != n:
             return f"the density has {len(tr.density)} tracks for {n}"

@@ -11,9 +11,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from service_support import ROOT
+from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 from skyfuse.fusion.tracker import components as comp
 from skyfuse.fusion.tracker.jits import clusters
-from skyfuse.fusion.tracker.measurements import _positive_definite
 
 
 def _same_partition(a: np.ndarray, b: np.ndarray) -> bool:
@@ -81,7 +81,7 @@ def test_positive_definite_matches_eigenvalues():
         S = 0.5 * (A + np.swapaxes(A, 1, 2))  # symmetric, often indefinite
         S[:100] = A[:100] @ np.swapaxes(A[:100], 1, 2) + 0.1 * np.eye(k)  # definite
         ref = np.linalg.eigvalsh(S)[:, 0] > 0
-        assert np.array_equal(_positive_definite(S), ref)
+        assert np.array_equal(positive_definite(S), ref)
         assert ref.sum() >= 100 and (~ref).sum() > 50
 
 

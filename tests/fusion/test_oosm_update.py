@@ -162,3 +162,25 @@ def test_singular_or_nan_prior_falls_back_without_error():
     ref = retrodict(model, x, P, lag)
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a, b)
+
+
+def test_last_step_store_grows_and_its_index_is_checked():
+    """Hundreds of new tracks at once (past the initial capacity, ids out of order):
+    every stored prior is found again by id; a broken index is reported, not used."""
+    from skyfuse.fusion.tracker.oosm import LastStep
+
+    rng = np.random.default_rng(5)
+    store = LastStep.empty([3])
+    ids = rng.permutation(np.arange(1000, 1300))
+    x = rng.normal(size=(300, 3))
+    P = np.einsum("ni,nj->nij", x, x) + np.eye(3)
+    for part in np.array_split(np.arange(300), 3):
+        store.record(ids[part], np.full(len(part), 7), [x[part]], [P[part]], ids)
+    assert len(store) == 300 and store.problem() is None
+    known, xs, Ps = store.lookup(ids[::-1], np.full(300, 7))
+    assert known.all()
+    np.testing.assert_array_equal(xs[0], x[::-1])
+    np.testing.assert_array_equal(Ps[0], P[::-1])
+    assert not store.lookup(np.array([5, 2000]), np.array([7, 7]))[0].any()
+    store.order = store.order[::-1].copy()
+    assert "does not match" in store.problem()
