@@ -25,7 +25,6 @@ __all__ = [
     "prune_indices",
     "segment_sum",
     "singer_merge",
-    "take_concat",
     "track_estimates",
 ]
 
@@ -56,12 +55,6 @@ class Mixture:
     def take(self, idx: np.ndarray) -> Mixture:
         return Mixture(self.track[idx], self.w[idx], self.x[idx], self.P[idx], self.hist[idx])
 
-    def replace_tracks(self, others: np.ndarray, new: Mixture) -> Mixture:
-        """The components ``others`` of this store followed by ``new`` (the same as
-        ``concat([take(others), new])`` with one copy of the kept components)."""
-        f = ("track", "w", "x", "P", "hist")
-        return Mixture(*(take_concat(getattr(self, k), others, getattr(new, k)) for k in f))
-
     @staticmethod
     def concat(parts: list[Mixture]) -> Mixture:
         return Mixture(
@@ -71,17 +64,6 @@ class Mixture:
             np.concatenate([p.P for p in parts]),
             np.concatenate([p.hist for p in parts]),
         )
-
-
-def take_concat(a: np.ndarray, idx: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.concatenate([a[idx], b])`` written once into one new array: the per-batch
-    update keeps the components of the tracks outside the batch's coverage (most of
-    them) and appends the new ones of the tracks inside it."""
-    n = len(idx)
-    out = np.empty((n + len(b), *a.shape[1:]), dtype=np.result_type(a, b))
-    a.take(idx, axis=0, out=out[:n])
-    out[n:] = b
-    return out
 
 
 def singer_merge(mix: Mixture) -> Mixture:

@@ -60,10 +60,10 @@ def track_priors(pred) -> tuple[list[np.ndarray], list[np.ndarray]]:
     return [x], [P]
 
 
-def _take_rows(store, rows: np.ndarray, n: int):
+def _take_rows(slots, rows: np.ndarray, n: int):
     inside = np.zeros(n, bool)
     inside[rows] = True
-    cur = store.take(np.flatnonzero(inside[store.track]))
+    cur = slots.tracks(inside)
     return cur, np.searchsorted(rows, cur.track)
 
 
@@ -79,7 +79,7 @@ def retrodict_density(density, rows: np.ndarray, lag: np.ndarray, priors):
     components, the cross terms C per mode) of tracks ``rows`` (sorted) over ``lag``
     (len(rows),) s; ``priors``: :meth:`LastStep.lookup` of the rows."""
     if isinstance(density, IMMMixtureDensity):
-        cur, loc = _take_rows(density.comp, rows, len(density))
+        cur, loc = _take_rows(density.slots, rows, len(density))
         xs, Ps, Cs = [], [], []
         for j, model in enumerate(density.models):
             xp, Pp, known = _prior_rows(priors, loc, j)
@@ -92,7 +92,7 @@ def retrodict_density(density, rows: np.ndarray, lag: np.ndarray, priors):
         y = np.stack([xs[j][:, pos[j]] for j in range(len(xs))], axis=1)
         HPH = np.stack([Ps[j][:, pos[j]][:, :, pos[j]] for j in range(len(xs))], axis=1)
         return IMMPrediction(rows, retro, loc, y, HPH), cur, Cs
-    cur, loc = _take_rows(density.mix, rows, len(density))
+    cur, loc = _take_rows(density.slots, rows, len(density))
     xp, Pp, known = _prior_rows(priors, loc, 0)
     x, P, C = retrodict(density.model, cur.x, cur.P, lag[loc], xp, Pp, known)
     retro = Mixture(cur.track, cur.w, x, P, cur.hist)

@@ -78,6 +78,7 @@ CLASSES = frozenset(
         _T + "reidentification.TerminatedTracks",
         _T + "existence.ExistenceChain",
         _T + "components.Mixture",
+        _T + "component_slots.ComponentSlots",
         _T + "density.gaussian_mixture.GaussianMixtureDensity",
         _T + "density.imm_mixture.IMMMixtureDensity",
         _T + "density.imm_mixture.IMMComponents",

@@ -58,11 +58,11 @@ from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
-FORMAT = 3
+FORMAT = 4
 """Version of what a snapshot holds (1: the pickle of earlier versions; 2: the
 out-of-sequence store kept sorted by track id; 3: that store in slots with a sorted
-index). A snapshot of another version is refused (``format version``) and the service
-starts empty."""
+index; 4: the densities' components in slots). A snapshot of another version is
+refused (``format version``) and the service starts empty."""
 STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
 """Ids reserved by one write of ``ids.json`` at least (the jump at a restart is at most
@@ -344,6 +344,9 @@ def track_rows_problem(pipe) -> str | None:
     oosm = getattr(tr, "oosm", None)
     last = getattr(oosm, "last", None)
     if last is not None and (why := last.problem()) is not None:
+        return why
+    slots = getattr(tr.density, "slots", None)
+    if slots is not None and (why := slots.problem(n)) is not None:
         return why
     try:
         if len(tr.density) != n:

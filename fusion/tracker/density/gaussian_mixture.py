@@ -25,6 +25,7 @@ from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.filters.moment_matching import moment_match
 
 from .. import components as comp
+from ..component_slots import ComponentSlots
 from ..its import component_update
 from .base import GatedTable, Prediction, gate_probability_of
 
@@ -101,7 +102,7 @@ class GaussianMixtureDensity:
         self.depth = depth
         self.prune_threshold = prune_threshold
         self.max_components = max_components
-        self.mix = comp.Mixture.empty(self.dim, depth)
+        self.slots = ComponentSlots(comp.Mixture.empty(self.dim, depth))
         self.x = np.zeros((0, self.dim))
         self.P = np.zeros((0, self.dim, self.dim))
         self.stats: dict[str, int] = {}
@@ -110,27 +111,34 @@ class GaussianMixtureDensity:
     def __len__(self) -> int:
         return len(self.x)
 
+    @property
+    def mix(self) -> comp.Mixture:
+        """Every component of every track (a copy of the live slots, in store order)."""
+        return self.slots.live()
+
+    @mix.setter
+    def mix(self, value: comp.Mixture) -> None:
+        self.slots = ComponentSlots.holding(value)
+
     def add(self, x: np.ndarray, P: np.ndarray) -> None:
         nn, n = len(x), len(self)
         if nn == 0:
             return
         hist = np.zeros((nn, self.depth), np.int64)
         new = comp.Mixture(n + np.arange(nn), np.ones(nn), x.copy(), P.copy(), hist)
-        self.mix = comp.Mixture.concat([self.mix, new])
+        self.slots.append(new)
         self.x = np.concatenate([self.x, x])
         self.P = np.concatenate([self.P, P])
 
     def keep(self, mask: np.ndarray) -> None:
-        new_row = np.cumsum(mask) - 1
-        self.mix = self.mix.take(np.flatnonzero(mask[self.mix.track]))
-        self.mix.track = new_row[self.mix.track]
+        self.slots.keep(mask)
         self.x, self.P = self.x[mask], self.P[mask]
 
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> MixturePrediction:
         """Components of ``rows`` (sorted) predicted over dt (s,) s (5.4-5.5)."""
         inside = np.zeros(len(self), bool)
         inside[rows] = True
-        pred = self.mix.take(np.flatnonzero(inside[self.mix.track]))
+        pred = self.slots.tracks(inside)
         loc = np.searchsorted(rows, pred.track)
         dtc = np.asarray(dt, dtype=np.float64)[loc]
         pred.x, pred.P = predict(pred.x, pred.P, self.model.F(dtc), self.model.Q(dtc))
@@ -179,12 +187,11 @@ class GaussianMixtureDensity:
         kept = comp.prune(merged, self.prune_threshold, self.max_components, len(self))
         inside = np.zeros(len(self), bool)
         inside[rows] = True
-        others = np.flatnonzero(~inside[self.mix.track])
-        self.mix = self.mix.replace_tracks(others, kept)
+        self.slots.replace(inside, kept)
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
-            "components": len(self.mix),
+            "components": len(self.slots),
         }
         loc = np.searchsorted(rows, kept.track)
         _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(rows))
@@ -200,4 +207,4 @@ class GaussianMixtureDensity:
 
     def component_counts(self) -> np.ndarray:
         """Mixture components per track (n,)."""
-        return comp.components_per_track(self.mix, len(self))
+        return comp.components_per_track(self.slots.live(), len(self))

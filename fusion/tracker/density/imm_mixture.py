@@ -62,7 +62,8 @@ from skyfuse.fusion.filters.small_spd import largest_eigenvalue, quadratic_and_l
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 
-from ..components import history_groups, prune_indices, take_concat
+from ..component_slots import ComponentSlots
+from ..components import history_groups, prune_indices
 from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 
@@ -182,20 +183,6 @@ class IMMComponents:
             [a[idx] for a in self.P],
         )
 
-    def replace_tracks(self, others: np.ndarray, new: IMMComponents) -> IMMComponents:
-        """The components ``others`` followed by ``new``, one copy of the kept ones
-        (``new`` itself when no other component is kept: every track was updated)."""
-        if len(others) == 0:
-            return new
-        r = len(self.x)
-        return IMMComponents(
-            *(take_concat(getattr(self, k), others, getattr(new, k)) for k in ("track", "w")),
-            take_concat(self.hist, others, new.hist),
-            take_concat(self.mu, others, new.mu),
-            [take_concat(self.x[j], others, new.x[j]) for j in range(r)],
-            [take_concat(self.P[j], others, new.P[j]) for j in range(r)],
-        )
-
     @staticmethod
     def concat(parts: list[IMMComponents]) -> IMMComponents:
         r = len(parts[0].x)
@@ -291,13 +278,15 @@ class IMMMixtureDensity:
         self.pos = [np.array(m.position_index) for m in self.models]
         self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
         r = len(self.models)
-        self.comp = IMMComponents(
-            np.zeros(0, np.int64),
-            np.zeros(0),
-            np.zeros((0, depth), np.int64),
-            np.zeros((0, r)),
-            [np.zeros((0, m.dim)) for m in self.models],
-            [np.zeros((0, m.dim, m.dim)) for m in self.models],
+        self.slots = ComponentSlots(
+            IMMComponents(
+                np.zeros(0, np.int64),
+                np.zeros(0),
+                np.zeros((0, depth), np.int64),
+                np.zeros((0, r)),
+                [np.zeros((0, m.dim)) for m in self.models],
+                [np.zeros((0, m.dim, m.dim)) for m in self.models],
+            )
         )
         self.x = np.zeros((0, self.dim))
         self.P = np.zeros((0, self.dim, self.dim))
@@ -310,6 +299,11 @@ class IMMMixtureDensity:
 
     def __len__(self) -> int:
         return len(self.x)
+
+    @property
+    def comp(self) -> IMMComponents:
+        """Every component of every track (a copy of the live slots, in store order)."""
+        return self.slots.live()
 
     # ------------------------------------------------------------------ layouts
     def _common(self, j: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -344,15 +338,13 @@ class IMMMixtureDensity:
             xs,
             Ps,
         )
-        self.comp = IMMComponents.concat([self.comp, new])
+        self.slots.append(new)
         self.x = np.concatenate([self.x, x])
         self.P = np.concatenate([self.P, P])
         self.reach.add(x, P)
 
     def keep(self, mask: np.ndarray) -> None:
-        new_row = np.cumsum(mask) - 1
-        self.comp = self.comp.take(np.flatnonzero(mask[self.comp.track]))
-        self.comp.track = new_row[self.comp.track]
+        self.slots.keep(mask)
         self.x, self.P = self.x[mask], self.P[mask]
         self.reach.keep(mask)
 
@@ -407,10 +399,8 @@ class IMMMixtureDensity:
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
         inside = np.zeros(len(self), bool)
         inside[rows] = True
-        mine = inside[self.comp.track]
-        # every component (one sensor seeing all tracks): no copy, the store is never
-        # written in place (the prediction makes new states; update replaces the store)
-        comp = self.comp if mine.all() else self.comp.take(np.flatnonzero(mine))
+        # every component (one sensor seeing all tracks): views, no copy
+        comp = self.slots.tracks(inside)
         loc = np.searchsorted(rows, comp.track)
         dt = np.asarray(dt, dtype=np.float64)
         self.reach.predict(rows, dt)
@@ -536,11 +526,11 @@ class IMMMixtureDensity:
         kept.w = w
         inside = np.zeros(len(self), bool)
         inside[rows] = True
-        self.comp = self.comp.replace_tracks(np.flatnonzero(~inside[self.comp.track]), kept)
+        self.slots.replace(inside, kept)
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
-            "components": len(self.comp),
+            "components": len(self.slots),
         }
         x, P = self._track_estimates(kept, np.searchsorted(rows, kept.track), len(rows))
         self.x[rows] = x
@@ -577,12 +567,13 @@ class IMMMixtureDensity:
 
     def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
         """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
+        comp = self.slots.live()
         out = np.zeros((len(self), self.r))
-        np.add.at(out, self.comp.track, self.comp.w[:, None] * self.comp.mu)
+        np.add.at(out, comp.track, comp.w[:, None] * comp.mu)
         return out[rows]
 
     def component_counts(self) -> np.ndarray:
-        return np.bincount(self.comp.track, minlength=len(self))
+        return np.bincount(self.slots.live().track, minlength=len(self))
 
 
 def _shift(hist: np.ndarray, new_ids) -> np.ndarray:

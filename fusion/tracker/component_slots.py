@@ -1,0 +1,158 @@
+"""The component store of a track density in slots: all components of all tracks (a
+:class:`~.components.Mixture` or an IMM ``IMMComponents``: arrays, or lists of arrays,
+with one row per component) held in arrays with spare capacity, so that a sector batch
+costs work in proportion to the components it touches, not to the whole picture.
+
+* **Append** (new tracks, the updated components of a batch): written into the next
+  free slots; the arrays grow by doubling.
+* **Replace** the components of some tracks (the update of a batch): their slots are
+  marked dead (track −1), the new components appended.
+* **Keep** a subset of the tracks (termination, duplicates): the other tracks' slots
+  are marked dead and the live slots' track rows renumbered (integers only).
+* **Compaction**: when the dead slots outnumber the live ones (and 1,024), the live
+  slots are copied into new arrays, in slot order.
+
+The live slots, in slot order, are exactly the components in the order the previous
+store (take + concatenate after every operation) kept them: every sum over
+components, and so every result, is the same to the last bit. Readers get copies
+(:meth:`tracks`, :meth:`live`), or views of the used slots when they ask for all of
+them and all are live; such views stay valid: arrays are written in place only past
+the used slots, and the ``track`` column is replaced by a new array, never written,
+when slots die or tracks are renumbered.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+import numpy as np
+
+_COMPACT_MIN = 1024
+
+
+def _fields(comp) -> list[str]:
+    return [f.name for f in fields(comp)]
+
+
+def _map(comp, fn):
+    """A components object of the same type with ``fn`` applied to every array (also
+    inside the per-mode lists)."""
+    out = {}
+    for name in _fields(comp):
+        v = getattr(comp, name)
+        out[name] = [fn(a) for a in v] if isinstance(v, list) else fn(v)
+    return type(comp)(**out)
+
+
+class ComponentSlots:
+    """Slots of the components of a density (see the module docstring). ``empty``: a
+    components object with 0 rows (gives the type, the per-mode layout and the dtypes)."""
+
+    def __init__(self, empty, capacity: int = 64) -> None:
+        self.n = 0
+        self.alive = 0
+        self.data = _map(empty, lambda a: np.zeros((capacity, *a.shape[1:]), a.dtype))
+        self.data.track[:] = -1
+
+    @classmethod
+    def holding(cls, comp) -> ComponentSlots:
+        """Slots holding the components ``comp`` (in their order)."""
+        slots = cls(comp.take(np.zeros(0, np.int64)), max(64, len(comp)))
+        slots.append(comp)
+        return slots
+
+    def __len__(self) -> int:
+        return self.alive
+
+    # ---------------------------------------------------------------- reading
+    def _slots(self, inside: np.ndarray | None = None) -> np.ndarray:
+        """Used slots that are live (and whose track is ``inside``), in slot order."""
+        t = self.data.track[: self.n]
+        if inside is None:
+            return np.flatnonzero(t >= 0)
+        return np.flatnonzero(np.append(np.asarray(inside, bool), False)[t])
+
+    def live(self):
+        """Every live component (a copy), in slot order."""
+        return self.data.take(self._slots())
+
+    def tracks(self, inside: np.ndarray):
+        """The live components of the tracks where ``inside`` (n_tracks,) is True, in slot
+        order: a copy, or read-only views when they are all the used slots."""
+        slots = self._slots(inside)
+        if len(slots) == self.n:  # every used slot, in order: no copy
+            return _map(self.data, lambda a: a[: self.n])
+        return self.data.take(slots)
+
+    # ---------------------------------------------------------------- writing
+    def append(self, new) -> None:
+        """Store the components ``new`` in the next free slots."""
+        m = len(new)
+        if m == 0:
+            return
+        lo, hi = self.n, self.n + m
+        if hi > len(self.data.track):
+            self._reallocate(self._slots(), max(hi, 2 * len(self.data.track)))
+            lo, hi = self.n, self.n + m
+        for name in _fields(new):
+            dst, src = getattr(self.data, name), getattr(new, name)
+            for d, s in zip(dst, src) if isinstance(dst, list) else ((dst, src),):
+                d[lo:hi] = s
+        self.n, self.alive = hi, self.alive + m
+
+    def replace(self, inside: np.ndarray, new) -> None:
+        """The components of the tracks where ``inside`` are replaced by ``new``."""
+        self._kill(self._slots(inside))
+        self.append(new)
+
+    def keep(self, mask: np.ndarray) -> None:
+        """Keep the tracks where ``mask`` (n_tracks,) is True, renumbered 0 … in order."""
+        mask = np.asarray(mask, bool)
+        new_row = np.append(np.where(mask, np.cumsum(mask) - 1, -1), -1)
+        t = new_row[self.data.track[: self.n]]
+        self.alive = int((t >= 0).sum())
+        track = self.data.track.copy()  # a new array: copies handed out stay valid
+        track[: self.n] = t
+        self.data.track = track
+        self._maybe_compact()
+
+    def _kill(self, slots: np.ndarray) -> None:
+        if len(slots):
+            track = self.data.track.copy()
+            track[slots] = -1
+            self.data.track = track
+            self.alive -= len(slots)
+
+    def _maybe_compact(self) -> None:
+        dead = self.n - self.alive
+        if dead > max(self.alive, _COMPACT_MIN):
+            self._reallocate(self._slots(), max(2 * self.alive, 64))
+
+    def _reallocate(self, slots: np.ndarray, capacity: int) -> None:
+        """New arrays of ``capacity`` rows holding the live ``slots`` first, in order."""
+        k = len(slots)
+
+        def moved(a: np.ndarray) -> np.ndarray:
+            b = np.zeros((capacity, *a.shape[1:]), a.dtype)
+            a.take(slots, axis=0, out=b[:k])
+            return b
+
+        self.data = _map(self.data, moved)
+        self.data.track[k:] = -1
+        self.n = self.alive = k
+
+    def problem(self, ntracks: int) -> str | None:
+        """Why the slots are inconsistent with ``ntracks`` tracks (a restored state),
+        ``None`` if they are not."""
+        cap = len(self.data.track)
+        for name in _fields(self.data):
+            v = getattr(self.data, name)
+            for a in v if isinstance(v, list) else (v,):
+                if not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != cap:
+                    return f"component slots: {name} is not {cap} rows"
+        t = self.data.track[: self.n]
+        if not 0 <= self.n <= cap or self.alive != int((t >= 0).sum()):
+            return f"component slots: {self.alive} live of {self.n} used in {cap}"
+        if len(t) and t.max(initial=-1) >= ntracks:
+            return f"component slots: a component of track row {int(t.max())} of {ntracks}"
+        return None

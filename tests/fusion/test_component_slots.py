@@ -1,0 +1,88 @@
+"""The slot store of density components against the store it replaces (take and
+concatenate after every operation), over random sequences of appends, replacements,
+removals of tracks and compactions; and the consistency check of a restored store."""
+
+import numpy as np
+from skyfuse.fusion.tracker.component_slots import ComponentSlots
+from skyfuse.fusion.tracker.components import Mixture
+from skyfuse.fusion.tracker.density.imm_mixture import IMMComponents
+
+
+def _imm(rng, tracks):
+    c = len(tracks)
+    return IMMComponents(
+        np.asarray(tracks, np.int64), rng.random(c), rng.integers(0, 9, (c, 2)),
+        rng.random((c, 2)), [rng.normal(size=(c, 4)), rng.normal(size=(c, 5))],
+        [rng.normal(size=(c, 4, 4)), rng.normal(size=(c, 5, 5))],
+    )  # fmt: skip
+
+
+def _same(a, b):
+    for name in ("track", "w", "hist", "mu"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    for j in range(2):
+        np.testing.assert_array_equal(a.x[j], b.x[j])
+        np.testing.assert_array_equal(a.P[j], b.P[j])
+
+
+def test_slots_follow_the_take_and_concatenate_store():
+    rng = np.random.default_rng(4)
+    ref = _imm(rng, [])
+    slots = ComponentSlots(ref)
+    ntracks, compactions = 0, 0
+    for _ in range(400):
+        op = rng.random()
+        if op < 0.3 or ntracks == 0:  # new tracks, one component each
+            k = int(rng.integers(1, 30))
+            new = _imm(rng, ntracks + np.arange(k))
+            ntracks += k
+            ref = IMMComponents.concat([ref, new])
+            slots.append(new)
+        elif op < 0.8:  # a batch updates some tracks: their components replaced
+            inside = rng.random(ntracks) < 0.2
+            rows = np.flatnonzero(inside)
+            new = _imm(rng, np.repeat(rows, rng.integers(1, 4, len(rows))))
+            ref = IMMComponents.concat([ref.take(np.flatnonzero(~inside[ref.track])), new])
+            slots.replace(inside, new)
+        else:  # some tracks end; the others are renumbered
+            mask = rng.random(ntracks) > 0.3
+            ref = ref.take(np.flatnonzero(mask[ref.track]))
+            ref.track = (np.cumsum(mask) - 1)[ref.track]
+            ntracks = int(mask.sum())
+            n_before = slots.n
+            slots.keep(mask)
+            compactions += slots.n < n_before
+        assert len(slots) == len(ref) and slots.problem(ntracks) is None
+        _same(slots.live(), ref)
+        inside = rng.random(ntracks) < 0.5
+        _same(slots.tracks(inside), ref.take(np.flatnonzero(inside[ref.track])))
+    assert compactions > 0  # the compaction path ran
+
+
+def test_views_of_all_slots_stay_valid_after_writes():
+    rng = np.random.default_rng(1)
+    slots = ComponentSlots.holding(
+        Mixture(np.arange(5), np.ones(5), rng.normal(size=(5, 4)), np.ones((5, 4, 4)),
+                np.zeros((5, 1), np.int64))
+    )  # fmt: skip
+    view = slots.tracks(np.ones(5, bool))  # every slot: views, not copies
+    before = view.track.copy(), view.x.copy()
+    new = Mixture(np.array([1, 1]), np.ones(2), np.zeros((2, 4)), np.eye(4)[None].repeat(2, 0),
+                  np.zeros((2, 1), np.int64))  # fmt: skip
+    slots.replace(np.isin(np.arange(5), [1]), new)
+    slots.keep(np.array([True, True, False, True, True]))
+    np.testing.assert_array_equal(view.track, before[0])
+    np.testing.assert_array_equal(view.x, before[1])
+    assert list(slots.live().track) == [0, 2, 3, 1, 1]
+
+
+def test_a_broken_store_is_reported():
+    rng = np.random.default_rng(2)
+    slots = ComponentSlots.holding(_imm(rng, [0, 1, 1]))
+    assert slots.problem(2) is None
+    assert "track row 1 of 1" in slots.problem(1)
+    slots.alive = 7
+    assert "7 live" in slots.problem(2)
+    slots.alive = 3
+    slots.data.x[1] = slots.data.x[1][:2]
+    assert "not" in slots.problem(2)
