@@ -1,6 +1,10 @@
 """Sustained plots/s, latency and memory of one ``skyfuse fusion`` process fed over Zenoh
 on loopback by several publisher processes, and the offline ``skyfuse track`` speed on
-the same plots in the same run (the live/offline ratio is the figure to watch).
+the same plots in the same run (the live/offline ratio is the figure to watch): the
+rate of the whole ``skyfuse track`` run up to its last step (reading the recording,
+writing its output, the per-step scoring), and the rate of its tracker steps alone
+(conversion, tracker, output message: the live service's work per batch),
+``live_over_offline`` and ``live_over_offline_steps``.
 
 For each offered rate R (plots/s): the ``regional`` scenario (``--radars`` radars,
 ``--targets`` aircraft) is simulated for ``--seconds`` × speed simulated seconds into an
@@ -109,7 +113,7 @@ def recording_facts(rec: Path) -> dict:
         "radars": sorted(sites),
         "batches": batches,
         "plots_processed": plots,
-        "timing": {"plots_per_s": None},
+        "timing": {"plots_per_s": None, "plots_per_s_steps": None},
     }
 
 
@@ -324,6 +328,7 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
     applied = c.get("plots_applied", 0)
     live = applied / t_done if t_done > 0 else 0.0
     off = offline["timing"]["plots_per_s"]
+    off_steps = offline["timing"].get("plots_per_s_steps")
     r1 = lambda v: None if v is None else round(v, 1)  # noqa: E731
     return {
         "target_rate": rate,
@@ -341,6 +346,8 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "sustained_plots_per_s": round(live, 1),
         "offline_plots_per_s": off,
         "live_over_offline": round(live / off, 3) if off else None,
+        "offline_steps_plots_per_s": off_steps,
+        "live_over_offline_steps": round(live / off_steps, 3) if off_steps else None,
         "latency_ms": {k: r1(getattr(lat, k)) for k in ("p50", "p90", "p99", "max")},
         "latency_count": lat.count,
         "cycles": c.get("cycles"),

@@ -105,3 +105,19 @@ def test_tracked_simulation_fixes_the_frame_by_the_rule_and_writes_every_step(tm
     written = [r.message for r in iter_recording(out) if isinstance(r.message, TrackBatch)]
     assert len(written) == n and all(b.frame == res.frame.spec() for b in written)
     assert res.summary()["timing"]["ms_per_batch_mean"] > 0
+
+
+def test_timing_stops_at_the_last_step_not_at_the_summary():
+    """The offline rate is the run's: work after the last step (the truth scoring of the
+    summaries) is not in it; the steps' own rate is reported beside it."""
+    import time
+    from types import SimpleNamespace
+
+    t = Timing()
+    for _ in range(3):
+        t.on_step(SimpleNamespace(ms=10.0, batch=[0] * 50))
+    time.sleep(0.3)  # a slow summary of another observer
+    got = t.summary()["timing"]
+    assert got["wall_s"] < 0.2
+    assert got["plots_per_s_steps"] == pytest.approx(5000.0)
+    assert got["plots_per_s"] >= 150 / 0.2
