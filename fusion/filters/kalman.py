@@ -15,6 +15,7 @@ H (m, d); R (m, m) shared or (n, m, m); z (n, m). Units are whatever the model u
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .small_spd import right_solve
@@ -45,11 +46,55 @@ def gain(P: np.ndarray, H: np.ndarray, S: np.ndarray) -> np.ndarray:
 
 
 def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """(I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetric and positive semi-definite by construction."""
-    d = P.shape[-1]
-    A = np.eye(d) - K @ H
-    P_new = A @ P @ A.swapaxes(-1, -2) + K @ R @ K.swapaxes(-1, -2)
-    return 0.5 * (P_new + P_new.swapaxes(-1, -2))
+    """(I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetric and positive semi-definite by
+    construction: P (n, d, d), K (n, d, k), H (k, d), R (k, k) or (n, k, k); one compiled
+    loop over the n states (no (n, d, d) temporaries)."""
+    P = np.asarray(P, dtype=np.float64)
+    if P.ndim != 3:  # a single state
+        return joseph_covariance(P[None], np.asarray(K)[None], H, R)[0]
+    n = len(P)
+    R = np.broadcast_to(np.asarray(R, dtype=np.float64), (n, *np.shape(R)[-2:]))
+    return _joseph(P, np.asarray(K, dtype=np.float64), np.asarray(H, dtype=np.float64), R)
+
+
+@numba.njit(cache=True, nogil=True)
+def _joseph(P, K, H, R):
+    n, d, k = K.shape
+    out = np.empty((n, d, d))
+    A = np.empty((d, d))
+    T = np.empty((d, d))
+    KR = np.empty((d, k))
+    for s in range(n):
+        for i in range(d):  # A = I − K H
+            for j in range(d):
+                t = 1.0 if i == j else 0.0
+                for m in range(k):
+                    t -= K[s, i, m] * H[m, j]
+                A[i, j] = t
+        for i in range(d):  # T = A P
+            for j in range(d):
+                t = 0.0
+                for m in range(d):
+                    t += A[i, m] * P[s, m, j]
+                T[i, j] = t
+        for i in range(d):  # K R
+            for j in range(k):
+                t = 0.0
+                for m in range(k):
+                    t += K[s, i, m] * R[s, m, j]
+                KR[i, j] = t
+        for i in range(d):  # T Aᵀ + K R Kᵀ, symmetrised
+            for j in range(i + 1):
+                u = 0.0
+                v = 0.0
+                for m in range(d):
+                    u += T[i, m] * A[j, m]
+                    v += T[j, m] * A[i, m]
+                for m in range(k):
+                    u += KR[i, m] * K[s, j, m]
+                    v += KR[j, m] * K[s, i, m]
+                out[s, i, j] = out[s, j, i] = 0.5 * (u + v)
+    return out
 
 
 def update(

@@ -7,12 +7,16 @@ group label; each group {ξ^n, x̂^n, P^n} becomes one Gaussian
 
     ξ^μ = Σ ξ^n,   x̂^μ = Σ ξ^n x̂^n / ξ^μ,   P^μ = Σ ξ^n [P^n + (x̂^n − x̂^μ)(x̂^n − x̂^μ)ᵀ] / ξ^μ.
 
-Grouped sums are one ``np.add.reduceat`` over the components sorted by group: linear in
-the number of components, no Python loop over them.
+The grouped merge runs over the components sorted by group in one compiled loop
+(numba: no (C, d, d) temporaries), summing each group's terms sequentially in the
+components' order; the other grouped sums are ``np.add.reduceat`` calls. Both are linear
+in the number of components, with no Python loop over them; the two agree to rounding
+(``reduceat`` associates long sums differently).
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 
@@ -60,9 +64,9 @@ def moment_match(
     """Merge components with equal ``group``: w (C,), x (C, d), P (C, d, d).
 
     Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean.
-    The components are sorted by group once (stable, skipped when already sorted) and
-    every grouped sum is one ``np.add.reduceat`` over those runs, in the components'
-    order within each group (the order of ``np.bincount``)."""
+    The components are sorted by group once (stable, skipped when already sorted); the
+    moments of each run are then summed in the components' order within the group
+    (:func:`_grouped_moments`)."""
     group = np.asarray(group)
     if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
         # one component per group (GNN/IPDA tracks): nothing to merge
@@ -74,19 +78,62 @@ def moment_match(
         order = np.argsort(group, kind="stable")
         w, x, P, group = w[order], x[order], P[order], group[order]
     starts = _segment_starts(group)
-    gid = group[starts]
-    W = _sorted_sum(np.asarray(w, dtype=np.float64), starts, gid, ngroups)
-    zero = W <= 0.0
-    ww = w
-    Wn = W
-    if zero.any():  # fall back to equal weights inside weightless groups
-        ww = np.where(zero[group], 1.0, w)
-        Wn = _sorted_sum(ww, starts, gid, ngroups)
-    xm = _sorted_sum(ww[:, None] * x, starts, gid, ngroups) / Wn[:, None]
-    dx = x - xm[group]
-    spread = P + dx[:, :, None] * dx[:, None, :]
-    Pm = _sorted_sum(ww[:, None, None] * spread, starts, gid, ngroups) / Wn[:, None, None]
-    Pm = 0.5 * (Pm + Pm.swapaxes(1, 2))
+    return _grouped_moments(
+        np.ascontiguousarray(w, dtype=np.float64),
+        np.ascontiguousarray(x, dtype=np.float64),
+        np.ascontiguousarray(P, dtype=np.float64),
+        starts,
+        group[starts].astype(np.int64),
+        ngroups,
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _grouped_moments(w, x, P, starts, gid, ngroups):
+    """W, x̂^μ, P^μ of the runs of sorted components at ``starts`` (labels ``gid``);
+    groups without components: W 0 and NaN moments; a run of zero total weight: equal
+    weights (see :func:`moment_match`)."""
+    C, d = x.shape
+    W = np.zeros(ngroups)
+    xm = np.full((ngroups, d), np.nan)
+    Pm = np.full((ngroups, d, d), np.nan)
+    dx = np.empty(d)
+    acc = np.empty((d, d))
+    for s in range(len(starts)):
+        lo = starts[s]
+        hi = starts[s + 1] if s + 1 < len(starts) else C
+        g = gid[s]
+        tot = 0.0
+        for c in range(lo, hi):
+            tot += w[c]
+        W[g] = tot
+        equal = not tot > 0.0
+        wn = 0.0
+        for c in range(lo, hi):
+            wn += 1.0 if equal else w[c]
+        mean = np.zeros(d)
+        for c in range(lo, hi):
+            wc = 1.0 if equal else w[c]
+            for a in range(d):
+                mean[a] += wc * x[c, a]
+        for a in range(d):
+            mean[a] /= wn
+        acc[:, :] = 0.0
+        for c in range(lo, hi):
+            wc = 1.0 if equal else w[c]
+            for a in range(d):
+                dx[a] = x[c, a] - mean[a]
+            for a in range(d):
+                for b in range(d):
+                    acc[a, b] += wc * (P[c, a, b] + dx[a] * dx[b])
+        for a in range(d):
+            xm[g, a] = mean[a]
+            for b in range(d):
+                Pm[g, a, b] = acc[a, b] / wn
+        for a in range(d):
+            for b in range(d):
+                acc[a, b] = 0.5 * (Pm[g, a, b] + Pm[g, b, a])
+        Pm[g] = acc
     return W, xm, Pm
 
 
