@@ -52,8 +52,9 @@ def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray
     P = np.asarray(P, dtype=np.float64)
     if P.ndim != 3:  # a single state
         return joseph_covariance(P[None], np.asarray(K)[None], H, R)[0]
-    n = len(P)
-    R = np.broadcast_to(np.asarray(R, dtype=np.float64), (n, *np.shape(R)[-2:]))
+    R = np.asarray(R, dtype=np.float64)
+    if R.ndim != 3 or len(R) != len(P):
+        R = np.broadcast_to(R, (len(P), *R.shape[-2:]))
     return _joseph(P, np.asarray(K, dtype=np.float64), np.asarray(H, dtype=np.float64), R)
 
 

@@ -30,18 +30,36 @@ import numpy as np
 _COMPACT_MIN = 1024
 
 
-def _fields(comp) -> list[str]:
-    return [f.name for f in fields(comp)]
+_FIELDS: dict[type, tuple[str, ...]] = {}
+
+
+def _fields(comp) -> tuple[str, ...]:
+    names = _FIELDS.get(type(comp))
+    if names is None:
+        names = _FIELDS[type(comp)] = tuple(f.name for f in fields(comp))
+    return names
+
+
+def _arrays(comp) -> list[np.ndarray]:
+    """The arrays of a components object, the per-mode lists flattened, in field order."""
+    out = []
+    for name in _fields(comp):
+        v = getattr(comp, name)
+        if isinstance(v, list):
+            out.extend(v)
+        else:
+            out.append(v)
+    return out
 
 
 def _map(comp, fn):
     """A components object of the same type with ``fn`` applied to every array (also
     inside the per-mode lists)."""
-    out = {}
+    out = []
     for name in _fields(comp):
         v = getattr(comp, name)
-        out[name] = [fn(a) for a in v] if isinstance(v, list) else fn(v)
-    return type(comp)(**out)
+        out.append([fn(a) for a in v] if isinstance(v, list) else fn(v))
+    return type(comp)(*out)
 
 
 class ComponentSlots:
@@ -79,10 +97,10 @@ class ComponentSlots:
     def tracks(self, inside: np.ndarray):
         """The live components of the tracks where ``inside`` (n_tracks,) is True, in slot
         order: a copy, or read-only views when they are all the used slots."""
-        slots = self._slots(inside)
-        if len(slots) == self.n:  # every used slot, in order: no copy
-            return _map(self.data, lambda a: a[: self.n])
-        return self.data.take(slots)
+        n = self.n
+        if self.alive == n and inside.all():  # every used slot, in order: no copy
+            return _map(self.data, lambda a: a[:n])
+        return self.data.take(self._slots(inside))
 
     # ---------------------------------------------------------------- writing
     def append(self, new) -> None:
@@ -92,16 +110,37 @@ class ComponentSlots:
             return
         lo, hi = self.n, self.n + m
         if hi > len(self.data.track):
-            self._reallocate(self._slots(), max(hi, 2 * len(self.data.track)))
-            lo, hi = self.n, self.n + m
-        for name in _fields(new):
-            dst, src = getattr(self.data, name), getattr(new, name)
-            for d, s in zip(dst, src) if isinstance(dst, list) else ((dst, src),):
-                d[lo:hi] = s
+            self._grow(new)
+            return
+        for d, s in zip(_arrays(self.data), _arrays(new)):
+            d[lo:hi] = s
         self.n, self.alive = hi, self.alive + m
+
+    def _grow(self, new) -> None:
+        """Append ``new`` into new arrays with spare capacity (the live slots first)."""
+        keep = None if self.alive == self.n else self._slots()
+        k = self.alive
+        cap = max(2 * (k + len(new)), 64)
+
+        def grown(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            out = np.empty((cap, *a.shape[1:]), a.dtype)
+            if keep is None:
+                out[:k] = a[:k]
+            else:
+                a.take(keep, axis=0, out=out[:k])
+            out[k : k + len(b)] = b
+            return out
+
+        it = iter(_arrays(new))
+        self.data = _map(self.data, lambda a: grown(a, next(it)))
+        self.data.track[k + len(new) :] = -1
+        self.n = self.alive = k + len(new)
 
     def replace(self, inside: np.ndarray, new) -> None:
         """The components of the tracks where ``inside`` are replaced by ``new``."""
+        if self.alive == self.n and inside.all():  # every track: ``new`` is the store
+            self.data, self.n, self.alive = new, len(new), len(new)
+            return
         self._kill(self._slots(inside))
         self.append(new)
 

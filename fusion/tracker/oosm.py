@@ -206,9 +206,14 @@ class LastStep:
             self.x[j][lo:hi], self.P[j][lo:hi] = x[j], P[j]
         self.n = hi
         by_id = np.argsort(ids, kind="stable")
-        at = np.searchsorted(self.keys, ids[by_id])
-        self.keys = np.insert(self.keys, at, ids[by_id])
-        self.order = np.insert(self.order, at, lo + by_id)
+        new_keys, new_slots = ids[by_id], lo + by_id
+        if not len(self.keys) or new_keys[0] > self.keys[-1]:  # new tracks: the largest ids
+            self.keys = np.concatenate([self.keys, new_keys])
+            self.order = np.concatenate([self.order, new_slots])
+            return
+        at = np.searchsorted(self.keys, new_keys)
+        self.keys = np.insert(self.keys, at, new_keys)
+        self.order = np.insert(self.order, at, new_slots)
 
     def _resize(self, capacity: int) -> None:
         def grow(a: np.ndarray) -> np.ndarray:

@@ -25,12 +25,21 @@ def _same(a, b):
         np.testing.assert_array_equal(a.P[j], b.P[j])
 
 
-def test_slots_follow_the_take_and_concatenate_store():
+def test_slots_follow_the_take_and_concatenate_store(monkeypatch):
+    import skyfuse.fusion.tracker.component_slots as cs
+
+    monkeypatch.setattr(cs, "_COMPACT_MIN", 8)  # compaction often, not only past 1,024
+    reallocations = []
+    real = cs.ComponentSlots._reallocate
+    monkeypatch.setattr(
+        cs.ComponentSlots, "_reallocate", lambda s, *a: reallocations.append(1) or real(s, *a)
+    )
     rng = np.random.default_rng(4)
     ref = _imm(rng, [])
     slots = ComponentSlots(ref)
     ntracks, compactions = 0, 0
     for _ in range(400):
+        dead_before = slots.n - len(slots)
         op = rng.random()
         if op < 0.3 or ntracks == 0:  # new tracks, one component each
             k = int(rng.integers(1, 30))
@@ -49,14 +58,13 @@ def test_slots_follow_the_take_and_concatenate_store():
             ref = ref.take(np.flatnonzero(mask[ref.track]))
             ref.track = (np.cumsum(mask) - 1)[ref.track]
             ntracks = int(mask.sum())
-            n_before = slots.n
             slots.keep(mask)
-            compactions += slots.n < n_before
+        compactions += dead_before > 0 and slots.n == len(slots)  # dead slots dropped
         assert len(slots) == len(ref) and slots.problem(ntracks) is None
         _same(slots.live(), ref)
         inside = rng.random(ntracks) < 0.5
         _same(slots.tracks(inside), ref.take(np.flatnonzero(inside[ref.track])))
-    assert compactions > 0  # the compaction path ran
+    assert compactions > 0 and reallocations  # both compaction paths ran
 
 
 def test_views_of_all_slots_stay_valid_after_writes():
