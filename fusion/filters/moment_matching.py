@@ -50,14 +50,6 @@ def segment_sum(values: np.ndarray, group: np.ndarray, ngroups: int) -> np.ndarr
     return out
 
 
-def _sorted_sum(values: np.ndarray, starts: np.ndarray, gid: np.ndarray, ngroups: int):
-    """:func:`segment_sum` of components already sorted by group (runs at ``starts``,
-    labels ``gid``)."""
-    out = np.zeros((ngroups, *values.shape[1:]))
-    out[gid] = np.add.reduceat(values, starts, axis=0)
-    return out
-
-
 def moment_match(
     w: np.ndarray, x: np.ndarray, P: np.ndarray, group: np.ndarray, ngroups: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -117,7 +117,8 @@ class ComponentSlots:
         self.n, self.alive = hi, self.alive + m
 
     def _grow(self, new) -> None:
-        """Append ``new`` into new arrays with spare capacity (the live slots first)."""
+        """New arrays with spare capacity holding the live slots, in order, then ``new``
+        (empty ``new``: the compaction)."""
         keep = None if self.alive == self.n else self._slots()
         k = self.alive
         cap = max(2 * (k + len(new)), 64)
@@ -165,20 +166,7 @@ class ComponentSlots:
     def _maybe_compact(self) -> None:
         dead = self.n - self.alive
         if dead > max(self.alive, _COMPACT_MIN):
-            self._reallocate(self._slots(), max(2 * self.alive, 64))
-
-    def _reallocate(self, slots: np.ndarray, capacity: int) -> None:
-        """New arrays of ``capacity`` rows holding the live ``slots`` first, in order."""
-        k = len(slots)
-
-        def moved(a: np.ndarray) -> np.ndarray:
-            b = np.zeros((capacity, *a.shape[1:]), a.dtype)
-            a.take(slots, axis=0, out=b[:k])
-            return b
-
-        self.data = _map(self.data, moved)
-        self.data.track[k:] = -1
-        self.n = self.alive = k
+            self._grow(self.data.take(np.zeros(0, np.int64)))
 
     def problem(self, ntracks: int) -> str | None:
         """Why the slots are inconsistent with ``ntracks`` tracks (a restored state),

@@ -97,12 +97,13 @@ def noise_terms(
     (or not finite), or where the A1 conditional noise covariance is not PSD
     (:mod:`.oosm_kernel`)."""
     f8 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    Q = f8(Q)
     Pxv = np.zeros(P.shape)
-    Pvv = f8(Q).copy()
+    Pvv = Q.copy()
     corr = np.zeros(x.shape)
     rows = np.flatnonzero(known)
     if len(rows):
-        a1_terms_into(f8(x), f8(P), Pvv.copy(), f8(x_prior), f8(P_prior), rows, Pxv, Pvv, corr)
+        a1_terms_into(f8(x), f8(P), Q, f8(x_prior), f8(P_prior), rows, Pxv, Pvv, corr)
     return Pxv, Pvv, corr
 
 
