@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from service_support import wait_for_router
-from skyfuse.schemas import PlotBatch, RadarKind, RadarSite, Status, TrackBatch, keys
+from skyfuse.schemas import FeedKind, PlotBatch, RadarKind, RadarSite, Status, TrackBatch, keys
 from skyfuse.services.runtime import security
 from skyfuse.services.runtime.transport import (
     Inbox,
@@ -139,7 +139,7 @@ def test_tls_acl_authorised_work_unauthorised_neither_inject_publish_nor_read(ce
         attack_keys = (keys.radar_plots("R1"), keys.radar_site("R1"), keys.fusion_tracks("main"))
         attacks = [[declare_publisher(s, k) for k in attack_keys] for s in (r2, evil, plain)]
         time.sleep(0.3)
-        real = None
+        real, seen = None, []
         for k in range(8):
             good.put(batch(k, rng))
             for plots, sites, tracks in attacks:
@@ -151,6 +151,7 @@ def test_tls_acl_authorised_work_unauthorised_neither_inject_publish_nor_read(ce
             for item in feed.drain():
                 if item.tag == "tracks":
                     real = TrackBatch.from_json_bytes(item.payload)
+                    seen.append(real)
         got = drain_until(
             feed,
             lambda i: (
@@ -161,6 +162,8 @@ def test_tls_acl_authorised_work_unauthorised_neither_inject_publish_nor_read(ce
         st = Status.from_json_bytes(got[-1].payload)
         tracks = [TrackBatch.from_json_bytes(i.payload) for i in got if i.tag == "tracks"]
         time.sleep(0.5)
+        tracks += [TrackBatch.from_json_bytes(i.payload) for i in feed.drain() if i.tag == "tracks"]
+        seen += tracks
         leaked = {name: len(inbox.drain()) for name, inbox in spies.items()}
         for inbox in (feed, *spies.values()):
             inbox.close()
@@ -173,10 +176,16 @@ def test_tls_acl_authorised_work_unauthorised_neither_inject_publish_nor_read(ce
     assert r1.batches == 8 and r1.plots == 32
     assert not st.rejected  # hostile input was not even delivered
     # the authorised client reads the feed; no fake track batch reached it
-    assert real is not None and all(t.cycle <= 8 for t in tracks)
+    # (a delta may carry several batches when two are released together: its cycle counts
+    # deltas, its ``batches`` the plot batches it applied)
+    deltas = [t for t in seen if t.kind is FeedKind.DELTA]
+    assert real is not None and sum(t.batches for t in deltas) == 8
+    assert [t.cycle for t in deltas] == list(range(1, len(deltas) + 1))
+    assert all(t.cycle <= len(deltas) for t in seen)  # no forged batch (cycle 424242)
     assert snap_ok.returncode == 0
     snap = json.loads(snap_ok.stdout.decode().splitlines()[0])
-    assert snap["topic"] == keys.fusion_snapshot("main") and snap["message"]["cycle"] == 8
+    assert snap["topic"] == keys.fusion_snapshot("main")
+    assert snap["message"]["cycle"] == deltas[-1].cycle
     # no hostile peer read anything: neither tracks, nor status, nor plots
     assert leaked == {"listed sensor R2": 0, "unlisted client": 0, "plain": 0}
     assert snap_r2.returncode == 1  # the snapshot query is denied too
