@@ -55,7 +55,10 @@ def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray
     R = np.asarray(R, dtype=np.float64)
     if R.ndim != 3 or len(R) != len(P):
         R = np.broadcast_to(R, (len(P), *R.shape[-2:]))
-    return _joseph(P, np.asarray(K, dtype=np.float64), np.asarray(H, dtype=np.float64), R)
+    # C-contiguous float64 only: one compiled signature (loaded at start by
+    # :func:`fusion.tracker.kernel_warmup.warm_up`, never compiled on a batch)
+    c = np.ascontiguousarray
+    return _joseph(c(P), c(K, dtype=np.float64), c(H, dtype=np.float64), c(R))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -24,6 +24,7 @@ import argparse
 import logging
 import time
 
+from skyfuse.fusion.tracker.kernel_warmup import warm_up
 from skyfuse.schemas import keys
 from skyfuse.services.cli.config import (
     ConfigError,
@@ -161,6 +162,8 @@ def serve(
     ``persist``: a :class:`services.fusion.state_store.Persistence` (resume, snapshots).
     Publishes only as the active instance of its fusion id (``services.fusion.standby``);
     returns the exit status (1: another instance holds the id)."""
+    # the compiled kernels load now, not on the first batches (their latency)
+    log.info("tracker kernels loaded in %.2f s", warm_up())
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")

@@ -1,0 +1,42 @@
+"""Load the tracker's compiled (numba) kernels before the first batch.
+
+numba compiles a kernel, or loads it from its on-disk cache (``cache=True``), at its
+first call in a process. For the kernels of the tracker that is 0.3–1.3 s on the
+development machine, paid by whichever batch first calls them: in the live fusion
+service, latency on the first batches (measured: the first 2,000 plots/s level of
+``benchmarks/service_pipeline.py`` had p99 733 ms, against a reorder wait of 200 ms, when
+the kernels were loaded on its first batches).
+
+:func:`warm_up` calls each kernel once on a tiny valid input of the one signature the
+tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so a
+service can pay this at start, before it declares itself alive. It computes nothing that
+is kept. No equations here: the kernels are documented where they are defined
+(:mod:`fusion.filters.cholesky_kernels`, :mod:`fusion.filters.kalman`,
+:mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from skyfuse.fusion.filters.cholesky_kernels import positive_definite
+from skyfuse.fusion.filters.kalman import joseph_covariance
+from skyfuse.fusion.filters.moment_matching import moment_match
+from skyfuse.fusion.tracker.oosm import noise_terms
+
+
+def warm_up() -> float:
+    """Call every compiled kernel once (2 states, d = 2); return the seconds it took
+    (near zero when they are already loaded in this process)."""
+    t0 = time.perf_counter()
+    eye = np.eye(2)
+    P = np.stack([eye, 2.0 * eye])
+    positive_definite(P)
+    K = np.full((2, 2, 1), 0.5)
+    joseph_covariance(P, K, np.array([[1.0, 0.0]]), np.ones((2, 1, 1)))
+    w = np.array([0.4, 0.6, 1.0])
+    x = np.arange(6.0).reshape(3, 2)
+    moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
+    noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
+    return time.perf_counter() - t0
