@@ -28,7 +28,8 @@ out-of-sequence update (publishers started a few ms apart are seconds apart in d
 at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
-        [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2] [--json out.json]
+        [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2]
+        [--max-backlog S] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -284,7 +285,8 @@ def start_children(
 def run_level(rate: float, speed: float, a, work: Path) -> dict:
     rec, offline = make_level_files(rate, speed, a, work)
     frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
-    ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate)
+    extra = () if a.max_backlog is None else ("--max-backlog", str(a.max_backlog))
+    ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate, extra)
     load0 = os.getloadavg()
     # a fresh state directory per level: the fusion must not resume the picture, the
     # watermarks and the seen batches of an earlier level (or of another run of the
@@ -386,6 +388,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sectors", type=int, default=16, help="regional n_sectors: batches/scan")
     ap.add_argument("--reorder-wait", type=float, default=0.2)
+    ap.add_argument(
+        "--max-backlog",
+        type=float,
+        default=None,
+        help="the fusion's --max-backlog (stop reading when behind by this, s; default off)",
+    )
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
