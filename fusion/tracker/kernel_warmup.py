@@ -1,11 +1,10 @@
 """Load the tracker's compiled (numba) kernels before the first batch.
 
 numba compiles a kernel, or loads it from its on-disk cache (``cache=True``), at its
-first call in a process. For the kernels of the tracker that is 0.3–1.3 s on the
-development machine, paid by whichever batch first calls them: in the live fusion
-service, latency on the first batches (measured: the first 2,000 plots/s level of
-``benchmarks/service_pipeline.py`` had p99 733 ms, against a reorder wait of 200 ms, when
-the kernels were loaded on its first batches).
+first call in a process. For the tracker's kernels that took 1.3 s in a fresh process
+on the development machine (cache present), paid by whichever batch first calls them: in
+the live fusion service, latency on its first batches (a profile of the service at
+20,000 plots/s had 7.9 % of its samples in numba's dispatcher).
 
 :func:`warm_up` calls each kernel once on a tiny valid input of the one signature the
 tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so a
