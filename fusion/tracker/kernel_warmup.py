@@ -11,7 +11,8 @@ tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so
 service can pay this at start, before it declares itself alive. It computes nothing that
 is kept. No equations here: the kernels are documented where they are defined
 (:mod:`fusion.filters.cholesky_kernels`, :mod:`fusion.filters.kalman`,
-:mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`).
+:mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`,
+:mod:`fusion.models.coordinated_turn_kernels`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ import numpy as np
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 from skyfuse.fusion.filters.kalman import joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match
+from skyfuse.fusion.models import CoordinatedTurn
+from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 from skyfuse.fusion.tracker.oosm import noise_terms
 
 
@@ -38,4 +41,10 @@ def warm_up() -> float:
     x = np.arange(6.0).reshape(3, 2)
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
+    ct = CoordinatedTurn()
+    xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
+    ct.transition(xt, 4.0)
+    ct.Q(4.0, xt)
+    to_cv_layout(ct, xt, Pt)
+    from_common(ct, *to_common(ct, xt, Pt))
     return time.perf_counter() - t0
