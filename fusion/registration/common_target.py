@@ -31,43 +31,72 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass
 class PlotColumns:
     """Plots of tracks (arrays over k plots): track id, radar index, time ns, horizontal
     position z (k, 2) m, covariance R (k, 2, 2) m², bias sensitivity H (k, 2, 4), the
     correction applied β̂ (k, 4), track velocity v (k, 2) m/s and its covariance
-    P_vv (k, 2, 2)."""
+    P_vv (k, 2, 2).
 
-    track: np.ndarray
-    radar: np.ndarray
-    time: np.ndarray
-    z: np.ndarray
-    R: np.ndarray
-    H: np.ndarray
-    applied: np.ndarray
-    v: np.ndarray
-    Pvv: np.ndarray
+    Stored packed, one row per plot: the integers (track, radar, time) in ``ints``
+    (k, 3) and the 24 reals (z, R, H, β̂, v, P_vv, flattened in that order) in ``floats``
+    (k, 24), so that selecting or appending plots is two array operations, not nine;
+    the named columns are views of these."""
+
+    def __init__(self, track, radar, time, z, R, H, applied, v, Pvv) -> None:
+        k = len(track)
+        self.ints = np.empty((k, 3), np.int64)
+        self.ints[:, 0], self.ints[:, 1], self.ints[:, 2] = track, radar, time
+        self.floats = np.empty((k, _WIDTH))
+        for (lo, hi), col in zip(_SLICES, (z, R, H, applied, v, Pvv), strict=True):
+            self.floats[:, lo:hi] = np.reshape(col, (k, hi - lo))
+
+    @classmethod
+    def _packed(cls, ints: np.ndarray, floats: np.ndarray) -> PlotColumns:
+        out = cls.__new__(cls)
+        out.ints, out.floats = ints, floats
+        return out
+
+    def _real(self, i: int, shape: tuple[int, ...]) -> np.ndarray:
+        lo, hi = _SLICES[i]
+        return self.floats[:, lo:hi].reshape((len(self.floats), *shape))
+
+    track = property(lambda self: self.ints[:, 0])
+    radar = property(lambda self: self.ints[:, 1])
+    time = property(lambda self: self.ints[:, 2])
+    z = property(lambda self: self._real(0, (2,)))
+    R = property(lambda self: self._real(1, (2, 2)))
+    H = property(lambda self: self._real(2, (2, 4)))
+    applied = property(lambda self: self._real(3, (4,)))
+    v = property(lambda self: self._real(4, (2,)))
+    Pvv = property(lambda self: self._real(5, (2, 2)))
 
     def __len__(self) -> int:
-        return len(self.track)
+        return len(self.ints)
 
     @classmethod
     def empty(cls) -> PlotColumns:
-        return cls(
-            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
-            np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 4)), np.zeros((0, 4)),
-            np.zeros((0, 2)), np.zeros((0, 2, 2)),
-        )  # fmt: skip
+        return cls._packed(np.zeros((0, 3), np.int64), np.zeros((0, _WIDTH)))
 
     def take(self, idx) -> PlotColumns:
-        return PlotColumns(*(getattr(self, f)[idx] for f in _FIELDS))
+        return PlotColumns._packed(self.ints[idx], self.floats[idx])
 
     @staticmethod
     def concat(a: PlotColumns, b: PlotColumns) -> PlotColumns:
-        return PlotColumns(*(np.concatenate([getattr(a, f), getattr(b, f)]) for f in _FIELDS))
+        return PlotColumns._packed(
+            np.concatenate([a.ints, b.ints]), np.concatenate([a.floats, b.floats])
+        )
 
 
-_FIELDS = ("track", "radar", "time", "z", "R", "H", "applied", "v", "Pvv")
+def _run_starts(sorted_keys: np.ndarray) -> np.ndarray:
+    """True at the first row of each run of equal keys."""
+    first = np.ones(len(sorted_keys), bool)
+    first[1:] = sorted_keys[1:] != sorted_keys[:-1]
+    return first
+
+
+_SIZES = (2, 4, 8, 4, 2, 4)  # z, R, H, applied, v, Pvv
+_SLICES = tuple(zip(np.cumsum((0, *_SIZES[:-1])).tolist(), np.cumsum(_SIZES).tolist()))
+_WIDTH = sum(_SIZES)
 
 
 @dataclass
@@ -109,7 +138,9 @@ class PairBuffer:
         keep_store = np.ones(len(s), bool)
         keep_store[ib] = False
         # a newer plot of the same (track, radar) replaces the stored one
-        rest = new.take(np.setdiff1d(np.arange(len(new)), ia))
+        unpaired = np.ones(len(new), bool)
+        unpaired[ia] = False
+        rest = new.take(unpaired)
         key_s = s.track * 64 + s.radar
         keep_store &= ~np.isin(key_s, rest.track * 64 + rest.radar)
         self.store = PlotColumns.concat(s.take(np.flatnonzero(keep_store)), rest)
@@ -137,12 +168,14 @@ class PairBuffer:
         a, b, cost = a[ok], b[ok], cost[ok]
         # the best stored row of each new plot: least |dt|, then the lowest stored row
         best = np.lexsort((b, cost, a))
-        first = np.r_[True, a[best][1:] != a[best][:-1]] if len(best) else best
-        ia, ib, c = a[best][first], b[best][first], cost[best][first]
+        a, b, cost = a[best], b[best], cost[best]
+        first = _run_starts(a)
+        ia, ib, c = a[first], b[first], cost[first]
         # the best new plot of each stored row: least |dt|, then the first new row
         order = np.lexsort((ia, c, ib))
-        first = np.r_[True, ib[order][1:] != ib[order][:-1]] if len(order) else order
-        return ia[order][first], ib[order][first]
+        ia, ib = ia[order], ib[order]
+        first = _run_starts(ib)
+        return ia[first], ib[first]
 
     def _expire(self, t_now: int) -> None:
         fresh = np.flatnonzero(t_now - self.store.time <= self.max_dt_ns)
