@@ -1,7 +1,8 @@
 """Batched extended-Kalman predict and update for linear or nonlinear models and
 measurements (spec 01 §2, 004 eq. 8-9 and 13-14), Joseph-form covariance.
 
-* predict: linear models use F(dt), Q(dt) (:func:`fusion.filters.kalman.predict`);
+* predict: linear models use F(dt), Q(dt) (:func:`fusion.filters.kalman.predict`), or
+  the model's own ``predict(x, P, dt)`` of the same equations where it has one (CV);
   nonlinear models (``model.nonlinear``, e.g. the coordinated turn) use
   ``model.transition(x, dt) -> (f(x), ∂f/∂x)`` and ``model.Q(dt, x)``: P⁻ = J P Jᵀ + Q.
 * update: ẑ, H = measurement.predict(x⁻); S = H P⁻ Hᵀ + R; K = P⁻ Hᵀ S⁻¹;
@@ -23,6 +24,9 @@ def predict(model, x: np.ndarray, P: np.ndarray, dt) -> tuple[np.ndarray, np.nda
         xp, J = model.transition(x, dt)
         Pp = J @ P @ J.swapaxes(-1, -2) + model.Q(dt, x)
         return xp, 0.5 * (Pp + Pp.swapaxes(-1, -2))
+    fused = getattr(model, "predict", None)  # the CV model's compiled F x, F P Fᵀ + Q
+    if fused is not None:
+        return fused(x, P, dt)
     return kalman.predict(x, P, model.F(dt), model.Q(dt))
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import cv_kernels
 from .base import as_dt_array
 
 
@@ -71,6 +72,17 @@ class ConstantVelocity:
             Q[:, i, i + 1] = Q[:, i + 1, i] = qa * t**3 / 2
             Q[:, i + 1, i + 1] = qa * t**2
         return Q[0] if scalar else Q
+
+    def predict(self, x: np.ndarray, P: np.ndarray, dt: float | np.ndarray):
+        """x⁻ = F x, P⁻ = F P Fᵀ + Q of n states x (n, d), P (n, d, d) over dt (scalar or
+        (n,)) s: the same as :func:`fusion.filters.kalman.predict` with :meth:`F` and
+        :meth:`Q`, as one compiled loop (:mod:`fusion.models.cv_kernels`)."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        t = np.asarray(dt, dtype=np.float64)
+        t = np.full(len(x), float(t)) if t.ndim == 0 else np.ascontiguousarray(t)
+        qv = self.q if self.q_vertical is None else self.q_vertical
+        return cv_kernels.predict(x, P, t, float(self.q), float(qv))
 
     def H(self) -> np.ndarray:
         """Position measurement matrix (ndim, d): picks x, y (, z)."""

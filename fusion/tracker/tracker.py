@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 from skyfuse.fusion.association.gating import gate_probability, gate_threshold
-from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.models.cv import ConstantVelocity
 
 from .associators import AssociationProblem
@@ -88,7 +87,7 @@ class OutputPrediction:
         if len(x) == 0:
             return x, P, np.zeros(0)
         dt = np.maximum(self.time_ns - self.t_last[idx], 0) * NS
-        x, P = predict(x, P, self.model.F(dt), self.model.Q(dt))
+        x, P = self.model.predict(x, P, dt)
         te = self.t_last if self.t_exist is None else self.t_exist
         dt_e = np.maximum(self.time_ns - te[idx], 0) * NS
         psi = self.chain.existence(self.chain.predict(self.exist[idx], dt_e))

@@ -178,3 +178,25 @@ def test_singer_transition_backwards_is_the_inverse_and_the_matrix_exponential()
     back = singer_axis_F(-dt, alpha)
     for k in range(dt.size):
         np.testing.assert_allclose(F[k] @ back[k], np.eye(3), atol=1e-10)
+
+
+@pytest.mark.parametrize("ndim,q_vertical", [(2, None), (3, None), (3, 0.3)])
+def test_cv_predict_equals_the_matrix_products(ndim, q_vertical):
+    """ConstantVelocity.predict (one compiled loop, block structure of F written out)
+    against F x and F P Fᵀ + Q with the model's own F and Q matrices, for per-state and
+    scalar dt, including dt = 0 and a backward dt."""
+    from skyfuse.fusion.filters.kalman import predict
+
+    model = ConstantVelocity(q=2.5, ndim=ndim, q_vertical=q_vertical)
+    rng = np.random.default_rng(ndim)
+    n, d = 40, 2 * ndim
+    x = rng.normal(0, 1e3, (n, d))
+    A = rng.normal(size=(n, d, d))
+    P = A @ np.swapaxes(A, -1, -2) * 50.0
+    for dt in (rng.uniform(-2, 12, n), np.r_[0.0, rng.uniform(0, 5, n - 1)], 4.0):
+        F, Q = model.F(dt), model.Q(dt)
+        xr, Pr = predict(x, P, F, Q)
+        xk, Pk = model.predict(x, P, dt)
+        np.testing.assert_allclose(xk, xr, rtol=1e-14, atol=1e-9)
+        np.testing.assert_allclose(Pk, Pr, rtol=1e-13, atol=1e-9)
+        np.testing.assert_array_equal(Pk, np.swapaxes(Pk, -1, -2))

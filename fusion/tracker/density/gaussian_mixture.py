@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from skyfuse.fusion.association.gating import GatedPairs, gate
-from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.filters.moment_matching import moment_match
 
 from .. import components as comp
@@ -141,7 +140,7 @@ class GaussianMixtureDensity:
         pred = self.slots.tracks(inside)
         loc = np.searchsorted(rows, pred.track)
         dtc = np.asarray(dt, dtype=np.float64)[loc]
-        pred.x, pred.P = predict(pred.x, pred.P, self.model.F(dtc), self.model.Q(dtc))
+        pred.x, pred.P = self.model.predict(pred.x, pred.P, dtc)
         y = pred.x[:, self.pos]
         HPH = pred.P[:, self.pos][:, :, self.pos]
         return MixturePrediction(rows, pred.w, loc, y, HPH, pred)
