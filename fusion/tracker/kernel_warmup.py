@@ -12,7 +12,8 @@ service can pay this at start, before it declares itself alive. It computes noth
 is kept. No equations here: the kernels are documented where they are defined
 (:mod:`fusion.filters.cholesky_kernels`, :mod:`fusion.filters.kalman`,
 :mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`,
-:mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`).
+:mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
+:mod:`fusion.tracker.existence`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from skyfuse.fusion.filters.kalman import joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
+from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
 
 
@@ -42,6 +44,7 @@ def warm_up() -> float:
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
     ConstantVelocity().predict(x[:2, :], P, np.array([1.0, 2.0]))
+    markov_chain_one(0.98, 0.0).predict(np.array([[0.5, 0.0]]), np.array([1.0]))
     ct = CoordinatedTurn()
     xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
     ct.transition(xt, 4.0)
