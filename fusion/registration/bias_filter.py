@@ -21,7 +21,9 @@ update in information form (Bar-Shalom, Li & Kirubarajan 2001, §7.2, eq. 7.2.1-
     Λ⁺ = Λ + Σ_k H_kᵀ W_k⁻¹ H_k,   η⁺ = η + Σ_k H_kᵀ W_k⁻¹ y_k,   β̂ = (Λ⁺)⁻¹ η⁺       (2)
 
 Before the update every pair is gated on its normalised innovation
-ν_kᵀ (H_k P H_kᵀ + W_k)⁻¹ ν_k ≤ χ²_2(p_gate) (wrong associations, manoeuvres). The
+ν_kᵀ (H_k P H_kᵀ + W_k)⁻¹ ν_k ≤ χ²_2(p_gate) (wrong associations, manoeuvres). The 2 × 2
+inverses (of the innovation covariance and of W_k) are closed forms
+(:mod:`fusion.filters.small_spd`). The
 state is kept in units of the prior σ (s = β/σ_0, P_0 = I) so that radians, metres,
 ppm and seconds are conditioned alike.
 """
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.stats import chi2
+from skyfuse.fusion.filters.small_spd import quadratic_and_logdet, right_solve
 
 from .common_target import ResidualPairs
 
@@ -69,7 +72,7 @@ class BiasFilter:
     def drift(self, variance_fraction: float) -> None:
         """Random walk: add ``variance_fraction`` × prior variance to the free states."""
         if self.n_radars:
-            free = np.concatenate([self._free(r) for r in range(self.n_radars)])
+            free = self._free_rows().reshape(-1)
             self.P[np.diag_indices_from(self.P)] += variance_fraction * free
 
     def bias(self, r: int) -> np.ndarray:
@@ -92,8 +95,11 @@ class BiasFilter:
         rows = np.arange(k)
         H[rows, :, pairs.a, :] += pairs.HA * self.sigma0
         H[rows, :, pairs.b, :] -= pairs.HB * self.sigma0
-        free = np.array([self._free(r) for r in range(n)])
-        return (H * free[None, None]).reshape(k, 2, 4 * n)
+        return (H * self._free_rows()[None, None]).reshape(k, 2, 4 * n)
+
+    def _free_rows(self) -> np.ndarray:
+        """(n, 4) bool: the estimated components of the non-reference radars."""
+        return self.estimated[None, :] & ~np.asarray(self.reference, bool)[:, None]
 
     def update(self, pairs: ResidualPairs) -> int:
         """Gate and apply one batch of pairs (eq. 2); returns the number used."""
@@ -103,21 +109,22 @@ class BiasFilter:
         informative = np.abs(H).sum(axis=(1, 2)) > 0
         nu = pairs.y - np.einsum("kij,j->ki", H, self.s)
         S = H @ self.P @ np.swapaxes(H, 1, 2) + pairs.W
-        d2 = np.einsum("ki,ki->k", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+        d2, _ = quadratic_and_logdet(S, nu)  # S (k, 2, 2): closed form
         ok = informative & (d2 <= self.gate)
-        np.add.at(self.pairs_rejected, pairs.a[informative & ~ok], 1)
+        n = self.n_radars
+        self.pairs_rejected += np.bincount(pairs.a[informative & ~ok], minlength=n)
         if not ok.any():
             return 0
         # information update over the free components only (fixed ones stay exactly 0)
-        idx = np.flatnonzero(np.concatenate([self._free(r) for r in range(self.n_radars)]))
-        H, y, Wi = H[ok][:, :, idx], pairs.y[ok], np.linalg.inv(pairs.W[ok])
-        HtWi = np.swapaxes(H, 1, 2) @ Wi
+        idx = np.flatnonzero(self._free_rows().reshape(-1))
+        H, y = H[ok][:, :, idx], pairs.y[ok]
+        HtWi = right_solve(np.swapaxes(H, 1, 2), pairs.W[ok])  # Hᵀ W⁻¹ (k, f, 2)
         Pf, sf = self.P[np.ix_(idx, idx)], self.s[idx]
         info = np.linalg.inv(Pf) + (HtWi @ H).sum(axis=0)
         eta = np.linalg.solve(Pf, sf) + np.einsum("kij,kj->i", HtWi, y)
         Pn = np.linalg.inv(info)
         self.P[np.ix_(idx, idx)] = 0.5 * (Pn + Pn.T)
         self.s[idx] = Pn @ eta
-        np.add.at(self.pairs_used, pairs.a[ok], 1)
-        np.add.at(self.pairs_used, pairs.b[ok], 1)
+        self.pairs_used += np.bincount(pairs.a[ok], minlength=n)
+        self.pairs_used += np.bincount(pairs.b[ok], minlength=n)
         return int(ok.sum())
