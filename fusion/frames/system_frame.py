@@ -184,9 +184,10 @@ class SystemFrame:
         return self.enu_to_frame_with_jacobian(enu, lat_s, lon_s, alt_s)[1]
 
     # --- velocities --------------------------------------------------------------------
-    def velocity_to_enu(self, x, y, z, vx, vy, vz=None):
+    def velocity_to_enu(self, x, y, z, vx, vy, vz=None, geodetic=None):
         """Frame velocity at frame position (x, y, z) → local (east, north, up) m/s at the
-        target's own geodetic position — what a published Track carries.
+        target's own geodetic position — what a published Track carries. ``geodetic``:
+        ``to_geodetic(x, y, z)`` if the caller has it already (not computed again).
 
         ``planar``: identity; ``ned``: rotation from the reference ENU to the target's ENU;
         ``stereographic``: inverse of the local plane Jacobian (central differences)."""
@@ -194,7 +195,7 @@ class SystemFrame:
         vz = np.zeros_like(vx) if vz is None else np.broadcast_to(np.asarray(vz, float), vx.shape)
         if self.kind is FrameKind.PLANAR:
             return vx.copy(), vy.copy(), np.array(vz, copy=True)
-        lat, lon, alt = self.to_geodetic(x, y, z)
+        lat, lon, alt = self.to_geodetic(x, y, z) if geodetic is None else geodetic
         if self.kind is FrameKind.NED:
             rot = enu_to_enu_rotation(self.lat0, self.lon0, lat, lon)
             v = np.einsum("...ij,...j->...i", rot, np.stack([vx, vy, vz], axis=-1))

@@ -103,7 +103,7 @@ class TrackTable:
         vz = x[:, 5] if ndim == 3 else np.zeros(n)
         if n:
             lat, lon, alt = frame.to_geodetic(px, py, pz)
-            ve, vn, vu = frame.velocity_to_enu(px, py, pz, vx, vy, vz)
+            ve, vn, vu = frame.velocity_to_enu(px, py, pz, vx, vy, vz, (lat, lon, alt))
         else:
             lat = lon = alt = ve = vn = vu = np.zeros(0)
         heading = np.mod(np.arctan2(ve, vn), TWO_PI)
