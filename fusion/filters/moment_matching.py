@@ -147,14 +147,44 @@ def moment_match_rows_each(
     summing to 1 → x (n, s, d), P (n, s, d, d), column j the mixture Σ_r w[n, r, j]
     N(xs[n, r], Ps[n, r]) (the IMM mixing of eq. 15-17 for every target mode j in one
     stacked array; the same sums over the mode axis as s calls of moment_match_rows)."""
-    W = w.sum(axis=1)  # (n, s)
-    ww = w
-    zero = W <= 0.0
-    if zero.any():  # equal weights in weightless columns, as moment_match
-        ww = np.where(zero[:, None, :], 1.0, w)
-        W = ww.sum(axis=1)
-    xm = np.einsum("nrs,nrd->nsd", ww, xs) / W[:, :, None]
-    dx = xs[:, :, None, :] - xm[:, None, :, :]  # (n, r, s, d)
-    spread = Ps[:, :, None] + dx[..., :, None] * dx[..., None, :]
-    Pm = np.einsum("nrs,nrsij->nsij", ww, spread) / W[:, :, None, None]
-    return xm, 0.5 * (Pm + Pm.swapaxes(-1, -2))
+    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    return _rows_each(f64(w), f64(xs), f64(Ps))
+
+
+@numba.njit(cache=True, nogil=True)
+def _rows_each(w, xs, Ps):
+    """The loops of :func:`moment_match_rows_each`: per row n and weighting j, W = Σ_r w,
+    x̂ = Σ_r w x_r / W, P̂ = Σ_r w (P_r + (x_r − x̂)(x_r − x̂)ᵀ) / W, symmetrised; a
+    weighting of total weight ≤ 0 takes equal weights."""
+    n, r, s = w.shape
+    d = xs.shape[2]
+    xm = np.zeros((n, s, d))
+    Pm = np.zeros((n, s, d, d))
+    dx = np.empty(d)
+    for k in range(n):
+        for j in range(s):
+            W = 0.0
+            for m in range(r):
+                W += w[k, m, j]
+            equal = W <= 0.0
+            if equal:
+                W = float(r)
+            for m in range(r):
+                wm = 1.0 if equal else w[k, m, j]
+                for a in range(d):
+                    xm[k, j, a] += wm * xs[k, m, a]
+            for a in range(d):
+                xm[k, j, a] /= W
+            for m in range(r):
+                wm = 1.0 if equal else w[k, m, j]
+                for a in range(d):
+                    dx[a] = xs[k, m, a] - xm[k, j, a]
+                for a in range(d):
+                    for b in range(d):
+                        Pm[k, j, a, b] += wm * (Ps[k, m, a, b] + dx[a] * dx[b])
+            for a in range(d):
+                for b in range(a, d):
+                    h = 0.5 * (Pm[k, j, a, b] / W + Pm[k, j, b, a] / W)
+                    Pm[k, j, a, b] = h
+                    Pm[k, j, b, a] = h
+    return xm, Pm

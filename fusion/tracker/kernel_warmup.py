@@ -23,7 +23,7 @@ import time
 import numpy as np
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 from skyfuse.fusion.filters.kalman import joseph_covariance
-from skyfuse.fusion.filters.moment_matching import moment_match
+from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows_each
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 from skyfuse.fusion.tracker.existence import markov_chain_one
@@ -42,6 +42,7 @@ def warm_up() -> float:
     w = np.array([0.4, 0.6, 1.0])
     x = np.arange(6.0).reshape(3, 2)
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
+    moment_match_rows_each(np.full((1, 2, 2), 0.5), x[None, :2], P[None])
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
     ConstantVelocity().predict(x[:2, :], P, np.array([1.0, 2.0]))
     markov_chain_one(0.98, 0.0).predict(np.array([[0.5, 0.0]]), np.array([1.0]))
