@@ -138,3 +138,18 @@ def test_dockerfile_copies_what_exists_and_runs_skyfuse():
     before_install = text[: text.index("RUN pip install .")]
     for folder in dirs.values():
         assert re.search(rf"^COPY {folder} ", before_install, re.M), f"Dockerfile misses {folder}/"
+
+
+def test_dockerfile_compiles_the_kernels_into_a_cache_the_runtime_user_owns():
+    """numba ignores a cache directory it cannot write (it tries a temporary file there):
+    the image's site-packages belongs to root, so the kernels are compiled at build time
+    into NUMBA_CACHE_DIR, which is then given to the user the services run as."""
+    text = (ROOT / "Dockerfile").read_text()
+    cache = re.search(r"^ENV NUMBA_CACHE_DIR=(\S+)$", text, flags=re.M)
+    assert cache, "the image sets no NUMBA_CACHE_DIR"
+    run = text[text.index("RUN pip install .") :]
+    run = run[: run.index("\n\n")]
+    assert run.index("pip install .") < run.index("warm_up()")
+    user = re.search(r"^USER (\S+)$", text, flags=re.M).group(1)
+    assert re.search(rf"chown -R {user} .*\"\$NUMBA_CACHE_DIR\"", run), run
+    assert text.index("ENV NUMBA_CACHE_DIR") < text.index("RUN pip install .")
