@@ -1,8 +1,10 @@
 """Load the tracker's compiled (numba) kernels before the first batch.
 
 numba compiles a kernel, or loads it from its on-disk cache (``cache=True``), at its
-first call in a process. For the tracker's kernels that took 1.3 s in a fresh process
-on the development machine (cache present), paid by whichever batch first calls them: in
+first call in a process. For the tracker's kernels that took 0.5–1.3 s in a fresh
+process on the development machine with the cache present, and 23 s without one (the
+first run after an installation, or a cache directory numba cannot write: see the image's
+``NUMBA_CACHE_DIR``, docs/deployment.md), paid by whichever batch first calls them: in
 the live fusion service, latency on its first batches (a profile of the service at
 20,000 plots/s had 7.9 % of its samples in numba's dispatcher).
 
