@@ -200,9 +200,12 @@ class SystemFrame:
             rot = enu_to_enu_rotation(self.lat0, self.lon0, lat, lon)
             v = np.einsum("...ij,...j->...i", rot, np.stack([vx, vy, vz], axis=-1))
             return v[..., 0], v[..., 1], v[..., 2]
-        J = self.local_plane_jacobian(lat, lon, alt).reshape((*np.shape(vx), 3, 3))
-        v = np.linalg.solve(J, np.stack([vx, vy, vz], axis=-1)[..., None])[..., 0]
-        return v[..., 0], v[..., 1], v[..., 2]
+        # J = [[a, b, 0], [c, d, 0], [0, 0, 1]] (local_plane_jacobian): J⁻¹ v by the
+        # 2 × 2 closed form, the vertical component unchanged
+        J = self.local_plane_jacobian(lat, lon, alt)
+        a, b, c, d = (J[:, i, j].reshape(np.shape(vx)) for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)))
+        det = a * d - b * c
+        return (d * vx - b * vy) / det, (a * vy - c * vx) / det, np.array(vz, dtype=float)
 
     def local_plane_jacobian(self, lat, lon, alt) -> np.ndarray:
         """∂(x, y, z)/∂(e, n, u) of the frame map at geodetic points, with (e, n, u) the
