@@ -20,7 +20,8 @@ RUN pip install . \
     && python -c "from skyfuse.fusion.tracker.kernel_warmup import warm_up; warm_up()" \
     && useradd --system --create-home --uid 10001 skyfuse \
     && mkdir -p /data /state /etc/skyfuse \
-    && chown -R skyfuse /data /state "$NUMBA_CACHE_DIR" \
+    && chown skyfuse /data /state \
+    && chown -R skyfuse "$NUMBA_CACHE_DIR" \
     && chmod 700 /state
 
 COPY deploy/*.toml /etc/skyfuse/
