@@ -14,7 +14,8 @@ then normalised by 1−δ p_obs, where δ follows from ψ_det' = (1−δ)ψ_det/
 Chain probabilities refer to a period ``T``; a prediction over dt uses the matrix power
 Π^(dt/T) = V diag(λ^(dt/T)) V⁻¹ (eigendecomposition of Π) so that asynchronous batches
 compose exactly. The prediction of n states is one compiled loop (numba, ``cache=True``):
-the same power and row-vector product, entries clipped to [0, 1] as in :meth:`power`.
+per state the power Π^(dt/T) (entries clipped to [0, 1]) and the row-vector product
+p Π^(dt/T), clipped to [0, 1] again.
 """
 
 from __future__ import annotations
@@ -82,13 +83,6 @@ class ExistenceChain:
         if Pi[0, 2] != Pi[1, 2] or not 0.0 < lam < 1.0:
             return None
         return lam, b / (1.0 - lam)
-
-    def power(self, dt: np.ndarray) -> np.ndarray:
-        """Π^(dt/T) for an array of dt (s), shape (n, 3, 3)."""
-        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
-        lam_t = self._lam[None, :] ** t[:, None]
-        M = (self._V[None, :, :] * lam_t[:, None, :]) @ self._Vinv
-        return np.clip(M, 0.0, 1.0)
 
     def predict(self, state: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Predict ``state`` (n, 2) over ``dt`` (n,) seconds (3.40, 5.3)."""
