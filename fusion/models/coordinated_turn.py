@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import coordinated_turn_kernels as kernels
-from .base import as_dt_array
+from .base import states_and_dt
 
 
 @dataclass(frozen=True)
@@ -64,18 +64,14 @@ class CoordinatedTurn:
 
     def transition(self, x: np.ndarray, dt: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted states (n, d) and Jacobians ∂f/∂x (n, d, d) for states x (n, d)."""
-        x = np.ascontiguousarray(np.atleast_2d(x), dtype=np.float64)
-        t, _ = as_dt_array(dt)
-        t = np.ascontiguousarray(np.broadcast_to(t, (x.shape[0],)))
+        x, t = states_and_dt(x, dt)
         return kernels.transition(x, t, self.vertical)
 
     def Q(self, dt: float | np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
         """Process covariance (n, d, d) at states x (n, d) (the course ψ enters G)."""
-        t, _scalar = as_dt_array(dt)
         if x is None:
             raise ValueError("CoordinatedTurn.Q needs the states x: G depends on the course ψ")
-        x = np.ascontiguousarray(np.atleast_2d(x), dtype=np.float64)
-        t = np.ascontiguousarray(np.broadcast_to(t, (x.shape[0],)))
+        x, t = states_and_dt(x, dt)
         return kernels.process_noise(
             x, t, self.sigma_a**2, self.sigma_omega**2, self.vertical, float(self.q_vertical)
         )

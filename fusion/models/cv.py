@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import cv_kernels
-from .base import as_dt_array
+from .base import as_dt_array, states_and_dt
 
 
 @dataclass(frozen=True)
@@ -77,10 +77,8 @@ class ConstantVelocity:
         """x⁻ = F x, P⁻ = F P Fᵀ + Q of n states x (n, d), P (n, d, d) over dt (scalar or
         (n,)) s: the same as :func:`fusion.filters.kalman.predict` with :meth:`F` and
         :meth:`Q`, as one compiled loop (:mod:`fusion.models.cv_kernels`)."""
-        x = np.ascontiguousarray(x, dtype=np.float64)
+        x, t = states_and_dt(x, dt)
         P = np.ascontiguousarray(P, dtype=np.float64)
-        t = np.asarray(dt, dtype=np.float64)
-        t = np.full(len(x), float(t)) if t.ndim == 0 else np.ascontiguousarray(t)
         qv = self.q if self.q_vertical is None else self.q_vertical
         return cv_kernels.predict(x, P, t, float(self.q), float(qv))
 
