@@ -190,7 +190,7 @@ class SystemFrame:
         ``to_geodetic(x, y, z)`` if the caller has it already (not computed again).
 
         ``planar``: identity; ``ned``: rotation from the reference ENU to the target's ENU;
-        ``stereographic``: inverse of the local plane Jacobian (central differences)."""
+        ``stereographic``: inverse of the local plane Jacobian (analytic, from PROJ's factors)."""
         x, y, z, vx, vy = np.broadcast_arrays(*(np.asarray(a, float) for a in (x, y, z, vx, vy)))
         vz = np.zeros_like(vx) if vz is None else np.broadcast_to(np.asarray(vz, float), vx.shape)
         if self.kind is FrameKind.PLANAR:
