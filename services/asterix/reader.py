@@ -43,10 +43,11 @@ Batches (one per radar sector):
   I120 the site position.
 * Without CAT034 (per radar, until its first CAT034 message): fixed azimuth sectors of
   2π/``sector_count``; a plot in a later sector closes the open one (and the sectors
-  skipped, as empty batches), with boundary times interpolated in azimuth between the
-  last plot and the new one; a plot up to half a turn *behind* arriving within a
-  quarter of a scan is a late plot of the open sector. The scan period is then
-  estimated from the plots (:func:`.scan_period.estimate_scan_period`).
+  skipped, as empty batches; with one sector per turn, a plot past north), with
+  boundary times interpolated in azimuth between the last plot and the new one; a plot
+  up to half a turn *behind* arriving within a quarter of a scan is a late plot of the
+  open sector. The scan period is then estimated from the plots
+  (:func:`.scan_period.estimate_scan_period`).
 * Plots go to sectors by their *time* (time of day), not by arrival: a batch holds the
   plots timed after the previous boundary and up to its own. A closed sector is kept
   open for late plots for ``max_plot_delay`` seconds of the radar's own time (some
@@ -489,15 +490,17 @@ class AsterixStreamDecoder:
         d = (idx - radar.cur_idx) % n
         gap = t - radar.last_t
         period = self._period_guess_ns(radar)
-        if d == 0 and gap <= 0.5 * period:
+        total = (az - radar.last_az) % TWO_PI
+        first = ((radar.cur_idx + 1) * w - radar.last_az) % TWO_PI
+        # one sector per turn: the beam moved on (less than half a turn) past the start
+        wrapped = d == 0 and gap <= 0.5 * period and total < math.pi and 0 < first <= total
+        if d == 0 and gap <= 0.5 * period and not wrapped:
             return
         if d > n // 2 and gap < 0.25 * period:
             return  # a late plot of the open sector
         if d == 0:
-            d = n  # a whole revolution without plots
-        total = (az - radar.last_az) % TWO_PI
-        first = ((radar.cur_idx + 1) * w - radar.last_az) % TWO_PI
-        if first > total or d == n:
+            d = n  # a whole revolution without plots, or (wrapped) the next one begun
+        if first > total or (d == n and not wrapped):
             total += TWO_PI * max(1, round(gap / period - total / TWO_PI))
         last_t, _ = radar.last_boundary()
         for k in range(d):

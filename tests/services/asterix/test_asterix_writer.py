@@ -166,7 +166,11 @@ def test_midnight_roll_over_with_a_fixed_date(tmp_path):
     assert times == sorted(times) and times[-1] - times[0] > 2 * 10**9
 
 
-def test_without_cat034_fixed_sectors_and_estimated_scan_period(tmp_path):
+@pytest.mark.parametrize("n_sectors", [16, 4, 1])
+def test_without_cat034_fixed_sectors_and_estimated_scan_period(tmp_path, n_sectors):
+    """Fixed sectors of 2π/n (``--sector-count``): with one sector per turn too, where the
+    boundary is the beam passing north (it used to be crossed only after a silent half
+    turn, so a busy radar gave one batch for the whole recording)."""
     period = 4.8
     sent = synthetic_batches("7-9", T0, period=period, scans=6, per_sector=6.0, seed=5)
     blocks = []
@@ -181,12 +185,15 @@ def test_without_cat034_fixed_sectors_and_estimated_scan_period(tmp_path):
     path = tmp_path / "nocat034.ast"
     path.write_bytes(b"".join(blocks))
     site = RadarSite(radar_id="7-9", lat=45.0, lon=16.0, alt=100.0, kind="2d")
-    result = read_asterix(path, date=dt.date(2026, 3, 1), sites={"7-9": site}, sector_count=16)
+    result = read_asterix(
+        path, date=dt.date(2026, 3, 1), sites={"7-9": site}, sector_count=n_sectors
+    )
     assert result.stats.get("cat034_records", 0) == 0
     assert result.n_plots == sum(len(b) for b in sent)
     assert result.scan_period_source["7-9"] == "estimated"
     assert result.sites["7-9"].scan_period == pytest.approx(period, rel=1e-3)
-    w = 2 * math.pi / 16
+    w = 2 * math.pi / n_sectors
+    assert len(result.batches) >= 5 * n_sectors  # the first sector opens at the first plot
     for b in result.batches:
         assert b.sector_width == pytest.approx(w)
         for a in b.azimuth or []:
