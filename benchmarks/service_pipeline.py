@@ -29,7 +29,7 @@ at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
         [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2]
-        [--max-backlog S] [--json out.json]
+        [--max-backlog S] [--coalesce-max-deg DEG] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -286,6 +286,8 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
     rec, offline = make_level_files(rate, speed, a, work)
     frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
     extra = () if a.max_backlog is None else ("--max-backlog", str(a.max_backlog))
+    if a.coalesce_max_deg is not None:
+        extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
     ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate, extra)
     load0 = os.getloadavg()
     # a fresh state directory per level: the fusion must not resume the picture, the
@@ -354,6 +356,8 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "latency_count": lat.count,
         "cycles": c.get("cycles"),
         "groups": c.get("groups"),
+        "coalesced_steps": c.get("coalesced_steps"),
+        "batches_coalesced": c.get("batches_coalesced"),
         "feed_messages": dict(f.feed),
         "max_backlog_batches": f.max_backlog,
         "behind_seen": f.behind_seen,
@@ -393,6 +397,13 @@ def main() -> None:
         type=float,
         default=None,
         help="the fusion's --max-backlog (stop reading when behind by this, s; default off)",
+    )
+    ap.add_argument(
+        "--coalesce-max-deg",
+        type=float,
+        default=None,
+        help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
+        "as one tracker step, at most this wide; default off)",
     )
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)

@@ -216,8 +216,9 @@ class FeedBuilder:
             return np.flatnonzero(out.confirmed)
         return np.arange(len(out))
 
-    def record(self, out: TrackerOutput) -> None:
-        """Note the rows one tracker step changed (against the picture so far)."""
+    def record(self, out: TrackerOutput, batches: int = 1) -> None:
+        """Note the rows one tracker step changed (against the picture so far); the step
+        applied ``batches`` plot batches (several when coalesced)."""
         rows = self._rows(out)
         ids, lu, cf = out.ids[rows], out.last_update_ns[rows], out.confirmed[rows]
         kid, klu, kcf = self._known
@@ -227,7 +228,7 @@ class FeedBuilder:
         self._parts.append(TrackTable.from_output(out, rows[changed]))
         self._known = (ids, lu, cf)
         self._last = out
-        self._batches += 1
+        self._batches += batches
 
     def delta(self, source_radar: str | None, source_seq: int | None) -> FeedMessage | None:
         """The delta of the steps recorded since the last message (``None`` if none)."""

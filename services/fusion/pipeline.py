@@ -2,7 +2,9 @@
 system frame (:func:`fusion.frames.convert_plots`) → :class:`Tracker` step →
 the delta of the track feed (:mod:`services.fusion.feed`: lat/lon/alt, velocity
 east/north/up, speed, heading, built from arrays) + ``TrackEvent``. Several batches can go
-through in one pass (:meth:`TrackPipeline.process_group`, the bulk path).
+through in one pass (:meth:`TrackPipeline.process_group`, the bulk path), the contiguous
+sectors of one radar among them optionally as one tracker step
+(:mod:`~skyfuse.services.fusion.coalesce`).
 
 The same code path serves the live fusion service and the offline ``skyfuse track``.
 """
@@ -19,14 +21,10 @@ from skyfuse.fusion.registration import RegistrationMode
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.fusion.tracker.tracker import Tracker, TrackerOutput
 from skyfuse.schemas import FrameSpec, PlotBatch, RadarKind, RadarSite, TrackEvent, TrackEventKind
+from skyfuse.services.fusion import coalesce
 from skyfuse.services.fusion.adapter import measurement_batch_from
 from skyfuse.services.fusion.feed import FeedBuilder, FeedMessage
 from skyfuse.services.fusion.registration_link import RegistrationLink
-
-_COLUMNS = (
-    "range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude", "mode_s",
-    "mode_3a", "target_id",
-)  # fmt: skip
 
 
 def assumed_height(site: RadarSite, configured: float | None) -> float | None:
@@ -72,6 +70,9 @@ class TrackPipeline:
         self.oosm: Counter[str] = Counter()
         """Late plots applied by the tracker's out-of-sequence update (fusion.tracker.oosm):
         batches, plots, track updates, hits, updates without the stored last step."""
+        self.coalesced: Counter[str] = Counter()
+        """Coalesced steps (:meth:`process_group`): ``steps`` of several batches, the
+        ``batches`` in them, steps ``retried`` batch by batch after an error."""
         self.registration = RegistrationLink(registration)
         self.feed = FeedBuilder(
             self.frame, self.cfg.ndim, list(self.tracker.model.labels), fusion_id, publish
@@ -124,13 +125,23 @@ class TrackPipeline:
         return self.track_batch(out, batch), self.track_events(out)
 
     def process_group(
-        self, items: list[tuple[RadarSite, PlotBatch]]
+        self,
+        items: list[tuple[RadarSite, PlotBatch]],
+        *,
+        coalesce_max: float | None = None,
+        mergeable: list[bool] | None = None,
     ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]:
         """Several batches, in the given (time) order, in one pass: the plots of each
         radar converted at once, one tracker step per batch, one delta message for the
         group (the same picture as one message per batch). Returns the message (``None``
         if no batch could be applied), the events, and the batches that failed with
-        their exception (the others are applied)."""
+        their exception (the others are applied).
+
+        coalesce_max (rad, default off): the contiguous sector batches of one radar among
+        them (those where ``mergeable``, default all) are applied as one step of at most
+        that azimuth width each (:mod:`~skyfuse.services.fusion.coalesce`); a coalesced
+        step that fails is applied batch by batch, so a bad batch costs only itself."""
+        steps = self._steps(items, coalesce_max, mergeable)
         events: list[TrackEvent] = []
         failed: list[tuple[PlotBatch, Exception]] = []
         last = None
@@ -138,23 +149,61 @@ class TrackPipeline:
         # is converted just before its step (the same tracks as batch by batch, live or
         # offline); otherwise the plots of each radar are converted at once
         learning = self.registration.mode is RegistrationMode.ON
-        conversions = [None] * len(items) if learning else self._convert_all(items)
-        for (site, batch), converted in zip(items, conversions):
+        merged = [(site, batch) for site, batch, _ in steps]
+        conversions = [None] * len(steps) if learning else self._convert_all(merged)
+        for (site, batch, members), converted in zip(steps, conversions):
             try:
-                if learning:
-                    converted = self._convert(site, batch)
-                if isinstance(converted, Exception):
-                    raise converted
-                out = self._track(converted, site, batch)
+                out = self._apply(site, batch, converted)
             except Exception as e:
-                failed.append((batch, e))
+                if len(members) == 1:
+                    failed.append((batch, e))
+                    continue
+                self.coalesced["retried"] += 1
+                last = self._apply_each(site, members, events, failed) or last
                 continue
-            self.feed.record(out)
+            self.feed.record(out, len(members))
             events += self.track_events(out)
             last = batch
         if last is None:
             return None, events, failed
         return self.feed.delta(last.radar_id, last.seq), events, failed
+
+    def _steps(self, items, coalesce_max, mergeable) -> list:
+        """(site, batch to apply, its member batches) per tracker step, in order."""
+        if coalesce_max is None or len(items) < 2:
+            return [(site, b, [b]) for site, b in items]
+        batches = [b for _, b in items]
+        ok = [True] * len(items) if mergeable is None else mergeable
+        steps = []
+        for run in coalesce.plan(batches, ok, coalesce_max, [site for site, _ in items]):
+            members = [batches[i] for i in run]
+            if len(run) > 1:
+                self.coalesced["steps"] += 1
+                self.coalesced["batches"] += len(run)
+            steps.append((items[run[-1]][0], coalesce.coalesced(members), members))
+        return steps
+
+    def _apply(self, site: RadarSite, batch: PlotBatch, converted) -> TrackerOutput:
+        """Convert (unless ``converted`` is given) and track one batch."""
+        if converted is None:
+            converted = self._convert(site, batch)
+        if isinstance(converted, Exception):
+            raise converted
+        return self._track(converted, site, batch)
+
+    def _apply_each(self, site, members, events, failed) -> PlotBatch | None:
+        """The members of a failed coalesced step, one by one; the last applied one."""
+        last = None
+        for b in members:
+            try:
+                out = self._apply(site, b, None)
+            except Exception as e:
+                failed.append((b, e))
+                continue
+            self.feed.record(out)
+            events += self.track_events(out)
+            last = b
+        return last
 
     def _convert_all(self, items: list[tuple[RadarSite, PlotBatch]]) -> list:
         """``convert_plots`` of every batch (or the exception it raised): the batches of
@@ -163,13 +212,13 @@ class TrackPipeline:
         result: list = [None] * len(items)
         groups: dict[tuple, list[int]] = {}
         for i, (site, b) in enumerate(items):
-            cols = tuple(k for k in _COLUMNS if getattr(b, k) is not None)
-            groups.setdefault((b.radar_id, id(site), cols), []).append(i)
+            groups.setdefault((b.radar_id, id(site), coalesce.columns(b)), []).append(i)
         for (_, _, cols), idx in groups.items():
             site = items[idx[0]][0]
             if len(idx) > 1:
                 try:
-                    merged = _concat(items[idx[0]][1], [items[i][1] for i in idx], cols)
+                    members = [items[i][1] for i in idx]
+                    merged = coalesce.concat(members, cols, members[0].sector_width)
                     conv = self._convert(site, merged)
                 except ValueError:  # one of them is bad: convert one by one to tell which
                     pass
@@ -219,24 +268,6 @@ class TrackPipeline:
             )
             for e in out.events
         ]
-
-
-def _concat(first: PlotBatch, batches: list[PlotBatch], cols: tuple[str, ...]) -> PlotBatch:
-    """The plots of several validated batches of one radar as one batch (for the
-    conversion only: ``convert_plots`` reads the plot columns, the radar id and the
-    sweep times, and converts each plot independently)."""
-    data = {k: [v for b in batches for v in getattr(b, k)] for k in ("time", *cols)}
-    return PlotBatch.model_construct(
-        radar_id=first.radar_id,
-        scan=first.scan,
-        seq=first.seq,
-        sector_start=first.sector_start,
-        sector_width=first.sector_width,
-        time_start=min(b.time_start for b in batches),
-        time_end=max(b.time_end for b in batches),
-        **{k: None for k in _COLUMNS if k not in cols},
-        **data,
-    )
 
 
 def _slice(conv: ConvertedPlots, lo: int, hi: int) -> ConvertedPlots:

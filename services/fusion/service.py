@@ -34,6 +34,7 @@ is taken as a wall-clock time (a live radar).
 from __future__ import annotations
 
 import logging
+import math
 import re
 import time
 from collections import Counter, deque
@@ -105,6 +106,17 @@ class FusionConfig(BaseModel):
     )
     bulk_max: int = Field(
         50, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
+    )
+    coalesce_max_deg: float | None = Field(
+        None,
+        gt=0,
+        le=360,
+        description="Opt-in overload policy: the contiguous sector batches of one radar "
+        "that are ready together (the service is behind) go through the tracker as one "
+        "step covering at most this azimuth width, deg: fewer, larger steps, so the "
+        "throughput rises with the backlog; the tracks are those of the radar reporting "
+        "wider sectors, not bitwise those of batch-by-batch processing (Status counters "
+        "coalesced_steps, batches_coalesced). Default: off",
     )
     max_backlog: float | None = Field(
         None,
@@ -230,8 +242,13 @@ class CyclePipeline(Protocol):
     rejected: dict[str, int]
 
     def process_group(
-        self, items: list[tuple[RadarSite, PlotBatch]]
-    ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]: ...
+        self,
+        items: list[tuple[RadarSite, PlotBatch]],
+        *,
+        coalesce_max: float | None = None,
+        mergeable: list[bool] | None = None,
+    ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]:
+        """(Only asked to coalesce when ``coalesce_max_deg`` is set.)"""
 
     def full(self) -> FeedMessage | None: ...
 
@@ -493,8 +510,14 @@ class FusionCore:
         if self.pipeline is None:
             self._start_pipeline()
         items = [(self.radars[p.batch.radar_id].site, p.batch) for p in ready]
+        kw = {}
+        if self.cfg.coalesce_max_deg is not None:  # late batches are never coalesced
+            kw = {
+                "coalesce_max": math.radians(self.cfg.coalesce_max_deg),
+                "mergeable": [not p.late for p in ready],
+            }
         try:
-            msg, events, failed = self.pipeline.process_group(items)
+            msg, events, failed = self.pipeline.process_group(items, **kw)
         except Exception as e:  # a tracker bug must not kill the service
             self.reject("tracker error", f"{type(e).__name__}: {e}", len(ready))
             log.exception("tracker error on a group of %d batches", len(ready))
@@ -619,6 +642,15 @@ class FusionCore:
             unsupported=oosm.get("unsupported", 0),
         )
 
+    def _coalesced(self) -> dict[str, int]:
+        """Coalesced tracker steps (``coalesce_max_deg``; ``TrackPipeline.coalesced``)."""
+        co = getattr(self.pipeline, "coalesced", None) or {}
+        return {
+            "coalesced_steps": co.get("steps", 0),
+            "batches_coalesced": co.get("batches", 0),
+            "coalesced_retried": co.get("retried", 0),
+        }
+
     def _plot_rejections(self) -> dict[str, int]:
         """Plots the conversion rejected, by reason with the numbers masked (``#``) so
         that the reasons form a small set."""
@@ -646,6 +678,7 @@ class FusionCore:
                 **self.counters,
                 "queued": len(self.buffer),
                 "plots_near_radar": reg.plots_near_radar if reg else 0,
+                **self._coalesced(),
             },
             registration=reg.status(self.cfg.fusion_id) if reg else None,
             rejected={**self.rejected, **self._plot_rejections()},

@@ -57,3 +57,34 @@ def test_backlog_behind_flag_and_recovery():
         assert TrackBatch.from_json_bytes(o.full.to_json_bytes()).kind is FeedKind.FULL
     snap = TrackBatch.from_json_bytes(core.snapshot_payload())
     assert snap.cycle == len(outs) and len(snap.tracks) == st.tracks_total
+
+
+def test_coalescing_when_behind_applies_every_plot_in_fewer_steps():
+    """With ``coalesce_max_deg`` the contiguous sectors of one radar that are ready
+    together are one tracker step: every plot applied, the deltas count the batches they
+    apply, Status counts the coalesced steps; without it nothing is coalesced."""
+    sites, batches = scenario_batches()
+    lat0 = float(np.mean([s.lat for s in sites]))
+    lon0 = float(np.mean([s.lon for s in sites]))
+    n_plots = sum(len(b) for b in batches)
+    counts = {}
+    for deg in (None, 90.0):
+        cfg = FusionConfig(reorder_wait=0.5, frame_lat0=lat0, frame_lon0=lon0,
+                           coalesce_max_deg=deg, bulk_max=1000)  # fmt: skip
+        core = FusionCore(cfg, make_pipeline_factory(TrackerConfig(), cfg.fusion_id))
+        for s in sites:
+            core.on_site(s)
+        for i, b in enumerate(batches):
+            assert core.on_plots(b, arrival=1000.0 + 0.1 * i / len(batches))
+        outs = core.poll(now=1003.0)
+        assert len(outs) == 1 and len(outs[0].time_ends) == len(batches)
+        d = TrackBatch.from_json_bytes(outs[0].tracks.to_json_bytes())
+        assert d.batches == len(batches)
+        st = Status.from_json_bytes(core.status().to_json_bytes())
+        assert st.counters["plots_applied"] == n_plots and st.tracks_confirmed >= 3
+        counts[deg] = (st.counters["coalesced_steps"], st.counters["batches_coalesced"])
+    assert counts[None] == (0, 0)
+    steps, members = counts[90.0]
+    # 16 sectors per revolution: runs of up to 4 (90°), most batches in one
+    assert steps >= len(batches) // 8 and members >= len(batches) // 2
+    assert members <= 4 * steps
