@@ -29,7 +29,7 @@ at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
         [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2]
-        [--max-backlog S] [--coalesce-max-deg DEG] [--json out.json]
+        [--max-backlog S] [--coalesce-max-deg DEG] [--bulk-max N] [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -288,6 +288,8 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
     extra = () if a.max_backlog is None else ("--max-backlog", str(a.max_backlog))
     if a.coalesce_max_deg is not None:
         extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
+    if a.bulk_max is not None:
+        extra += ("--bulk-max", str(a.bulk_max))
     ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate, extra)
     load0 = os.getloadavg()
     # a fresh state directory per level: the fusion must not resume the picture, the
@@ -405,6 +407,7 @@ def main() -> None:
         help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
         "as one tracker step, at most this wide; default off)",
     )
+    ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
