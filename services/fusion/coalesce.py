@@ -17,13 +17,14 @@ sectors coalesced by fours gives exactly the tracks of the same radar simulated 
 sectors (tested).
 
 Rules (:func:`plan`): a batch joins the open run of its radar when it continues it —
-its sector starts where the run's last sector ends (within ``ANGLE_TOL``), it starts no
-earlier than the run's last batch ended and no later than one of that batch's sweep
-durations after it (no missing sector), it carries the same plot columns and the same
-numbering epoch, and the run stays within the width limit (never a whole revolution
-twice: one plot per target and radar per step). Late batches (behind the service time)
-are never coalesced. A run takes the place of its *last* member in the time order, so
-the steps stay in order of their ``time_end``; the other radars' batches that fell
+its sector starts where the run's last sector ends (within ``ANGLE_TOL``), it starts
+after the run's last batch started (an ASTERIX reader widens a sector's times to its
+plots', so consecutive sectors may overlap a little) and no later than one of that
+batch's sweep durations after it ended (no missing sector), it carries the same plot
+columns and the same numbering epoch, and the run stays within the width limit (never a
+whole revolution twice: one plot per target and radar per step). Late batches (behind
+the service time) are never coalesced. A run takes the place of its *last* member in the
+time order, so the steps stay in order of their ``time_end``; the other radars' batches that fell
 between its members are applied before it (their tracks take the coalesced plots older
 than their state through the out-of-sequence update, as for any overlapping sweep).
 """
@@ -63,7 +64,7 @@ def continues(last: PlotBatch, nxt: PlotBatch, width: float, max_width: float) -
     if min(gap, TWO_PI - gap) > ANGLE_TOL:
         return False
     sweep = last.time_end - last.time_start
-    if not last.time_end <= nxt.time_start <= last.time_end + sweep:
+    if not last.time_start < nxt.time_start <= last.time_end + sweep:
         return False
     return columns(nxt) == columns(last)
 

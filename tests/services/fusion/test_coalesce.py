@@ -50,6 +50,12 @@ def test_a_run_is_contiguous_sectors_of_one_radar_within_the_width():
     assert coalesce.plan([a[0], other_epoch], [True, True], QUARTER) == [[0], [1]]
     no_alt = a[1].model_copy(update={"altitude": None})
     assert coalesce.plan([a[0], no_alt], [True, True], QUARTER) == [[0], [1]]
+    # sweep times widened to a plot a little before the boundary still continue the run;
+    # a batch from a later revolution of the next sector does not
+    early = a[1].model_copy(update={"time_start": a[1].time_start - 10_000_000})
+    assert coalesce.plan([a[0], early], [True, True], QUARTER) == [[0, 1]]
+    later = make_batch("A", 1, 1, 16, 3, rng)
+    assert coalesce.plan([a[0], later], [True, True], QUARTER) == [[0], [1]]
     s1, s2 = object(), object()
     assert coalesce.plan(a[:2], [True, True], QUARTER, [s1, s2]) == [[0], [1]]
     assert coalesce.plan(a[:2], [True, True], QUARTER, [s1, s1]) == [[0, 1]]
