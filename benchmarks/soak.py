@@ -121,6 +121,10 @@ def run(a, work: Path) -> dict:
     per_window = max(10, round(facts["batches"] / a.duration * a.window))
     frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
     extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
+    if a.coalesce_max_deg is not None:
+        extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
+    if a.bulk_max is not None:
+        extra += ("--bulk-max", str(a.bulk_max))
     ep, fusion, pubs = start_children(
         rec, speed, facts["radars"], frame, a, work, a.rate, fusion_extra=extra
     )
@@ -165,7 +169,7 @@ def run(a, work: Path) -> dict:
 FUSION_COUNTERS = (
     "batches_received", "batches_in", "cycles", "plots_in", "plots_applied",
     "batches_late_applied", "track_batches_published", "state_saves", "state_published",
-    "state_save_errors",
+    "state_save_errors", "groups", "coalesced_steps", "batches_coalesced", "coalesced_retried",
 )  # fmt: skip
 
 
@@ -275,6 +279,10 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=60.0, help="max s to let the fusion catch up")
+    ap.add_argument(
+        "--coalesce-max-deg", type=float, default=None, help="the fusion's --coalesce-max-deg"
+    )
+    ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument(
         "--keep", type=Path, default=None,

@@ -140,7 +140,8 @@ class TrackPipeline:
         coalesce_max (rad, default off): the contiguous sector batches of one radar among
         them (those where ``mergeable``, default all) are applied as one step of at most
         that azimuth width each (:mod:`~skyfuse.services.fusion.coalesce`); a coalesced
-        step that fails is applied batch by batch, so a bad batch costs only itself."""
+        step refused as input (ValueError: conversion, validation) is applied batch by
+        batch, so a bad batch costs only itself."""
         steps = self._steps(items, coalesce_max, mergeable)
         events: list[TrackEvent] = []
         failed: list[tuple[PlotBatch, Exception]] = []
@@ -155,8 +156,11 @@ class TrackPipeline:
             try:
                 out = self._apply(site, batch, converted)
             except Exception as e:
-                if len(members) == 1:
-                    failed.append((batch, e))
+                # a ValueError is a batch the conversion or the tracker's validation
+                # refused before any state changed: its members are tried one by one;
+                # any other error (a bug, the state may be half-updated) fails them all
+                if len(members) == 1 or not isinstance(e, ValueError):
+                    failed += [(b, e) for b in members]
                     continue
                 self.coalesced["retried"] += 1
                 last = self._apply_each(site, members, events, failed) or last

@@ -97,22 +97,30 @@ def test_sixteen_sectors_coalesced_by_fours_track_as_four_sectors():
         np.testing.assert_array_equal(u, v)  # the same plots in the same steps: bitwise
 
 
-def test_a_failed_coalesced_step_is_applied_batch_by_batch():
+@pytest.mark.parametrize("error", [ValueError, RuntimeError])
+def test_a_refused_coalesced_step_is_applied_batch_by_batch(error):
+    """A coalesced step refused as input (ValueError) is retried batch by batch; any
+    other error may have left the tracker half-updated, so its batches all fail."""
     sites, fine = batches_of(16, duration=8.0)
     frame = frame_for_sites(sites.values())
     pipe = TrackPipeline(frame, TrackerConfig())
     real = pipe._track
-    calls = []
 
     def track(converted, site, batch):
-        calls.append(len(batch))
         if not any(batch is b for b in fine):  # a coalesced batch
-            raise RuntimeError("tracker bug")
+            raise error("refused")
         return real(converted, site, batch)
 
     pipe._track = track
     items = [(sites[b.radar_id], b) for b in fine[:24]]
     msg, _, failed = pipe.process_group(items, coalesce_max=QUARTER)
-    assert failed == [] and msg is not None
-    assert pipe.coalesced["retried"] == pipe.coalesced["steps"] > 0
-    assert msg.header["batches"] == len(items)
+    assert pipe.coalesced["steps"] > 0
+    coalesced = pipe.coalesced["batches"]
+    if error is ValueError:
+        assert failed == [] and pipe.coalesced["retried"] == pipe.coalesced["steps"]
+        assert msg.header["batches"] == len(items)
+    else:
+        assert len(failed) == coalesced and pipe.coalesced["retried"] == 0
+        assert all(isinstance(e, RuntimeError) for _, e in failed)
+        left = len(items) - coalesced  # the batches that were steps of their own
+        assert (msg is None) if left == 0 else (msg.header["batches"] == left)
