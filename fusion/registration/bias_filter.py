@@ -31,7 +31,7 @@ ppm and seconds are conditioned alike.
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+from skyfuse.fusion.association.gating import gate_threshold
 from skyfuse.fusion.filters.small_spd import quadratic_and_logdet, right_solve
 
 from .common_target import ResidualPairs
@@ -43,7 +43,7 @@ class BiasFilter:
     def __init__(self, prior_sigma: np.ndarray, estimated: np.ndarray, p_gate: float) -> None:
         self.sigma0 = np.asarray(prior_sigma, float).reshape(4)
         self.estimated = np.asarray(estimated, bool).reshape(4)
-        self.gate = float(chi2.ppf(p_gate, 2))
+        self.gate = gate_threshold(p_gate, 2)
         self.reference: list[bool] = []
         self.s = np.zeros(0)  # normalised state, 4 per radar
         self.P = np.zeros((0, 0))

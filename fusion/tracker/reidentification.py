@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from skyfuse.fusion.association.gating import gate_threshold
 from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.models.cv import ConstantVelocity
 
@@ -133,7 +133,7 @@ class TerminatedTracks:
         d = self.model.dim
         self.x = np.zeros((0, d)) if self.x is None else self.x
         self.P = np.zeros((0, d, d)) if self.P is None else self.P
-        self.gate = float(chi2.ppf(self.p_gate, d))
+        self.gate = gate_threshold(self.p_gate, d)
 
     def __len__(self) -> int:
         return len(self.ids)

@@ -28,7 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 from skyfuse.fusion.association.gating import gate_probability, gate_threshold
 from skyfuse.fusion.models.cv import ConstantVelocity
 
@@ -173,7 +172,7 @@ class Tracker:
         self.vel = self.pos + 1
         self.g = gate_threshold(cfg.p_gate, self.k)
         self.P_G = gate_probability(self.g, self.k)
-        self.g_dup = float(chi2.ppf(cfg.duplicate_p, self.d))
+        self.g_dup = gate_threshold(cfg.duplicate_p, self.d)
         self.chain = self._make_chain(cfg)
         self.density: TrackDensity = make_density(cfg)
         self.associate = ASSOCIATIONS[cfg.association]

@@ -33,6 +33,21 @@ def test_gate_threshold_is_the_chi_square_quantile():
         gate_threshold(1.5, 2)
 
 
+def test_gate_threshold_and_probability_equal_scipy_stats_chi2():
+    """The incomplete-gamma forms are scipy.stats.chi2's ppf and cdf, to the bit, for
+    every dimension the trackers use (plots 1-3, states 2-9) and the probabilities they
+    are configured with."""
+    from scipy.stats import chi2
+    from skyfuse.fusion.association.gating import gate_probability
+
+    for k in range(1, 10):
+        for p in (1e-6, 0.5, 0.9, 0.95, 0.99, 0.999, 0.9997, 0.999999):
+            g = gate_threshold(p, k)
+            assert g == float(chi2.ppf(p, k))
+            assert gate_probability(g, k) == float(chi2.cdf(g, k))
+            assert gate_probability(g, k) == pytest.approx(p, rel=1e-12)
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.integers(1, 12), st.integers(0, 15), st.sampled_from([2, 3]))
 def test_gate_equals_brute_force_mahalanobis(seed, n, k, m):
