@@ -10,7 +10,6 @@ Rahmathullah et al. 2017, §II).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 
 def as_points(name: str, points: np.ndarray, dim: int | None = None) -> np.ndarray:
@@ -69,5 +68,7 @@ def optimal_assignment(
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty, 0.0
     cost = np.minimum(dist, c) ** p
+    from scipy.optimize import linear_sum_assignment  # 0.5 s import: only when used
+
     rows, cols = linear_sum_assignment(cost)
     return rows, cols, float(cost[rows, cols].sum())

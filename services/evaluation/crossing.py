@@ -18,7 +18,6 @@ from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
-from scipy.optimize import linear_sum_assignment
 
 G0 = 9.80665
 TURN_START_S, TURN_END_S = 34.0, 42.0  # crossing-4g defaults (spec 01 §7), for the windows
@@ -231,6 +230,8 @@ def _score(cfg: CrossingEvalConfig, step, scans, tpos) -> dict:
             d = np.linalg.norm(pos[conf][:, None, :] - tpos[s][None], axis=-1)
             best[s] = math.sqrt(float((d.min(axis=0) ** 2).mean()))
             if matched is None and s >= cfg.first_scan and conf.size >= 2:
+                from scipy.optimize import linear_sum_assignment  # 0.5 s import: only when used
+
                 r_idx, c_idx = linear_sum_assignment(d)
                 matched = {int(c): int(ids[conf[r]]) for r, c in zip(r_idx, c_idx)}
         for tgt, tid in (matched or {}).items():
