@@ -20,7 +20,9 @@ from .base import INT64_MAX, Int64, NonNegInt64, WireModel
 from .keys import ID_PATTERN
 
 _FLOAT_COLUMNS = ("range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude")
-_ALL_COLUMNS = ("time", *_FLOAT_COLUMNS, "mode_s", "mode_3a", "target_id")
+OPTIONAL_PLOT_COLUMNS = (*_FLOAT_COLUMNS, "mode_s", "mode_3a", "target_id")
+"""The per-plot columns of a ``PlotBatch`` that may be absent (``None``); ``time`` is not."""
+_ALL_COLUMNS = ("time", *OPTIONAL_PLOT_COLUMNS)
 _RANGES = (  # column, lower bound, upper bound, upper bound open, null allowed, unit
     ("range", 0.0, None, False, False, "m"),
     ("azimuth", 0.0, 2 * math.pi, True, False, "rad"),

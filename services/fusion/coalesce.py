@@ -35,12 +35,7 @@ import math
 from collections.abc import Sequence
 
 from skyfuse.schemas import PlotBatch
-
-PLOT_COLUMNS = (
-    "range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude", "mode_s",
-    "mode_3a", "target_id",
-)  # fmt: skip
-"""The optional per-plot columns of a ``PlotBatch`` (``time`` is always present)."""
+from skyfuse.schemas.plots import OPTIONAL_PLOT_COLUMNS
 
 ANGLE_TOL = 1e-6
 """Two sectors are contiguous when one starts within this many radians of the other's end."""
@@ -50,7 +45,7 @@ TWO_PI = 2.0 * math.pi
 
 def columns(batch: PlotBatch) -> tuple[str, ...]:
     """The optional plot columns the batch carries."""
-    return tuple(k for k in PLOT_COLUMNS if getattr(batch, k) is not None)
+    return tuple(k for k in OPTIONAL_PLOT_COLUMNS if getattr(batch, k) is not None)
 
 
 def continues(last: PlotBatch, nxt: PlotBatch, width: float, max_width: float) -> bool:
@@ -86,12 +81,14 @@ def plan(
             runs.append([i])
             continue
         cur = open_run.get(b.radar_id)
-        j = -1 if cur is None else cur[0][-1]
-        same = sources is None or j < 0 or sources[j] is sources[i]
-        if cur is not None and same and continues(batches[j], b, cur[1], max_width):
-            cur[0].append(i)
-            open_run[b.radar_id] = (cur[0], cur[1] + b.sector_width)
-            continue
+        if cur is not None:
+            run, width = cur
+            j = run[-1]
+            same = sources is None or sources[j] is sources[i]
+            if same and continues(batches[j], b, width, max_width):
+                run.append(i)
+                open_run[b.radar_id] = (run, width + b.sector_width)
+                continue
         run = [i]
         runs.append(run)
         open_run[b.radar_id] = (run, b.sector_width)
@@ -115,7 +112,7 @@ def concat(batches: Sequence[PlotBatch], cols: tuple[str, ...], sector_width: fl
         sector_width=sector_width,
         time_start=min(b.time_start for b in batches),
         time_end=max(b.time_end for b in batches),
-        **{k: None for k in PLOT_COLUMNS if k not in cols},
+        **{k: None for k in OPTIONAL_PLOT_COLUMNS if k not in cols},
         **data,
     )
 
