@@ -282,14 +282,33 @@ def start_children(
     return ep, fusion, pubs
 
 
-def run_level(rate: float, speed: float, a, work: Path) -> dict:
-    rec, offline = make_level_files(rate, speed, a, work)
-    frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
-    extra = () if a.max_backlog is None else ("--max-backlog", str(a.max_backlog))
+def add_overload_arguments(ap: argparse.ArgumentParser) -> None:
+    """The fusion's overload settings a level passes on (:func:`overload_flags`)."""
+    ap.add_argument(
+        "--coalesce-max-deg",
+        type=float,
+        default=None,
+        help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
+        "as one tracker step, at most this wide; default off)",
+    )
+    ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
+
+
+def overload_flags(a) -> tuple[str, ...]:
+    """``skyfuse fusion`` flags of the settings of :func:`add_overload_arguments` given."""
+    extra: tuple[str, ...] = ()
     if a.coalesce_max_deg is not None:
         extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
     if a.bulk_max is not None:
         extra += ("--bulk-max", str(a.bulk_max))
+    return extra
+
+
+def run_level(rate: float, speed: float, a, work: Path) -> dict:
+    rec, offline = make_level_files(rate, speed, a, work)
+    frame = (offline["frame"]["lat0"], offline["frame"]["lon0"])
+    extra = () if a.max_backlog is None else ("--max-backlog", str(a.max_backlog))
+    extra += overload_flags(a)
     ep, fusion, pubs = start_children(rec, speed, offline["radars"], frame, a, work, rate, extra)
     load0 = os.getloadavg()
     # a fresh state directory per level: the fusion must not resume the picture, the
@@ -400,14 +419,7 @@ def main() -> None:
         default=None,
         help="the fusion's --max-backlog (stop reading when behind by this, s; default off)",
     )
-    ap.add_argument(
-        "--coalesce-max-deg",
-        type=float,
-        default=None,
-        help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
-        "as one tracker step, at most this wide; default off)",
-    )
-    ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
+    add_overload_arguments(ap)
     ap.add_argument("--drain", type=float, default=20.0, help="max s to let the fusion catch up")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")

@@ -51,7 +51,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from service_pipeline import (  # noqa: E402
     Follower,
+    add_overload_arguments,
     make_level_files,
+    overload_flags,
     sim_plot_rate,
     start_children,
     start_replays,
@@ -121,10 +123,7 @@ def run(a, work: Path) -> dict:
     per_window = max(10, round(facts["batches"] / a.duration * a.window))
     frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
     extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
-    if a.coalesce_max_deg is not None:
-        extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
-    if a.bulk_max is not None:
-        extra += ("--bulk-max", str(a.bulk_max))
+    extra += overload_flags(a)
     ep, fusion, pubs = start_children(
         rec, speed, facts["radars"], frame, a, work, a.rate, fusion_extra=extra
     )
@@ -279,10 +278,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument("--drain", type=float, default=60.0, help="max s to let the fusion catch up")
-    ap.add_argument(
-        "--coalesce-max-deg", type=float, default=None, help="the fusion's --coalesce-max-deg"
-    )
-    ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
+    add_overload_arguments(ap)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument(
         "--keep", type=Path, default=None,
