@@ -228,7 +228,8 @@ def _loop(svc: _Service, inbox: Inbox, stop, duration, election, persist) -> int
         else:  # stop reading: the bounded inbox fills, Zenoh (BLOCK) slows the senders
             core.counters["reading_paused"] += 1
             time.sleep(min(0.01, _next_wait(core, now)))
-        svc.publish(core.poll(budget_s=0.2))
+        for out in core.ready_cycles(budget_s=0.2):  # each group published when done
+            svc.publish([out])
         if persist is not None:
             persist.tick(time.monotonic())
         if time.monotonic() >= next_status:
@@ -329,7 +330,9 @@ class _Service:
     def handle(self, item) -> None:
         core = self.core
         if item.tag == "plots":
-            batch = core.on_plots_payload(item.key, item.payload, time.monotonic(), item.sent_ns)
+            batch = core.on_plots_payload(
+                item.key, item.payload, _arrival(item.recv_ns), item.sent_ns, recv_ns=item.recv_ns
+            )
             if batch is not None:
                 r = core.radars.get(batch.radar_id)
                 if r is not None and r.site is None:
@@ -379,6 +382,14 @@ class _Service:
             st.tracks_confirmed, _fmt(st.latency_ms.p50), _fmt(st.latency_ms.p99),
             dict(core.rejected) or "none",
         )  # fmt: skip
+
+
+def _arrival(recv_ns: int) -> float:
+    """The monotonic time a sample was received (by Zenoh's delivery thread, before it
+    waited in the inbox): the reorder hold counts from there, not from when the main
+    loop read it. A wall-clock step while it waited moves it at most 60 s."""
+    waited = min(max(0.0, (time.time_ns() - recv_ns) * 1e-9), 60.0)
+    return time.monotonic() - waited
 
 
 def _next_wait(core: FusionCore, now: float) -> float:

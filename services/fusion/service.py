@@ -10,7 +10,9 @@ Data flow for one received plot batch::
 
 **Reorder buffer** (:mod:`services.fusion.reorder`). Batches from several radars arrive
 with network jitter. Each batch is held for ``reorder_wait`` seconds of wall time after
-its arrival, and batches are applied in the order of ``(time_end, arrival)``. Each radar
+its arrival (when Zenoh delivered it: the time it then waits for the main loop counts),
+and batches are applied in the order of ``(time_end, arrival)``; each group's output is
+published as soon as it is computed (:meth:`FusionCore.ready_cycles`). Each radar
 has its own watermark: only a batch earlier than its own radar's last applied one is *out
 of sequence*. A batch further ahead of this host's clock than ``future_tolerance`` is
 refused (``time in the future``) and never moves the service time; a batch up to
@@ -38,6 +40,7 @@ import math
 import re
 import time
 from collections import Counter, deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -470,30 +473,37 @@ class FusionCore:
     def poll(
         self, now: float | None = None, *, flush: bool = False, budget_s: float | None = None
     ) -> list[CycleOutput]:
-        """Run the cycles of the batches whose hold expired (all queued with ``flush``).
+        """The outputs of :meth:`ready_cycles`, as a list."""
+        return list(self.ready_cycles(now, flush=flush, budget_s=budget_s))
+
+    def ready_cycles(
+        self, now: float | None = None, *, flush: bool = False, budget_s: float | None = None
+    ) -> Iterator[CycleOutput]:
+        """Run the cycles of the batches whose hold expired (all queued with ``flush``),
+        yielding each group's output as soon as it is computed, so the caller publishes
+        it before the next group runs (a group's batches never wait for later groups).
 
         Every batch ready now is taken at once (at most ``bulk_max`` per group) and
         applied in one pass, in the buffer's time order, with one delta message for the
-        group (:meth:`CyclePipeline.process_group`). ``budget_s`` bounds the time spent
-        (at least one group runs): the rest stays queued for the next call, so a service
-        that falls behind still reads its input and publishes its Status in between."""
+        group (:meth:`CyclePipeline.process_group`). ``budget_s`` bounds the time spent,
+        the caller's publication included (at least one group runs): the rest stays
+        queued for the next call, so a service that falls behind still reads its input
+        and publishes its Status in between."""
         clock = now  # the caller's clock for the output rate (None: each group's own now)
         now = time.monotonic() if now is None else now
         t_end = None if budget_s is None else time.monotonic() + budget_s
-        outs = []
         while True:
             if flush:
                 ready = self.buffer.flush()
             else:
                 ready = self.buffer.pop_ready(now, limit=self.cfg.bulk_max)
             if not ready:
-                break
+                return
             out = self.cycle_group(ready, clock)
             if out is not None:
-                outs.append(out)
+                yield out
             if flush or (t_end is not None and time.monotonic() >= t_end):
-                break
-        return outs
+                return
 
     def cycle(self, p: _Pending) -> CycleOutput | None:
         """Run the cycle of one released batch (see :meth:`poll`)."""

@@ -160,3 +160,19 @@ def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
         )
     assert results[None] == 0
     assert results[3000.0] == 0
+
+
+def test_each_group_is_handed_out_before_the_next_group_runs():
+    """``ready_cycles`` yields a group's output before it takes the next group, so the
+    service publishes it at once: a group's batches never wait for later groups."""
+    c, made = core(reorder_wait=0.0, bulk_max=2)
+    c.on_site(make_site("R1", 45.0, 20.0))
+    rng = np.random.default_rng(5)
+    for k in range(5):
+        c.on_plots(make_batch("R1", 0, k, 8, 3, rng), arrival=0.0)
+    cycles = c.ready_cycles(1.0)
+    first = next(cycles)
+    assert len(first.time_ends) == 2 and len(made[0].seen) == 2  # the next group not run
+    assert len(c.buffer) == 3
+    rest = list(cycles)
+    assert [len(o.time_ends) for o in rest] == [2, 1] and len(c.buffer) == 0
