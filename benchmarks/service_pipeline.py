@@ -29,7 +29,8 @@ at high speed factors; each such batch costs more than an in-order one).
 
     python benchmarks/service_pipeline.py [--rates 2000,5000,20000] [--seconds 10]
         [--targets 1000] [--radars 6] [--sectors 16] [--reorder-wait 0.2]
-        [--max-backlog S] [--coalesce-max-deg DEG] [--bulk-max N] [--json out.json]
+        [--max-backlog S] [--coalesce-max-deg DEG] [--bulk-max N] [--delta-split-s S|off]
+        [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
@@ -292,6 +293,12 @@ def add_overload_arguments(ap: argparse.ArgumentParser) -> None:
         "as one tracker step, at most this wide; default off)",
     )
     ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
+    ap.add_argument(
+        "--delta-split-s",
+        default=None,
+        help="the fusion's --delta-split-s (a long group's delta published in parts of about "
+        "this much work, s; 'off': one delta per group; default: the fusion's default)",
+    )
 
 
 def overload_flags(a) -> tuple[str, ...]:
@@ -301,6 +308,8 @@ def overload_flags(a) -> tuple[str, ...]:
         extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
     if a.bulk_max is not None:
         extra += ("--bulk-max", str(a.bulk_max))
+    if a.delta_split_s is not None:
+        extra += ("--delta-split-s", str(a.delta_split_s))
     return extra
 
 
@@ -377,6 +386,7 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "latency_count": lat.count,
         "cycles": c.get("cycles"),
         "groups": c.get("groups"),
+        "group_parts": c.get("group_parts", 0),
         "coalesced_steps": c.get("coalesced_steps"),
         "batches_coalesced": c.get("batches_coalesced"),
         "feed_messages": dict(f.feed),

@@ -364,7 +364,7 @@ class _Service:
         pending = core.buffer.flush()
         while pending and time.monotonic() <= deadline:
             group, pending = pending[: core.cfg.bulk_max], pending[core.cfg.bulk_max :]
-            self.publish([o for o in [core.cycle_group(group)] if o is not None])
+            self.publish(list(core.cycle_group(group)))
         if pending:
             core.rejected[late] += len(pending)
         if inbox.discarded:

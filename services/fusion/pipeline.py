@@ -2,7 +2,7 @@
 system frame (:func:`fusion.frames.convert_plots`) → :class:`Tracker` step →
 the delta of the track feed (:mod:`services.fusion.feed`: lat/lon/alt, velocity
 east/north/up, speed, heading, built from arrays) + ``TrackEvent``. Several batches can go
-through in one pass (:meth:`TrackPipeline.process_group`, the bulk path), the contiguous
+through in one pass (:meth:`TrackPipeline.process_parts`, the bulk path), the contiguous
 sectors of one radar among them optionally as one tracker step
 (:mod:`~skyfuse.services.fusion.coalesce`).
 
@@ -12,7 +12,9 @@ The same code path serves the live fusion service and the offline ``skyfuse trac
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections import Counter
+from collections.abc import Iterator
 
 import numpy as np
 from skyfuse.fusion.frames import SystemFrame, convert_plots
@@ -25,6 +27,18 @@ from skyfuse.services.fusion import coalesce
 from skyfuse.services.fusion.adapter import measurement_batch_from
 from skyfuse.services.fusion.feed import FeedBuilder, FeedMessage
 from skyfuse.services.fusion.registration_link import RegistrationLink
+
+
+@dataclasses.dataclass
+class GroupPart:
+    """What one part of a group applied (:meth:`TrackPipeline.process_parts`): its delta
+    message (``None`` if no batch was applied), events, the batches applied (in order)
+    and those that failed, with their exception."""
+
+    message: FeedMessage | None = None
+    events: list[TrackEvent] = dataclasses.field(default_factory=list)
+    applied: list[PlotBatch] = dataclasses.field(default_factory=list)
+    failed: list[tuple[PlotBatch, Exception]] = dataclasses.field(default_factory=list)
 
 
 def assumed_height(site: RadarSite, configured: float | None) -> float | None:
@@ -131,11 +145,28 @@ class TrackPipeline:
         coalesce_max: float | None = None,
         mergeable: list[bool] | None = None,
     ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]:
+        """Several batches, in the given (time) order, in one pass, with one delta
+        message for the group (:meth:`process_parts` in one part). Returns the message
+        (``None`` if no batch could be applied), the events, and the batches that failed
+        with their exception (the others are applied)."""
+        (part,) = self.process_parts(items, coalesce_max=coalesce_max, mergeable=mergeable)
+        return part.message, part.events, part.failed
+
+    def process_parts(
+        self,
+        items: list[tuple[RadarSite, PlotBatch]],
+        *,
+        coalesce_max: float | None = None,
+        mergeable: list[bool] | None = None,
+        part_s: float | None = None,
+    ) -> Iterator[GroupPart]:
         """Several batches, in the given (time) order, in one pass: the plots of each
-        radar converted at once, one tracker step per batch, one delta message for the
-        group (the same picture as one message per batch). Returns the message (``None``
-        if no batch could be applied), the events, and the batches that failed with
-        their exception (the others are applied).
+        radar converted at once, one tracker step per batch, one delta message per part
+        (the same picture as one message per batch).
+
+        part_s (s, default: one part): once the steps of the current part have taken this
+        long and steps remain, the part's delta is yielded before the next step runs, so
+        a long group's first batches are published without waiting for its last ones.
 
         coalesce_max (rad, default off): the contiguous sector batches of one radar among
         them (those where ``mergeable``, default all) are applied as one step of at most
@@ -143,34 +174,46 @@ class TrackPipeline:
         step refused as input (ValueError: conversion, validation) is applied batch by
         batch, so a bad batch costs only itself."""
         steps = self._steps(items, coalesce_max, mergeable)
-        events: list[TrackEvent] = []
-        failed: list[tuple[PlotBatch, Exception]] = []
-        last = None
         # registration on: each batch's correction depends on the steps before it, so it
         # is converted just before its step (the same tracks as batch by batch, live or
         # offline); otherwise the plots of each radar are converted at once
         learning = self.registration.mode is RegistrationMode.ON
         merged = [(site, batch) for site, batch, _ in steps]
         conversions = [None] * len(steps) if learning else self._convert_all(merged)
-        for (site, batch, members), converted in zip(steps, conversions):
-            try:
-                out = self._apply(site, batch, converted)
-            except Exception as e:
-                # a ValueError is a batch the conversion or the tracker's validation
-                # refused before any state changed: its members are tried one by one;
-                # any other error (a bug, the state may be half-updated) fails them all
-                if len(members) == 1 or not isinstance(e, ValueError):
-                    failed += [(b, e) for b in members]
-                    continue
-                self.coalesced["retried"] += 1
-                last = self._apply_each(site, members, events, failed) or last
-                continue
-            self.feed.record(out, len(members))
-            events += self.track_events(out)
-            last = batch
-        if last is None:
-            return None, events, failed
-        return self.feed.delta(last.radar_id, last.seq), events, failed
+        part, t0 = GroupPart(), time.perf_counter()
+        for k, ((site, batch, members), converted) in enumerate(zip(steps, conversions)):
+            self._apply_step(site, batch, members, converted, part)
+            more = k + 1 < len(steps)
+            if more and part_s is not None and part.applied:
+                if time.perf_counter() - t0 >= part_s:
+                    yield self._close(part)
+                    part, t0 = GroupPart(), time.perf_counter()
+        yield self._close(part)
+
+    def _apply_step(self, site, batch, members, converted, part: GroupPart) -> None:
+        """One step (a batch, or a coalesced run of ``members``) into ``part``."""
+        try:
+            out = self._apply(site, batch, converted)
+        except Exception as e:
+            # a ValueError is a batch the conversion or the tracker's validation refused
+            # before any state changed: its members are tried one by one; any other
+            # error (a bug, the state may be half-updated) fails them all
+            if len(members) == 1 or not isinstance(e, ValueError):
+                part.failed += [(b, e) for b in members]
+                return
+            self.coalesced["retried"] += 1
+            self._apply_each(site, members, part)
+            return
+        self.feed.record(out, len(members))
+        part.events += self.track_events(out)
+        part.applied += members
+
+    def _close(self, part: GroupPart) -> GroupPart:
+        """The part's delta message (``None`` if it applied no batch)."""
+        if part.applied:
+            last = part.applied[-1]
+            part.message = self.feed.delta(last.radar_id, last.seq)
+        return part
 
     def _steps(self, items, coalesce_max, mergeable) -> list:
         """(site, batch to apply, its member batches) per tracker step, in order."""
@@ -195,19 +238,17 @@ class TrackPipeline:
             raise converted
         return self._track(converted, site, batch)
 
-    def _apply_each(self, site, members, events, failed) -> PlotBatch | None:
-        """The members of a failed coalesced step, one by one; the last applied one."""
-        last = None
+    def _apply_each(self, site, members, part: GroupPart) -> None:
+        """The members of a failed coalesced step, one by one, into ``part``."""
         for b in members:
             try:
                 out = self._apply(site, b, None)
             except Exception as e:
-                failed.append((b, e))
+                part.failed.append((b, e))
                 continue
             self.feed.record(out)
-            events += self.track_events(out)
-            last = b
-        return last
+            part.events += self.track_events(out)
+            part.applied.append(b)
 
     def _convert_all(self, items: list[tuple[RadarSite, PlotBatch]]) -> list:
         """``convert_plots`` of every batch (or the exception it raised): the batches of

@@ -121,6 +121,14 @@ class FusionConfig(BaseModel):
         "wider sectors, not bitwise those of batch-by-batch processing (Status counters "
         "coalesced_steps, batches_coalesced). Default: off",
     )
+    delta_split_s: float | None = Field(
+        0.05,
+        gt=0,
+        description="When applying a group of batches takes longer than this, s, the "
+        "delta of the batches applied so far is published before the next step runs, so "
+        "the first batches of a long group do not wait for its last ones (Status counter "
+        "group_parts); the tracks are the same. off = one delta per group",
+    )
     max_backlog: float | None = Field(
         None,
         gt=0,
@@ -222,7 +230,9 @@ class FusionConfig(BaseModel):
         "it and take over when it goes away (else: refuse to start, exit 1)",
     )
 
-    @field_validator("future_tolerance", "site_tolerance", "snapshot_interval", mode="before")
+    @field_validator(
+        "future_tolerance", "site_tolerance", "snapshot_interval", "delta_split_s", mode="before"
+    )
     @classmethod
     def _off(cls, v):
         """``off`` (flag, TOML or environment) switches a check off."""
@@ -244,14 +254,17 @@ class CyclePipeline(Protocol):
 
     rejected: dict[str, int]
 
-    def process_group(
+    def process_parts(
         self,
         items: list[tuple[RadarSite, PlotBatch]],
         *,
+        part_s: float | None = None,
         coalesce_max: float | None = None,
         mergeable: list[bool] | None = None,
-    ) -> tuple[FeedMessage | None, list[TrackEvent], list[tuple[PlotBatch, Exception]]]:
-        """(Only asked to coalesce when ``coalesce_max_deg`` is set.)"""
+    ) -> Iterator:
+        """The group's parts (``services.fusion.pipeline.GroupPart``: message, events,
+        applied and failed batches), each yielded before the next part's steps run.
+        (Only asked to coalesce when ``coalesce_max_deg`` is set.)"""
 
     def full(self) -> FeedMessage | None: ...
 
@@ -499,66 +512,83 @@ class FusionCore:
                 ready = self.buffer.pop_ready(now, limit=self.cfg.bulk_max)
             if not ready:
                 return
-            out = self.cycle_group(ready, clock)
-            if out is not None:
-                yield out
+            yield from self.cycle_group(ready, clock)
             if flush or (t_end is not None and time.monotonic() >= t_end):
                 return
 
     def cycle(self, p: _Pending) -> CycleOutput | None:
         """Run the cycle of one released batch (see :meth:`poll`)."""
-        return self.cycle_group([p])
+        return next(self.cycle_group([p]), None)
 
-    def cycle_group(self, ready: list[_Pending], now: float | None = None) -> CycleOutput | None:
-        """Apply released batches (in their order) in one pass; ``None`` if none applied.
-        ``now``: the monotonic time of the output rate (default: now)."""
+    def cycle_group(self, ready: list[_Pending], now: float | None = None) -> Iterator[CycleOutput]:
+        """Apply released batches (in their order) in one pass, yielding the output of
+        each part (one per group unless ``delta_split_s`` splits a long one); nothing if
+        no batch was applied. ``now``: the monotonic time of the output rate (default:
+        now)."""
         for p in ready:
             self._left_buffer(p)
         ready = [p for p in ready if self._has_site(p.batch)]
         if not ready:
-            return None
+            return
         if self.pipeline is None:
             self._start_pipeline()
         items = [(self.radars[p.batch.radar_id].site, p.batch) for p in ready]
-        kw = {}
+        kw = {"part_s": self.cfg.delta_split_s}
         if self.cfg.coalesce_max_deg is not None:  # late batches are never coalesced
-            kw = {
+            kw |= {
                 "coalesce_max": math.radians(self.cfg.coalesce_max_deg),
                 "mergeable": [not p.late for p in ready],
             }
-        try:
-            msg, events, failed = self.pipeline.process_group(items, **kw)
-        except Exception as e:  # a tracker bug must not kill the service
-            self.reject("tracker error", f"{type(e).__name__}: {e}", len(ready))
-            log.exception("tracker error on a group of %d batches", len(ready))
-            return None
-        bad = set()
-        for batch, e in failed:
-            bad.add(id(batch))
+        pending = {id(p.batch): p for p in ready}
+        parts = self.pipeline.process_parts(items, **kw)
+        first = True
+        while True:
+            try:
+                part = next(parts, None)
+            except Exception as e:  # a tracker bug must not kill the service
+                self.reject("tracker error", f"{type(e).__name__}: {e}", len(pending))
+                log.exception("tracker error on a group of %d batches", len(ready))
+                return
+            if part is None:
+                return
+            out = self._part_output(part, pending, now)
+            if out is not None:
+                self.counters["groups" if first else "group_parts"] += 1
+                first = False
+                yield out
+
+    def _part_output(self, part, pending: dict[int, _Pending], now) -> CycleOutput | None:
+        """Count one part's failed and applied batches (taken out of ``pending``); its
+        output, unless it applied none."""
+        for batch, e in part.failed:
+            pending.pop(id(batch), None)
             if isinstance(e, ValueError):
                 self.reject("batch not convertible", f"radar {batch.radar_id}: {e}")
             else:
                 self.reject("tracker error", f"{type(e).__name__}: {e}")
                 log.error("tracker error on radar %s seq %s: %r", batch.radar_id, batch.seq, e)
-        applied = [p for p in ready if id(p.batch) not in bad]
-        if msg is None:
+        applied = [pending.pop(id(b)) for b in part.applied]
+        if part.message is None:
             return None
-        self._stamp(msg)
+        self._stamp(part.message)
         n = sum(len(p.batch.time) for p in applied)
         self.counters["cycles"] += len(applied)
-        self.counters["groups"] += 1
         self.counters["plots_applied"] += n
         late = sum(p.late for p in applied)
         if late:  # behind the service time, within max_lateness: applied (reorder.py)
             self.counters["batches_late_applied"] += late
-        self.counters["events"] += len(events)
+        self.counters["events"] += len(part.events)
         self.rate_out.add(n, now)
         full = None
         if time.monotonic() >= self._next_full:
             self._next_full = time.monotonic() + self.cfg.full_interval
             full = self._stamp(self.pipeline.full())
         return CycleOutput(
-            msg, events, [p.sent_ns for p in applied], [p.time_end for p in applied], full
+            part.message,
+            part.events,
+            [p.sent_ns for p in applied],
+            [p.time_end for p in applied],
+            full,
         )
 
     def _left_buffer(self, p: _Pending) -> None:

@@ -6,9 +6,10 @@ batches are ready at once."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from skyfuse.fusion.sim import Simulator, build_scenario
 from skyfuse.fusion.tracker.config import TrackerConfig
-from skyfuse.schemas import FeedKind, Status, TrackBatch
+from skyfuse.schemas import FeedKind, Status, TrackBatch, TrackPicture
 from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 
@@ -25,7 +26,7 @@ def test_backlog_behind_flag_and_recovery():
     lat0 = float(np.mean([s.lat for s in sites]))
     lon0 = float(np.mean([s.lon for s in sites]))
     cfg = FusionConfig(reorder_wait=0.5, behind_after=1.0, max_backlog=2.0, frame_lat0=lat0,
-                       frame_lon0=lon0, full_interval=1e-6)  # fmt: skip
+                       frame_lon0=lon0, full_interval=1e-6, delta_split_s="off")  # fmt: skip
     core = FusionCore(cfg, make_pipeline_factory(TrackerConfig(), cfg.fusion_id))
     for s in sites:
         core.on_site(s)
@@ -70,7 +71,7 @@ def test_coalescing_when_behind_applies_every_plot_in_fewer_steps():
     counts = {}
     for deg in (None, 90.0):
         cfg = FusionConfig(reorder_wait=0.5, frame_lat0=lat0, frame_lon0=lon0,
-                           coalesce_max_deg=deg, bulk_max=1000)  # fmt: skip
+                           coalesce_max_deg=deg, bulk_max=1000, delta_split_s="off")  # fmt: skip
         core = FusionCore(cfg, make_pipeline_factory(TrackerConfig(), cfg.fusion_id))
         for s in sites:
             core.on_site(s)
@@ -88,3 +89,47 @@ def test_coalescing_when_behind_applies_every_plot_in_fewer_steps():
     # 16 sectors per revolution: runs of up to 4 (90°), most batches in one
     assert steps >= len(batches) // 8 and members >= len(batches) // 2
     assert members <= 4 * steps
+
+
+def _run_group(split, coalesce_deg=None):
+    """All batches of the scenario applied as one ready group; the outputs and core."""
+    sites, batches = scenario_batches()
+    lat0 = float(np.mean([s.lat for s in sites]))
+    lon0 = float(np.mean([s.lon for s in sites]))
+    cfg = FusionConfig(reorder_wait=0.5, frame_lat0=lat0, frame_lon0=lon0, bulk_max=1000,
+                       delta_split_s=split, coalesce_max_deg=coalesce_deg)  # fmt: skip
+    core = FusionCore(cfg, make_pipeline_factory(TrackerConfig(), cfg.fusion_id))
+    for s in sites:
+        core.on_site(s)
+    for i, b in enumerate(batches):
+        assert core.on_plots(b, arrival=1000.0 + 0.1 * i / len(batches))
+    return core.poll(now=1003.0), core, batches
+
+
+@pytest.mark.parametrize("coalesce_deg", [None, 90.0])
+def test_a_long_group_is_published_in_parts_with_the_same_picture(coalesce_deg):
+    """``delta_split_s``: a group whose steps take longer is published in parts, each
+    delta the batches applied so far (here a split after every step: a bound of 1 ns is
+    always exceeded); a client applying the deltas rebuilds the same picture as from the
+    group's one delta, every batch counted once, and the tracks are the same."""
+    whole, core1, batches = _run_group("off", coalesce_deg)
+    parts, core, _ = _run_group(1e-9, coalesce_deg)
+    assert len(whole) == 1 and len(parts) > 1
+    c = core.status().counters
+    assert len(parts) == len(batches) - c["batches_coalesced"] + c["coalesced_steps"]  # steps
+    assert (c["coalesced_steps"] > 0) == (coalesce_deg is not None)
+    assert c["groups"] == 1 and c["group_parts"] == len(parts) - 1
+    assert sorted(t for o in parts for t in o.time_ends) == sorted(b.time_end for b in batches)
+    pictures = []
+    for outs in (whole, parts):
+        pic = TrackPicture()
+        for o in outs:
+            d = TrackBatch.from_json_bytes(o.tracks.to_json_bytes())
+            assert d.kind is FeedKind.DELTA and d.batches == len(o.time_ends)
+            assert pic.apply(d)
+        assert pic.complete
+        pictures.append({i: t.model_dump() for i, t in pic.tracks.items()})
+    assert pictures[0] == pictures[1] and len(pictures[0]) >= 3
+    snap = TrackBatch.from_json_bytes(core.snapshot_payload())
+    assert {t.track_id: t.model_dump() for t in snap.tracks} == pictures[1]
+    assert core.status().counters["plots_applied"] == core1.status().counters["plots_applied"]

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from service_support import make_batch, make_site
 from skyfuse.schemas import FrameKind, FrameSpec, TrackBatch, keys
+from skyfuse.services.fusion.pipeline import GroupPart
 from skyfuse.services.fusion.service import FusionConfig, FusionCore, ReorderBuffer
 
 
@@ -19,7 +20,7 @@ class RecordingPipeline:
         self.seen: list[tuple[str, int]] = []
         self.rejected: dict[str, int] = {}
 
-    def process_group(self, items):
+    def process_parts(self, items, part_s=None):
         self.seen += [(batch.radar_id, batch.time_end) for _, batch in items]
         last = items[-1][1]
         tb = TrackBatch(
@@ -27,7 +28,7 @@ class RecordingPipeline:
             frame=self.frame, state_labels=["x", "vx", "y", "vy"], source_radar=last.radar_id,
             source_seq=last.seq, batches=len(items),
         )  # fmt: skip
-        return tb, [], []
+        yield GroupPart(tb, [], [b for _, b in items], [])
 
     def full(self):
         return None
