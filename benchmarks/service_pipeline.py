@@ -32,6 +32,7 @@ at high speed factors; each such batch costs more than an in-order one).
         [--max-backlog S] [--coalesce-max-deg DEG] [--bulk-max N] [--delta-split-s S|off]
         [--json out.json]
         [--profile DIR]    # py-spy collapsed stacks of the fusion process per level
+        [--publisher-cpus 1]  # the replays on core 1 only (as radars on other hosts)
         [--no-offline]     # skip the offline comparison (long soak runs: RSS over time)
 """
 
@@ -244,17 +245,31 @@ START_LEAD_S = 4.0
 """The replays' common start is this long after they are launched (start-up, tokens)."""
 
 
-def start_replays(pubs, state_home: Path) -> float:
+def start_replays(pubs, state_home: Path, cpus: set[int] | None = None) -> float:
     """Launch the replay processes with one common ``--start-at``: their own start-ups
     differ by tens of ms, which is seconds of data time at high speed (the reorder buffer
     would hold the batches of the early ones until the late ones catch up). Returns the
-    common start on the monotonic clock (the start of the level's timing)."""
+    common start on the monotonic clock (the start of the level's timing). ``cpus``: the
+    cores the replays may run on (``--publisher-cpus``; set right after the launch, before
+    the child opens its Zenoh session, so its runtime threads inherit it)."""
     start_at = round(time.time() + START_LEAD_S, 3)
     t0 = time.monotonic() + (start_at - time.time())
     for c in pubs:
         c.args += ["--start-at", f"{start_at:.3f}"]
         c.start(state_home=state_home)
+        if cpus:
+            os.sched_setaffinity(c.proc.pid, cpus)
     return t0
+
+
+def parse_cpus(text: str | None) -> set[int] | None:
+    """``--publisher-cpus`` ("1" or "1,2"): core numbers this machine has, or ``None``."""
+    if not text:
+        return None
+    cpus = {int(v) for v in text.split(",")}
+    if not cpus <= os.sched_getaffinity(0):
+        raise SystemExit(f"--publisher-cpus {text}: this process may use {os.sched_getaffinity(0)}")
+    return cpus
 
 
 def start_children(
@@ -330,7 +345,7 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
         f.pid = fusion.proc.pid
         rss0 = rss_mb(f.pid)
-        t0 = start_replays(pubs, state)
+        t0 = start_replays(pubs, state, parse_cpus(a.publisher_cpus))
         cpu = CpuMeter(f.pid, pubs)
         go = declare_liveliness(s, service_alive_key("bench"))
         spy = _profile(fusion, a.profile, rate, a.seconds)
@@ -434,7 +449,14 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--profile", type=Path, default=None, help="py-spy collapsed stacks to DIR")
     ap.add_argument("--no-offline", action="store_true", help="skip skyfuse track (soak runs)")
+    ap.add_argument(
+        "--publisher-cpus",
+        default=None,
+        help="run the replay processes on these cores only, e.g. 1 (radars on other hosts: "
+        "the fusion is not pre-empted by its own publishers; default: any core)",
+    )
     a = ap.parse_args()
+    parse_cpus(a.publisher_cpus)
     base = sim_plot_rate(a)
     print(f"regional, {a.radars} radars, {a.targets} aircraft, {a.sectors} sectors: "
           f"{base:.0f} plots per simulated s;"
