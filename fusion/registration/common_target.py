@@ -116,6 +116,16 @@ class ResidualPairs:
         return len(self.y)
 
 
+def _found_in(keys: np.ndarray, of: np.ndarray) -> np.ndarray:
+    """(n,) bool: which ``keys`` (int64) are among ``of`` — one sort of the few new keys
+    and a binary search (np.isin costs ≈ 7× more at a batch's sizes)."""
+    if len(of) == 0 or len(keys) == 0:
+        return np.zeros(len(keys), bool)
+    ordered = np.sort(of)
+    i = np.minimum(np.searchsorted(ordered, keys), len(ordered) - 1)
+    return ordered[i] == keys
+
+
 class PairBuffer:
     """Plots awaiting a partner from another radar, and the pairing of eq. (2)."""
 
@@ -141,8 +151,7 @@ class PairBuffer:
         unpaired = np.ones(len(new), bool)
         unpaired[ia] = False
         rest = new.take(unpaired)
-        key_s = s.track * 64 + s.radar
-        keep_store &= ~np.isin(key_s, rest.track * 64 + rest.radar)
+        keep_store &= ~_found_in(s.track * 64 + s.radar, rest.track * 64 + rest.radar)
         self.store = PlotColumns.concat(s.take(np.flatnonzero(keep_store)), rest)
         if len(self.store) > self.capacity:
             n_drop = len(self.store) - self.capacity
@@ -184,8 +193,8 @@ class PairBuffer:
 
     def _residuals(self, A: PlotColumns, B: PlotColumns) -> ResidualPairs:
         dt = (A.time - B.time) * 1e-9
-        hb = lambda X, b: np.einsum("kij,kj->ki", X, b)  # noqa: E731
+        hb = lambda X, b: (X @ b[:, :, None])[:, :, 0]  # noqa: E731  (k, 2, 4) · (k, 4)
         y = A.z - B.z - A.v * dt[:, None] + hb(A.H, A.applied) - hb(B.H, B.applied)
         W = A.R + B.R + dt[:, None, None] ** 2 * A.Pvv
-        W = W + (self.q * np.abs(dt) ** 3 / 3.0)[:, None, None] * np.eye(2)
+        W[:, [0, 1], [0, 1]] += (self.q * np.abs(dt) ** 3 / 3.0)[:, None]
         return ResidualPairs(y, W, A.H, B.H, A.radar, B.radar, A.time.copy())
