@@ -22,8 +22,8 @@ update in information form (Bar-Shalom, Li & Kirubarajan 2001, §7.2, eq. 7.2.1-
 
 Before the update every pair is gated on its normalised innovation
 ν_kᵀ (H_k P H_kᵀ + W_k)⁻¹ ν_k ≤ χ²_2(p_gate) (wrong associations, manoeuvres). The 2 × 2
-inverses (of the innovation covariance and of W_k) are closed forms
-(:mod:`fusion.filters.small_spd`). The
+inverses (of the innovation covariance and of W_k) are closed forms; the gate and the
+update are one compiled call (:mod:`.bias_filter_kernel`). The
 state is kept in units of the prior σ (s = β/σ_0, P_0 = I) so that radians, metres,
 ppm and seconds are conditioned alike.
 """
@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 from skyfuse.fusion.association.gating import gate_threshold
-from skyfuse.fusion.filters.small_spd import quadratic_and_logdet, right_solve
 
+from .bias_filter_kernel import gate_and_update
 from .common_target import ResidualPairs
 
 
@@ -88,43 +88,19 @@ class BiasFilter:
         sl = slice(4 * r, 4 * r + 4)
         return self.P[sl, sl] * np.outer(self.sigma0, self.sigma0)
 
-    def _stacked_h(self, pairs: ResidualPairs) -> np.ndarray:
-        """H of eq. (1) over all pairs, (k, 2, 4n), in normalised units, fixed columns 0."""
-        k, n = len(pairs), self.n_radars
-        H = np.zeros((k, 2, n, 4))
-        rows = np.arange(k)
-        H[rows, :, pairs.a, :] += pairs.HA * self.sigma0
-        H[rows, :, pairs.b, :] -= pairs.HB * self.sigma0
-        return (H * self._free_rows()[None, None]).reshape(k, 2, 4 * n)
-
     def _free_rows(self) -> np.ndarray:
         """(n, 4) bool: the estimated components of the non-reference radars."""
         return self.estimated[None, :] & ~np.asarray(self.reference, bool)[:, None]
 
     def update(self, pairs: ResidualPairs) -> int:
-        """Gate and apply one batch of pairs (eq. 2); returns the number used."""
+        """Gate and apply one batch of pairs (eq. 2, :mod:`.bias_filter_kernel`); returns
+        the number used."""
         if len(pairs) == 0 or self.n_radars == 0:
             return 0
-        H = self._stacked_h(pairs)
-        informative = np.abs(H).sum(axis=(1, 2)) > 0
-        nu = pairs.y - np.einsum("kij,j->ki", H, self.s)
-        S = H @ self.P @ np.swapaxes(H, 1, 2) + pairs.W
-        d2, _ = quadratic_and_logdet(S, nu)  # S (k, 2, 2): closed form
-        ok = informative & (d2 <= self.gate)
-        n = self.n_radars
-        self.pairs_rejected += np.bincount(pairs.a[informative & ~ok], minlength=n)
-        if not ok.any():
-            return 0
-        # information update over the free components only (fixed ones stay exactly 0)
-        idx = np.flatnonzero(self._free_rows().reshape(-1))
-        H, y = H[ok][:, :, idx], pairs.y[ok]
-        HtWi = right_solve(np.swapaxes(H, 1, 2), pairs.W[ok])  # Hᵀ W⁻¹ (k, f, 2)
-        Pf, sf = self.P[np.ix_(idx, idx)], self.s[idx]
-        info = np.linalg.inv(Pf) + (HtWi @ H).sum(axis=0)
-        eta = np.linalg.solve(Pf, sf) + np.einsum("kij,kj->i", HtWi, y)
-        Pn = np.linalg.inv(info)
-        self.P[np.ix_(idx, idx)] = 0.5 * (Pn + Pn.T)
-        self.s[idx] = Pn @ eta
-        self.pairs_used += np.bincount(pairs.a[ok], minlength=n)
-        self.pairs_used += np.bincount(pairs.b[ok], minlength=n)
-        return int(ok.sum())
+        c = np.ascontiguousarray
+        return gate_and_update(
+            self.s, self.P, c(self._free_rows().reshape(-1)), self.sigma0,
+            c(pairs.y, float), c(pairs.W, float), c(pairs.HA, float), c(pairs.HB, float),
+            c(pairs.a, np.int64), c(pairs.b, np.int64), float(self.gate),
+            self.pairs_used, self.pairs_rejected,
+        )  # fmt: skip

@@ -15,7 +15,7 @@ is kept. No equations here: the kernels are documented where they are defined
 (:mod:`fusion.filters.cholesky_kernels`, :mod:`fusion.filters.kalman`,
 :mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`,
 :mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
-:mod:`fusion.tracker.existence`).
+:mod:`fusion.tracker.existence`, :mod:`fusion.registration.bias_filter_kernel`).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from skyfuse.fusion.filters.kalman import joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows_each
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
+from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
 from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
 
@@ -54,4 +55,8 @@ def warm_up() -> float:
     ct.Q(4.0, xt)
     to_cv_layout(ct, xt, Pt)
     from_common(ct, *to_common(ct, xt, Pt))
+    counts = np.zeros(2, np.int64)
+    gate_and_update(np.zeros(8), np.eye(8), np.arange(8) >= 4, np.ones(4), np.ones((1, 2)),
+                    eye[None].copy(), np.ones((1, 2, 4)), np.ones((1, 2, 4)),
+                    np.array([1]), np.array([0]), 10.0, counts, counts.copy())  # fmt: skip
     return time.perf_counter() - t0
