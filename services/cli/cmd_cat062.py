@@ -27,6 +27,7 @@ from skyfuse.schemas import TrackBatch, TrackEvent, TrackEventKind, TrackStatus,
 from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.cli.service_command import add_service_parser, service_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
+from skyfuse.services.runtime.startup_heap import freeze_startup_heap
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportError,
@@ -182,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
     stop = StopFlag().install()
     try:
         with open_session(tcfg) as session:
+            freeze_startup_heap()  # GC full passes skip what start-up built (stalls)
             bridge(session, sender, cfg, stop)
     except TransportError as e:
         log.error("%s", e)

@@ -47,6 +47,7 @@ from skyfuse.services.fusion.standby import (
 )
 from skyfuse.services.fusion.state_store import Persistence
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK
+from skyfuse.services.runtime.startup_heap import freeze_startup_heap
 from skyfuse.services.runtime.transport import (
     Inbox,
     add_transport_arguments,
@@ -193,6 +194,7 @@ def serve(
     # sites published before we joined: ask the sensors' queryables
     for key, payload in query(session, keys.ALL_SITES, timeout=1.0):
         core.on_site_payload(key, payload)
+    freeze_startup_heap()  # again after the kernels and the resumed state: before traffic
     token = declare_liveliness(session, service_alive_key("fusion"))
     log.info("fusion %s running (reorder wait %.2f s)", core.cfg.fusion_id, core.cfg.reorder_wait)
     try:

@@ -66,12 +66,15 @@ def service_config(model: type[BaseModel], args: argparse.Namespace, section: st
 def run_service(tcfg, body: Callable[[object, StopFlag], int | None], *, stop=None) -> int:
     """Install the stop flag, open the Zenoh session and run ``body(session, stop)``;
     its return value is the exit code (``None``: 0). A transport failure is logged and
-    gives exit code 1."""
+    gives exit code 1. The objects of the start-up are frozen out of the garbage
+    collector's full passes first (:mod:`~skyfuse.services.runtime.startup_heap`)."""
+    from skyfuse.services.runtime.startup_heap import freeze_startup_heap
     from skyfuse.services.runtime.transport import TransportError, open_session
 
     stop = stop or StopFlag().install()
     try:
         with open_session(tcfg) as session:
+            freeze_startup_heap()  # GC full passes skip what start-up built (stalls)
             return int(body(session, stop) or 0)
     except TransportError as e:
         log.error("%s", e)
