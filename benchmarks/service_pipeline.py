@@ -262,13 +262,11 @@ def start_replays(pubs, state_home: Path, cpus: set[int] | None = None) -> float
     return t0
 
 
-def parse_cpus(text: str | None) -> set[int] | None:
-    """``--publisher-cpus`` ("1" or "1,2"): core numbers this machine has, or ``None``."""
-    if not text:
-        return None
+def parse_cpus(text: str) -> set[int]:
+    """``--publisher-cpus`` ("1" or "1,2"): core numbers this process may use."""
     cpus = {int(v) for v in text.split(",")}
     if not cpus <= os.sched_getaffinity(0):
-        raise SystemExit(f"--publisher-cpus {text}: this process may use {os.sched_getaffinity(0)}")
+        raise argparse.ArgumentTypeError(f"{text}: this process may use {os.sched_getaffinity(0)}")
     return cpus
 
 
@@ -345,7 +343,7 @@ def run_level(rate: float, speed: float, a, work: Path) -> dict:
         assert wait_for_tokens(s, [service_alive_key("fusion")], 60.0) == [], "no fusion"
         f.pid = fusion.proc.pid
         rss0 = rss_mb(f.pid)
-        t0 = start_replays(pubs, state, parse_cpus(a.publisher_cpus))
+        t0 = start_replays(pubs, state, a.publisher_cpus)
         cpu = CpuMeter(f.pid, pubs)
         go = declare_liveliness(s, service_alive_key("bench"))
         spy = _profile(fusion, a.profile, rate, a.seconds)
@@ -451,12 +449,12 @@ def main() -> None:
     ap.add_argument("--no-offline", action="store_true", help="skip skyfuse track (soak runs)")
     ap.add_argument(
         "--publisher-cpus",
+        type=parse_cpus,
         default=None,
         help="run the replay processes on these cores only, e.g. 1 (radars on other hosts: "
         "the fusion is not pre-empted by its own publishers; default: any core)",
     )
     a = ap.parse_args()
-    parse_cpus(a.publisher_cpus)
     base = sim_plot_rate(a)
     print(f"regional, {a.radars} radars, {a.targets} aircraft, {a.sectors} sectors: "
           f"{base:.0f} plots per simulated s;"

@@ -34,9 +34,8 @@ def observe_tracker_output(est: RegistrationEstimator, out, converted, velocity_
         rows = rows[out.confirmed[rows].astype(bool)]
     rows = rows[_popcount(out.radar_mask[rows]) >= 2]
     plot = np.asarray(out.batch.plot_ids, np.int64)[out.assigned_plot[rows]]
-    if len(plot):  # plots (converted rows, ≥ 0) that exactly one of these tracks took
-        single = np.bincount(plot)[plot] == 1
-        rows, plot = rows[single], plot[single]
+    single = np.bincount(plot)[plot] == 1  # plots (converted rows) one track alone took
+    rows, plot = rows[single], plot[single]
     z = converted.z[plot]
     ground = np.hypot(*(z[:, :2] - converted.site_position[:2]).T)
     ok = (ground >= est.cfg.min_ground_range) & np.isfinite(converted.polar_jacobian[plot]).all(

@@ -3,7 +3,7 @@
 A started service holds some hundred thousand long-lived container objects (modules,
 numba dispatchers, pydantic schemas, Zenoh bindings). CPython's cyclic collector
 traverses all of them in every generation-2 pass: in the fusion service at 20,000
-plots/s that was 11 passes of 30–53 ms in a 30 s run, each one a stall of the main loop
+plots/s that was 11 passes of 14–53 ms in a 30 s run, each one a stall of the main loop
 (docs/performance.md, "Garbage-collector passes"). :func:`freeze_startup_heap`, called
 once the service is ready and before it takes traffic, collects what start-up left
 behind and moves every surviving object to the permanent generation (``gc.freeze``,
