@@ -11,7 +11,8 @@ Returned per pair: ν, S, d², ln det S, log N(ν; 0, S) (the IPDA likelihood p 
 All pairs are never formed: a spatial pre-gate sorts the plots by their first coordinate
 and takes, per state, the window ``searchsorted(x ± r)`` with the radius
 r = √(g (tr HPHᵀ + max_j tr R_j)), which bounds √(g λ_max(S)); the other coordinates are
-then checked against the same radius, and only the survivors get an exact d².
+then checked against the same radius, and only the survivors get an exact d². Both loops
+are compiled (:mod:`fusion.association.gating_kernels`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import gammainc, gammaincinv
-from skyfuse.fusion.filters.small_spd import quadratic_and_logdet
+
+from .gating_kernels import box_pairs, exact_gate
 
 
 def gate_threshold(p_gate: float, ndim: int) -> float:
@@ -66,17 +68,14 @@ def window_pairs(
     xs = points[order, 0]
     lo = np.searchsorted(xs, centres[:, 0] - radii, side="left")
     hi = np.searchsorted(xs, centres[:, 0] + radii, side="right")
-    counts = hi - lo
-    total = int(counts.sum())
-    if total == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i = np.repeat(np.arange(n), counts)
-    starts = np.repeat(lo - (np.cumsum(counts) - counts), counts)
-    j = order[starts + np.arange(total)]
-    if points.shape[1] > 1:
-        keep = (np.abs(points[j, 1:] - centres[i, 1:]) <= radii[i, None]).all(axis=1)
-        i, j = i[keep], j[keep]
-    return i, j
+    return box_pairs(
+        order,
+        lo.astype(np.int64),
+        hi.astype(np.int64),
+        np.ascontiguousarray(centres, dtype=np.float64),
+        np.ascontiguousarray(radii, dtype=np.float64),
+        np.ascontiguousarray(points, dtype=np.float64),
+    )
 
 
 @dataclass
@@ -134,10 +133,15 @@ def gate(
     trR = 0.0 if R is None else np.trace(R, axis1=1, axis2=2).max()
     radius = np.sqrt(g * (np.trace(HPHt, axis1=1, axis2=2) + trR))
     ci, pj = window_pairs(y_pred, radius, z)
-    S = HPHt[ci] if R is None else HPHt[ci] + R[pj]
-    nu = z[pj] - y_pred[ci]
-    d2, logdet = quadratic_and_logdet(S, nu)
-    keep = d2 < g
-    npre = len(ci)
-    ci, pj, S, nu, d2, logdet = ci[keep], pj[keep], S[keep], nu[keep], d2[keep], logdet[keep]
-    return GatedPairs(ci, pj, nu, S, d2, logdet, n, m, npre)
+    c = np.ascontiguousarray
+    keep, nu, S, d2, logdet = exact_gate(
+        ci,
+        pj,
+        c(y_pred),
+        c(HPHt, dtype=np.float64),
+        c(z),
+        np.zeros((1, k, k)) if R is None else c(R, dtype=np.float64),
+        R is not None,
+        float(g),
+    )
+    return GatedPairs(ci[keep], pj[keep], nu, S, d2, logdet, n, m, len(ci))

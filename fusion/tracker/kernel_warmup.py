@@ -12,10 +12,11 @@ the live fusion service, latency on its first batches (a profile of the service 
 tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so a
 service can pay this at start, before it declares itself alive. It computes nothing that
 is kept. No equations here: the kernels are documented where they are defined
-(:mod:`fusion.filters.cholesky_kernels`, :mod:`fusion.filters.kalman`,
-:mod:`fusion.filters.moment_matching`, :mod:`fusion.tracker.oosm_kernel`,
-:mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
-:mod:`fusion.tracker.existence`, :mod:`fusion.registration.bias_filter_kernel`).
+(:mod:`fusion.association.gating_kernels`, :mod:`fusion.filters.cholesky_kernels`,
+:mod:`fusion.filters.kalman`, :mod:`fusion.filters.moment_matching`,
+:mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.models.coordinated_turn_kernels`,
+:mod:`fusion.models.cv_kernels`, :mod:`fusion.tracker.existence`,
+:mod:`fusion.tracker.plot_validity_kernel`, :mod:`fusion.registration.bias_filter_kernel`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 from skyfuse.fusion.filters.kalman import joseph_covariance
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows_each
@@ -31,6 +33,7 @@ from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layo
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
 from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
+from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
 
 
 def warm_up() -> float:
@@ -40,6 +43,10 @@ def warm_up() -> float:
     eye = np.eye(2)
     P = np.stack([eye, 2.0 * eye])
     positive_definite(P)
+    all_plots_valid(np.zeros((2, 2)), P, np.zeros(2))
+    y = np.zeros((2, 2))
+    gate(y, P, y + 0.5, P, 9.0)  # gating_kernels (k = 2)
+    gate(np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)), None, 9.0)  # and k = 3
     K = np.full((2, 2, 1), 0.5)
     joseph_covariance(P, K, np.array([[1.0, 0.0]]), np.ones((2, 1, 1)))
     w = np.array([0.4, 0.6, 1.0])

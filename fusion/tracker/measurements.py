@@ -35,6 +35,8 @@ import numpy as np
 from scipy.special import ndtr
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 
+from .plot_validity_kernel import all_plots_valid
+
 TWO_PI = 2.0 * np.pi
 #: Effective Earth radius k R with k = 4/3 (standard refraction), R = 6,371,008.8 m (mean).
 EFFECTIVE_EARTH_RADIUS = 4.0 / 3.0 * 6_371_008.8
@@ -164,20 +166,6 @@ class SectorCoverage:
         return self.time_start + np.round(frac * span).astype(np.int64)
 
 
-def _clean(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
-    """True when every plot passes every test of :meth:`MeasurementBatch._plot_mask`
-    (finite position and covariance, non-negative finite clutter density, symmetric and
-    positive-definite covariance)."""
-    finite = np.isfinite(z).all() and np.isfinite(R).all() and np.isfinite(rho).all()
-    if not finite or (rho < 0).any():
-        return False
-    flat = R.reshape(len(R), R.shape[1] * R.shape[2])
-    asym = np.abs(flat - R.swapaxes(1, 2).reshape(flat.shape)).max(axis=1, initial=0.0)
-    if (asym > 1e-6 * (1.0 + np.abs(flat).max(axis=1, initial=0.0))).any():
-        return False
-    return bool(positive_definite(R).all())
-
-
 @dataclass
 class MeasurementBatch:
     """One batch of plots in the system frame.
@@ -217,7 +205,9 @@ class MeasurementBatch:
         rejected = dict(self.rejected)
         # one pass over the whole batch first: a clean batch (the usual case) skips the
         # per-reason masks (the same result: every plot kept, nothing counted)
-        ok = np.ones(m, dtype=bool) if _clean(z, R, rho) else self._plot_mask(z, R, rho, rejected)
+        c = np.ascontiguousarray
+        clean = all_plots_valid(c(z), c(R), c(rho))
+        ok = np.ones(m, dtype=bool) if clean else self._plot_mask(z, R, rho, rejected)
 
         def sel(a):
             return None if a is None else np.asarray(a)[ok]

@@ -148,6 +148,45 @@ def test_validation_clean_empty_and_bad_batches():
     np.testing.assert_array_equal(bad.z, z[[0, 2, 4]])
 
 
+@pytest.mark.parametrize("k", [2, 3])
+def test_one_pass_validity_agrees_with_the_per_reason_masks(k):
+    """The compiled all-plots test is True exactly when the masks reject nothing, for
+    batches with one defect of each kind (and none)."""
+    from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
+
+    rng = np.random.default_rng(3)
+    defects = ["none", "z nan", "z inf", "R nan", "rho nan", "rho negative", "asymmetric",
+               "tiny asymmetry", "not positive definite", "zero R"]  # fmt: skip
+    for trial in range(200):
+        m = int(rng.integers(1, 8))
+        z = rng.normal(size=(m, k)) * 1e4
+        R = _spd(rng, m, k) * 100.0
+        rho = rng.uniform(0, 1e-8, m)
+        j, kind = int(rng.integers(m)), defects[trial % len(defects)]
+        if kind == "z nan":
+            z[j, -1] = np.nan
+        elif kind == "z inf":
+            z[j, 0] = np.inf
+        elif kind == "R nan":
+            R[j, 1, 0] = np.nan
+        elif kind == "rho nan":
+            rho[j] = np.nan
+        elif kind == "rho negative":
+            rho[j] = -1e-12
+        elif kind == "asymmetric":
+            R[j, 0, 1] += 1.0
+        elif kind == "tiny asymmetry":  # within the tolerance: valid
+            R[j, 0, 1] += 1e-9 * abs(R[j]).max()
+        elif kind == "not positive definite":
+            R[j] = -R[j]
+        elif kind == "zero R":
+            R[j] = 0.0
+        rejected: dict[str, int] = {}
+        ok = MeasurementBatch._plot_mask(z, R, rho, rejected)
+        assert all_plots_valid(z, R, rho) == bool(ok.all()), kind
+        assert (kind in ("none", "tiny asymmetry")) == bool(ok.all()), kind
+
+
 def _components_reference(t, p, n, m):
     """Connected components of the full track–plot graph by scipy, per track."""
     import scipy.sparse as sp
