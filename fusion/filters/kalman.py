@@ -18,6 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .cholesky_kernels import cholesky_into, cholesky_solve_into
 from .small_spd import right_solve
 
 
@@ -62,6 +63,42 @@ def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
+def _joseph_into(P, K, H, R, out, A, T, KR):
+    """out = (I − K H) P (I − K H)ᵀ + K R Kᵀ, symmetrised, for one state (A, T, KR:
+    scratch (d, d), (d, d), (d, k))."""
+    d, k = K.shape
+    for i in range(d):  # A = I − K H
+        for j in range(d):
+            t = 1.0 if i == j else 0.0
+            for m in range(k):
+                t -= K[i, m] * H[m, j]
+            A[i, j] = t
+    for i in range(d):  # T = A P
+        for j in range(d):
+            t = 0.0
+            for m in range(d):
+                t += A[i, m] * P[m, j]
+            T[i, j] = t
+    for i in range(d):  # K R
+        for j in range(k):
+            t = 0.0
+            for m in range(k):
+                t += K[i, m] * R[m, j]
+            KR[i, j] = t
+    for i in range(d):  # T Aᵀ + K R Kᵀ, symmetrised
+        for j in range(i + 1):
+            u = 0.0
+            v = 0.0
+            for m in range(d):
+                u += T[i, m] * A[j, m]
+                v += T[j, m] * A[i, m]
+            for m in range(k):
+                u += KR[i, m] * K[j, m]
+                v += KR[j, m] * K[i, m]
+            out[i, j] = out[j, i] = 0.5 * (u + v)
+
+
+@numba.njit(cache=True, nogil=True)
 def _joseph(P, K, H, R):
     n, d, k = K.shape
     out = np.empty((n, d, d))
@@ -69,36 +106,82 @@ def _joseph(P, K, H, R):
     T = np.empty((d, d))
     KR = np.empty((d, k))
     for s in range(n):
-        for i in range(d):  # A = I − K H
-            for j in range(d):
-                t = 1.0 if i == j else 0.0
-                for m in range(k):
-                    t -= K[s, i, m] * H[m, j]
-                A[i, j] = t
-        for i in range(d):  # T = A P
-            for j in range(d):
-                t = 0.0
-                for m in range(d):
-                    t += A[i, m] * P[s, m, j]
-                T[i, j] = t
-        for i in range(d):  # K R
-            for j in range(k):
-                t = 0.0
-                for m in range(k):
-                    t += K[s, i, m] * R[s, m, j]
-                KR[i, j] = t
-        for i in range(d):  # T Aᵀ + K R Kᵀ, symmetrised
-            for j in range(i + 1):
-                u = 0.0
-                v = 0.0
-                for m in range(d):
-                    u += T[i, m] * A[j, m]
-                    v += T[j, m] * A[i, m]
-                for m in range(k):
-                    u += KR[i, m] * K[s, j, m]
-                    v += KR[j, m] * K[s, i, m]
-                out[s, i, j] = out[s, j, i] = 0.5 * (u + v)
+        _joseph_into(P[s], K[s], H, R[s], out[s], A, T, KR)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _gain_into(P, H, S, K, L, B):
+    """K = P Hᵀ S⁻¹ (d, k) for one state: for k = 2 the closed-form inverse of
+    :func:`fusion.filters.small_spd.right_solve` (same operations), otherwise S = L Lᵀ
+    and Kᵀ = S⁻¹ (P Hᵀ)ᵀ (L, B: scratch (k, k), (k, d)). False if S is not positive
+    definite (k ≠ 2)."""
+    d, k = K.shape
+    for i in range(d):  # K ← P Hᵀ
+        for j in range(k):
+            t = 0.0
+            for m in range(d):
+                t += P[i, m] * H[j, m]
+            K[i, j] = t
+    if k == 2:
+        a, b, c = S[0, 0], S[0, 1], S[1, 1]
+        inv_det = 1.0 / (a * c - b * b)
+        i00, i01, i11 = c * inv_det, -b * inv_det, a * inv_det
+        for i in range(d):
+            b0, b1 = K[i, 0], K[i, 1]
+            K[i, 0] = b0 * i00 + b1 * i01
+            K[i, 1] = b0 * i01 + b1 * i11
+        return True
+    if not cholesky_into(S, L):
+        return False
+    for i in range(d):
+        for j in range(k):
+            B[j, i] = K[i, j]
+    cholesky_solve_into(L, B, B)
+    for i in range(d):
+        for j in range(k):
+            K[i, j] = B[j, i]
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _update_pairs(x, P, H, S, nu, R):
+    n, d = x.shape
+    k = nu.shape[1]
+    x_out = np.empty((n, d))
+    P_out = np.empty((n, d, d))
+    K = np.empty((d, k))
+    L = np.zeros((k, k))
+    B = np.empty((k, d))
+    A = np.empty((d, d))
+    T = np.empty((d, d))
+    KR = np.empty((d, k))
+    for s in range(n):
+        if not _gain_into(P[s], H, S[s], K, L, B):
+            raise ValueError("innovation covariance not positive definite")
+        for i in range(d):
+            t = x[s, i]
+            u = 0.0
+            for j in range(k):
+                u += K[i, j] * nu[s, j]
+            x_out[s, i] = t + u
+        _joseph_into(P[s], K, H, R[s], P_out[s], A, T, KR)
+    return x_out, P_out
+
+
+def update_with_innovation(
+    x: np.ndarray, P: np.ndarray, H: np.ndarray, S: np.ndarray, nu: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update of n predicted states x (n, d), P (n, d, d) whose innovations
+    ν (n, k) and covariances S (n, k, k) are known (the gating computed them): K = P Hᵀ
+    S⁻¹, x + K ν and the Joseph covariance with R (n, k, k); one compiled loop over the
+    states, the same numbers as :func:`gain` and :func:`joseph_covariance` (k = 2)."""
+    c = np.ascontiguousarray
+    f = np.float64
+    n = len(x)
+    R = np.broadcast_to(np.asarray(R, dtype=f), (n, *np.shape(R)[-2:]))
+    return _update_pairs(c(x, dtype=f), c(P, dtype=f), c(H, dtype=f), c(S, dtype=f),
+                         c(nu, dtype=f), c(R))  # fmt: skip
 
 
 def update(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from skyfuse.fusion.association.gating import GatedPairs
-from skyfuse.fusion.filters.kalman import gain, joseph_covariance
+from skyfuse.fusion.filters.kalman import update_with_innovation
 
 from .components import Mixture
 
@@ -64,10 +64,7 @@ def component_update(
             pairs.S[live],
             pairs.nu[live],
         )
-        P = pred.P[c]
-        K = gain(P, H, S)
-        x = pred.x[c] + np.einsum("pij,pj->pi", K, nu)
-        Pn = joseph_covariance(P, K, H, R[plot])
+        x, Pn = update_with_innovation(pred.x[c], pred.P[c], H, S, nu, R[plot])
         upd = Mixture(pred.track[c], wi, x, Pn, shift_history(pred.hist[c], plot_uid[plot]))
         children = Mixture.concat([null, upd])
     keep = children.w > 0.0

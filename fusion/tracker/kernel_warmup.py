@@ -26,7 +26,7 @@ import time
 import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
-from skyfuse.fusion.filters.kalman import joseph_covariance
+from skyfuse.fusion.filters.kalman import joseph_covariance, update_with_innovation
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows_each
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
@@ -49,6 +49,10 @@ def warm_up() -> float:
     gate(np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)), None, 9.0)  # and k = 3
     K = np.full((2, 2, 1), 0.5)
     joseph_covariance(P, K, np.array([[1.0, 0.0]]), np.ones((2, 1, 1)))
+    H2 = np.eye(2)
+    update_with_innovation(np.zeros((2, 2)), P, H2, P + P, np.ones((2, 2)), P)  # k = 2
+    update_with_innovation(np.zeros((2, 2)), P, H2[:1], P[:, :1, :1] + 1.0, np.ones((2, 1)),
+                           P[:, :1, :1])  # k = 1 (any k != 2)  # fmt: skip
     w = np.array([0.4, 0.6, 1.0])
     x = np.arange(6.0).reshape(3, 2)
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)

@@ -32,6 +32,31 @@ def test_joseph_matches_the_matrix_expression(d, k):
     np.testing.assert_allclose(single, _joseph_ref(P[:1], K[:1], H, Rn[0])[0], rtol=1e-11)
 
 
+@pytest.mark.parametrize("d,k", [(4, 2), (6, 3), (9, 3), (3, 1)])
+def test_update_with_innovation_matches_the_textbook_update(d, k):
+    """x + K ν and the Joseph P with K = P Hᵀ S⁻¹ by an explicit inverse, for a
+    selection H (the tracker's) and a general one; S = H P Hᵀ + R."""
+    from skyfuse.fusion.filters.kalman import update_with_innovation
+
+    rng = np.random.default_rng(d * 7 + k)
+    n = 100
+    A = rng.normal(size=(n, d, d))
+    P = A @ np.swapaxes(A, 1, 2) * 1e2 + np.eye(d)
+    x, nu = rng.normal(size=(n, d)) * 1e3, rng.normal(size=(n, k)) * 30
+    R = rng.normal(size=(n, k, k))
+    R = R @ np.swapaxes(R, 1, 2) * 50 + np.eye(k)
+    for H in (np.eye(k, d), rng.normal(size=(k, d))):
+        S = H @ P @ H.T + R
+        K = P @ H.T @ np.linalg.inv(S)
+        xn, Pn = update_with_innovation(x, P, H, S, nu, R)
+        np.testing.assert_allclose(xn, x + np.einsum("nij,nj->ni", K, nu), rtol=1e-10)
+        ref = _joseph_ref(P, K, H, R)
+        np.testing.assert_allclose(Pn, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+    if k != 2:  # an S that is not positive definite: the factorisation fails
+        with pytest.raises(ValueError):
+            update_with_innovation(x[:1], P[:1], H, -S[:1], nu[:1], R[:1])
+
+
 def _moments_ref(w, x, P, group, G):
     """Per group: W = Σ w, mean and spread by the formulas; equal weights in a
     weightless group; NaN for a group without components."""

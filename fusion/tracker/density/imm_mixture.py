@@ -52,7 +52,7 @@ import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.initiation import embed_common
-from skyfuse.fusion.filters.kalman import gain, joseph_covariance
+from skyfuse.fusion.filters.kalman import update_with_innovation
 from skyfuse.fusion.filters.moment_matching import (
     moment_match,
     moment_match_rows,
@@ -462,10 +462,11 @@ class IMMMixtureDensity:
         mu /= mu.sum(axis=1, keepdims=True)  # eq. 19
         xs, Ps = [], []
         for j in range(self.r):
-            Pj = comp.P[j][c]
-            K = gain(Pj, self.H[j], S[:, j])
-            xs.append(comp.x[j][c] + np.einsum("pij,pj->pi", K, nu[:, j]))
-            Ps.append(joseph_covariance(Pj, K, self.H[j], t.R[p]))
+            xj, Pj = update_with_innovation(
+                comp.x[j][c], comp.P[j][c], self.H[j], S[:, j], nu[:, j], t.R[p]
+            )
+            xs.append(xj)
+            Ps.append(Pj)
         upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
         return IMMComponents.concat([null, upd])
 
