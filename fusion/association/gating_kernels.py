@@ -54,7 +54,7 @@ def box_pairs(order, lo, hi, centres, radii, points):
 
 
 @numba.njit(cache=True, nogil=True)
-def _statistics_2(S, nu):
+def statistics_2x2(S, nu):
     """d², ln det S of one 2 × 2 pair (small_spd's closed form, same operation order)."""
     a, b, c = S[0, 0], S[0, 1], S[1, 1]
     det = a * c - b * b
@@ -65,7 +65,7 @@ def _statistics_2(S, nu):
 
 
 @numba.njit(cache=True, nogil=True)
-def _statistics_chol(S, nu, L, w):
+def statistics_cholesky(S, nu, L, w):
     """d², ln det S of one k × k pair from its Cholesky factor (∞, NaN: not PD)."""
     k = S.shape[0]
     if not cholesky_into(S, L):
@@ -103,9 +103,9 @@ def exact_gate(ci, pj, y, HPH, z, R, use_R, g):
             for b in range(k):
                 S[a, b] = HPH[c, a, b] + R[j, a, b] if use_R else HPH[c, a, b]
         if k == 2:
-            d2, ld = _statistics_2(S, nu)
+            d2, ld = statistics_2x2(S, nu)
         else:
-            d2, ld = _statistics_chol(S, nu, L, w)
+            d2, ld = statistics_cholesky(S, nu, L, w)
         if d2 < g:
             keep[p] = q
             nu_out[p] = nu

@@ -16,7 +16,8 @@ is kept. No equations here: the kernels are documented where they are defined
 :mod:`fusion.filters.kalman`, :mod:`fusion.filters.moment_matching`,
 :mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.models.coordinated_turn_kernels`,
 :mod:`fusion.models.cv_kernels`, :mod:`fusion.tracker.existence`,
-:mod:`fusion.tracker.plot_validity_kernel`, :mod:`fusion.registration.bias_filter_kernel`).
+:mod:`fusion.tracker.plot_validity_kernel`, :mod:`fusion.tracker.density.imm_likelihood_kernel`,
+:mod:`fusion.registration.bias_filter_kernel`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_ro
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
+from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likelihoods
 from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
 from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
@@ -44,6 +46,11 @@ def warm_up() -> float:
     P = np.stack([eye, 2.0 * eye])
     positive_definite(P)
     all_plots_valid(np.zeros((2, 2)), P, np.zeros(2))
+    one = np.zeros(1, np.int64)
+    for k in (2, 3):  # the closed form and the Cholesky form
+        Sk = np.eye(k)[None]
+        mode_pair_likelihoods(one, one, np.zeros((1, 1, k)), Sk[None].copy(), np.zeros((1, k)),
+                              Sk.copy(), np.ones((1, 1)))  # fmt: skip
     y = np.zeros((2, 2))
     gate(y, P, y + 0.5, P, 9.0)  # gating_kernels (k = 2)
     gate(np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)), None, 9.0)  # and k = 3

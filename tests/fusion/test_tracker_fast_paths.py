@@ -216,3 +216,31 @@ def test_track_clusters_by_propagation_and_fallbacks(case):
     assert len(pairs) == len(set(got.tolist())) == len(set(ref.tolist()))
     for lab in np.unique(got):  # the label is the smallest track index of its cluster
         assert lab == np.flatnonzero(got == lab).min()
+
+
+@pytest.mark.parametrize("k", [2, 3])
+def test_imm_pair_likelihoods_against_scipy(k):
+    """The compiled per-mode pair likelihoods: ν, symmetrised S, log N against
+    scipy.stats.multivariate_normal and the μ-mixed likelihood, per pair and mode."""
+    from scipy.stats import multivariate_normal
+    from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likelihoods
+
+    rng = np.random.default_rng(11)
+    C, r, m = 6, 3, 5
+    y = rng.normal(size=(C, r, k)) * 100
+    HPH = _spd(rng, C * r, k).reshape(C, r, k, k) * 50
+    HPH[0, 0, 0, 1] += 1e-3  # a slightly asymmetric one: symmetrised first
+    z, R = rng.normal(size=(m, k)) * 100, _spd(rng, m, k) * 20
+    mu = rng.dirichlet(np.ones(r), C)
+    pc = rng.integers(0, C, 12)
+    pp = rng.integers(0, m, 12)
+    nu, S, log_n, mix = mode_pair_likelihoods(pc, pp, y, HPH, z, R, mu)
+    for q, (c, i) in enumerate(zip(pc, pp)):
+        for j in range(r):
+            Sq = HPH[c, j] + R[i]
+            Sq = 0.5 * (Sq + Sq.T)
+            np.testing.assert_allclose(nu[q, j], z[i] - y[c, j], rtol=1e-15)
+            np.testing.assert_allclose(S[q, j], Sq, rtol=1e-15)
+            ref = multivariate_normal(np.zeros(k), Sq).logpdf(nu[q, j])
+            assert log_n[q, j] == pytest.approx(ref, rel=1e-11, abs=1e-11)
+        assert mix[q] == pytest.approx(float(mu[c] @ np.exp(log_n[q])), rel=1e-13)

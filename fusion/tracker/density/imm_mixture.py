@@ -58,7 +58,7 @@ from skyfuse.fusion.filters.moment_matching import (
     moment_match_rows,
     moment_match_rows_each,
 )
-from skyfuse.fusion.filters.small_spd import largest_eigenvalue, quadratic_and_logdet
+from skyfuse.fusion.filters.small_spd import largest_eigenvalue
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 
@@ -66,6 +66,7 @@ from ..component_slots import ComponentSlots
 from ..components import history_groups, prune_indices
 from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
+from .imm_likelihood_kernel import mode_pair_likelihoods
 
 
 class ReachGate:
@@ -230,12 +231,6 @@ class IMMTable(GatedTable):
     pair_row: np.ndarray | None = None
     R: np.ndarray | None = None
     uid: np.ndarray | None = None
-
-
-def _log_gauss(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """log N(ν; 0, S) over leading axes."""
-    d2, logdet = quadratic_and_logdet(S, nu)
-    return -0.5 * (d2 + logdet + nu.shape[-1] * np.log(2.0 * np.pi))
 
 
 class IMMMixtureDensity:
@@ -427,11 +422,11 @@ class IMMMixtureDensity:
                 pred.rows[pred.loc[pc]], pred.since[pred.loc[pc]], z[pp], sigma_z, g
             )
             pc, pp = pc[reachable], pp[reachable]
-        nu = z[pp][:, None, :] - pred.y[pc]  # (P, r, k)
-        S = pred.HPH[pc] + R[pp][:, None]
-        S = 0.5 * (S + S.swapaxes(-1, -2))
-        log_n = _log_gauss(nu, S) if len(pc) else np.zeros((0, r))
-        mix = np.einsum("pr,pr->p", pred.comp.mu[pc], np.exp(log_n))
+        c = np.ascontiguousarray
+        nu, S, log_n, mix = mode_pair_likelihoods(
+            pc, pp, c(pred.y), c(pred.HPH), c(z, dtype=np.float64), c(R, dtype=np.float64),
+            c(pred.comp.mu),
+        )  # fmt: skip
         p_pair = mix / gate_probability_of(float(g), k)
         tp_track, tp_plot, p_track, row = track_table(pred.loc, pc, pp, pred.comp.w, p_pair, m)
         return IMMTable(tp_track, tp_plot, p_track, pc, pp, nu, S, log_n, p_pair, row, R, uid)
