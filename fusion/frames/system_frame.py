@@ -107,11 +107,16 @@ class SystemFrame:
             f"alt0={self.alt0})"
         )
 
+    def _key(self) -> tuple:
+        return (self.kind, self.lat0, self.lon0, self.alt0)
+
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, SystemFrame) and self.spec() == other.spec()
+        # the fields of spec(), compared without building two wire models (this runs
+        # on every batch: the site positions are cached by frame)
+        return isinstance(other, SystemFrame) and self._key() == other._key()
 
     def __hash__(self) -> int:
-        return hash((self.kind, self.lat0, self.lon0, self.alt0))
+        return hash(self._key())
 
     # --- positions ---------------------------------------------------------------------
     def from_geodetic(self, lat, lon, alt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

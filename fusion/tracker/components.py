@@ -73,6 +73,13 @@ def singer_merge(mix: Mixture) -> Mixture:
     (1+m_k)(1+m_{k−1}) (N=2) when every component selects every plot (5.26, 5.1a)."""
     if len(mix) == 0:
         return mix
+    order = np.argsort(mix.track, kind="stable")
+    ts = mix.track[order]
+    if len(ts) < 2 or (ts[1:] > ts[:-1]).all():
+        # one component per track (GNN, IPDA): each is its own group, in track order
+        out = mix.take(order)
+        out.P = 0.5 * (out.P + out.P.swapaxes(1, 2))
+        return out
     inv, uniq = history_groups(mix.track, mix.hist)
     W, xm, Pm = moment_match(mix.w, mix.x, mix.P, inv, len(uniq))
     return Mixture(uniq[:, 0].copy(), W, xm, Pm, uniq[:, 1:].copy())
