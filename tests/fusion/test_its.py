@@ -59,6 +59,23 @@ def test_depth_three_bound_and_depth_zero_single_gaussian():
     assert run_counts(0, sizes) == [1, 1, 1, 1]
 
 
+def test_singer_merge_of_one_component_per_track_in_any_order():
+    """GNN/IPDA children (one per track, tracks out of order, as the null and updated
+    children come): each is its own group, returned in track order with its history."""
+    rng = np.random.default_rng(5)
+    order = rng.permutation(6)
+    A = rng.normal(size=(6, 4, 4))
+    mix = Mixture(order.copy(), rng.uniform(0.1, 1, 6), rng.normal(size=(6, 4)),
+                  A @ A.transpose(0, 2, 1), rng.integers(0, 9, (6, 3)))  # fmt: skip
+    out = singer_merge(mix)
+    back = np.argsort(order)
+    np.testing.assert_array_equal(out.track, np.arange(6))
+    np.testing.assert_array_equal(out.w, mix.w[back])
+    np.testing.assert_array_equal(out.x, mix.x[back])
+    np.testing.assert_array_equal(out.hist, mix.hist[back])
+    np.testing.assert_allclose(out.P, mix.P[back], rtol=1e-15)
+
+
 def test_singer_merge_moment_matching_by_hand():
     # two components of track 0 share the history (5,), one has (6,); track 1 alone
     x = np.array([[0.0, 1.0], [2.0, 3.0], [10.0, 0.0], [7.0, 7.0]])
