@@ -26,6 +26,8 @@ track before the aircraft is seen again.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .measurements import MeasurementBatch
@@ -33,33 +35,37 @@ from .measurements import MeasurementBatch
 NS = 1e-9
 
 
-def _predicted_positions(
-    batch: MeasurementBatch, x: np.ndarray, t_last: np.ndarray, pos: np.ndarray, vel: np.ndarray
-) -> np.ndarray:
-    """Positions x̂ + v̂ dt (n, len(pos)) of the tracks at the batch time, m."""
-    dt = np.maximum(batch.time_ns - t_last, 0) * NS
-    return x[:, pos] + x[:, vel] * dt[:, None]
+@dataclass
+class CoverageView:
+    """Every track seen from one batch: inside (n,) whether its lazily predicted position
+    is in the batch's coverage within ``coverage_sigma`` σ; t_pred (n,) ns its
+    prediction time (the sweep time at its position, not before its own time); t_sweep
+    (n,) ns the sweep time itself (the batch time without a sweep; not clipped: the
+    out-of-sequence split compares it with the track's time); p (n, k) the predicted
+    positions x̂ + v̂ dt, m; var (n,) σ² = tr P_pos + tr P_vel dt², m²; polar: their
+    (range m, azimuth rad) from the site (None without a coverage)."""
+
+    inside: np.ndarray
+    t_pred: np.ndarray
+    t_sweep: np.ndarray
+    p: np.ndarray | None = None
+    var: np.ndarray | None = None
+    polar: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def detection_share(
-    batch: MeasurementBatch,
-    x: np.ndarray,
-    P: np.ndarray,
-    t_last: np.ndarray,
-    pos: np.ndarray,
-    vel: np.ndarray,
-    height: np.ndarray,
+    batch: MeasurementBatch, view: CoverageView, rows: np.ndarray, height: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(P_sector · P_range, P_cone) (n,) of each track at the batch time, eqs. (C2)-(C4)
-    of :mod:`.measurements`, with the per-axis σ of the lazily predicted position
-    (σ² = (tr P_pos + tr P_vel dt²)/2); ones without a coverage."""
-    n = len(t_last)
+    """(P_sector · P_range, P_cone) (len(rows),) of the tracks ``rows`` at the batch
+    time, eqs. (C2)-(C4) of :mod:`.measurements`, with the per-axis σ of the lazily
+    predicted position (σ² = (tr P_pos + tr P_vel dt²)/2) and their heights ``height``;
+    ones without a coverage."""
+    n = len(rows)
     if batch.coverage is None or n == 0:
         return np.ones(n), np.ones(n)
-    dt = np.maximum(batch.time_ns - t_last, 0) * NS
-    sigma = np.sqrt(0.5 * (P[:, pos, pos].sum(axis=1) + P[:, vel, vel].sum(axis=1) * dt**2))
-    p = _predicted_positions(batch, x, t_last, pos, vel)
-    return batch.coverage.detection_share(p, sigma, height)
+    sigma = np.sqrt(0.5 * view.var[rows])
+    polar = (view.polar[0][rows], view.polar[1][rows])
+    return batch.coverage.detection_share(view.p[rows], sigma, height, polar)
 
 
 def existence_clock(t_last: np.ndarray, coast_from: np.ndarray) -> np.ndarray:
@@ -92,21 +98,19 @@ def select_tracks(
     pos: np.ndarray,
     vel: np.ndarray,
     coverage_sigma: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(inside (n,) bool, prediction time (n,) ns) for track estimates x (n, d), P
-    (n, d, d) at times t_last (n,) ns; pos/vel: the position and velocity indices."""
+) -> CoverageView:
+    """The :class:`CoverageView` of track estimates x (n, d), P (n, d, d) at times
+    t_last (n,) ns; pos/vel: the position and velocity indices."""
     n = len(t_last)
     t = np.full(n, batch.time_ns, dtype=np.int64)
     if batch.coverage is None or n == 0:
-        return np.ones(n, bool), np.maximum(t, t_last)
+        return CoverageView(np.ones(n, bool), np.maximum(t, t_last), t)
     cov = batch.coverage
     dt = np.maximum(batch.time_ns - t_last, 0) * NS
-    p = _predicted_positions(batch, x, t_last, pos, vel)
-    Ppos = P[:, pos, pos].sum(axis=1)
-    Pvel = P[:, vel, vel].sum(axis=1)
-    sigma = np.sqrt(Ppos + Pvel * dt**2)
-    polar = cov.polar(p)  # once for both tests
-    inside = cov.contains(p, coverage_sigma * sigma, polar)
+    p = x[:, pos] + x[:, vel] * dt[:, None]
+    var = P[:, pos, pos].sum(axis=1) + P[:, vel, vel].sum(axis=1) * dt**2
+    polar = cov.polar(p)  # once for every test
+    inside = cov.contains(p, coverage_sigma * np.sqrt(var), polar)
     if cov.time_end > cov.time_start:
         t = cov.illumination_time(p, polar)
-    return inside, np.maximum(t, t_last)
+    return CoverageView(inside, np.maximum(t, t_last), t, p, var, polar)

@@ -103,16 +103,18 @@ class SectorCoverage:
         return known & (e > self.max_elevation)
 
     def detection_share(
-        self, pos: np.ndarray, sigma: np.ndarray, height: np.ndarray
+        self, pos: np.ndarray, sigma: np.ndarray, height: np.ndarray, polar=None
     ) -> tuple[np.ndarray, np.ndarray]:
         """(P_sector · P_range, P_cone) of (C2)-(C4) for positions ``pos`` (n, ≥2) with
-        per-axis σ ``sigma`` (n,) m and heights ``height`` (n,) m (NaN unknown)."""
+        per-axis σ ``sigma`` (n,) m and heights ``height`` (n,) m (NaN unknown);
+        ``polar``: their (range, azimuth) when already computed (:meth:`polar`)."""
         pos = np.atleast_2d(pos)
-        r, _ = self._polar(pos)
+        polar = self._polar(pos) if polar is None else polar
+        r = polar[0]
         s = np.maximum(np.asarray(sigma, dtype=np.float64), 1e-3)
         share = ndtr((self.max_range - r) / s) - ndtr((self.min_range - r) / s)
         if self.sector_width < TWO_PI:
-            a = self.sector_fraction(pos) * self.sector_width
+            a = self.sector_fraction(pos, polar) * self.sector_width
             s_a = s / np.maximum(r, 1.0)
             share = share * (ndtr((self.sector_width - a) / s_a) - ndtr(-a / s_a))
         h = np.asarray(height, dtype=np.float64).reshape(-1)

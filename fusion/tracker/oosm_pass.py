@@ -47,21 +47,10 @@ class OutOfSequence:
         self.enabled = bool(enabled) and supported(density)
         self.last = LastStep.empty(mode_dims(density) if supported(density) else [1])
 
-    def late_times(self, b, x: np.ndarray, t_last: np.ndarray, pos, vel) -> np.ndarray:
-        """Illumination time (n,) ns of tracks x (n, d) at t_last (n,) by batch ``b``, not
-        clipped at t_last (:func:`~.coverage.select_tracks` clips it)."""
-        n = len(t_last)
-        t = np.full(n, int(b.time_ns), dtype=np.int64)
-        cov = b.coverage
-        if cov is None or n == 0 or not cov.time_end > cov.time_start:
-            return t
-        dt = np.maximum(int(b.time_ns) - t_last, 0) * NS
-        return cov.illumination_time(x[:, pos] + x[:, vel] * dt[:, None])
-
-    def split(self, tracker, b, sel: np.ndarray, x: np.ndarray, stats: dict):
-        """(ordinary rows, late rows, τ (n,) ns) of the tracks ``sel`` in coverage."""
-        t_tau = np.full(tracker.n, int(b.time_ns), dtype=np.int64)
-        t_tau[sel] = self.late_times(b, x[sel], tracker.t_last[sel], tracker.pos, tracker.vel)
+    def split(self, tracker, sel: np.ndarray, t_sweep: np.ndarray, stats: dict):
+        """(ordinary rows, late rows, τ (n,) ns) of the tracks ``sel`` in coverage, with
+        τ the batch's sweep time at each track (``t_sweep``, :mod:`.coverage`)."""
+        t_tau = t_sweep
         late_mask = t_tau[sel] < tracker.t_last[sel]
         if not late_mask.any():
             return sel, sel[:0], t_tau

@@ -328,14 +328,11 @@ class Tracker:
         stats = {"plots": m, "rejected": sum(b.rejected.values())}
         bit = self._radar_bit(b.radar_id)
         x, P = self._estimates_view()
-        inside, t_pred = select_tracks(
-            b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma
-        )
+        view = select_tracks(b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma)
+        t_pred = view.t_pred
         # the detection share of the tracks in coverage only (the others are not used)
-        cand = np.flatnonzero(inside)
-        seen, cone = detection_share(
-            b, x[cand], P[cand], self.t_last[cand], self.pos, self.vel, self.height[cand]
-        )
+        cand = np.flatnonzero(view.inside)
+        seen, cone = detection_share(b, view, cand, self.height[cand])
         is_blind = cone < self.cfg.blind_share
         blind = np.zeros(self.n, bool)
         blind[cand[is_blind]] = True
@@ -343,7 +340,7 @@ class Tracker:
         share = np.zeros(self.n)  # by track row; only the rows in coverage are used
         share[cand] = seen * cone
         stats["tracks_in_coverage"] = len(sel)
-        sel, late, t_tau = self.oosm.split(self, b, sel, x, stats)  # plots older: oosm_pass
+        sel, late, t_tau = self.oosm.split(self, sel, view.t_sweep, stats)  # older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
         dt = (t_pred[sel] - self.t_last[sel]) * NS
         pred = self.density.predict(sel, dt)
