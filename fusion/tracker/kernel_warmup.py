@@ -14,9 +14,10 @@ service can pay this at start, before it declares itself alive. It computes noth
 is kept. No equations here: the kernels are documented where they are defined
 (:mod:`fusion.association.gating_kernels`, :mod:`fusion.filters.cholesky_kernels`,
 :mod:`fusion.filters.kalman`, :mod:`fusion.filters.moment_matching`,
-:mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.models.coordinated_turn_kernels`,
-:mod:`fusion.models.cv_kernels`, :mod:`fusion.tracker.existence`,
-:mod:`fusion.tracker.plot_validity_kernel`, :mod:`fusion.tracker.density.imm_likelihood_kernel`,
+:mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.tracker.reidentification`,
+:mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
+:mod:`fusion.tracker.existence`, :mod:`fusion.tracker.plot_validity_kernel`,
+:mod:`fusion.tracker.density.imm_likelihood_kernel`,
 :mod:`fusion.registration.bias_filter_kernel`).
 """
 
@@ -36,6 +37,7 @@ from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likel
 from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
 from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
+from skyfuse.fusion.tracker.reidentification import keeps_fix
 
 
 def warm_up() -> float:
@@ -46,6 +48,7 @@ def warm_up() -> float:
     P = np.stack([eye, 2.0 * eye])
     positive_definite(P)
     all_plots_valid(np.zeros((2, 2)), P, np.zeros(2))
+    keeps_fix(P, np.zeros(2, np.int64), P, np.ones(2, np.int64), 4.0)
     one = np.zeros(1, np.int64)
     for k in (2, 3):  # the closed form and the Cholesky form
         Sk = np.eye(k)[None]
