@@ -56,9 +56,11 @@ def two_point(
     """Two-point differencing CV states/covariances at the time of z2 (3.25-3.27)."""
     z1, z2 = np.atleast_2d(z1), np.atleast_2d(z2)
     n, k = z2.shape
-    R1 = np.broadcast_to(R1, (n, k, k))
-    R2 = np.broadcast_to(R2, (n, k, k))
-    dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+    # (the tracker passes per-plot arrays already: no broadcast views to build)
+    R1 = R1 if np.shape(R1) == (n, k, k) else np.broadcast_to(R1, (n, k, k))
+    R2 = R2 if np.shape(R2) == (n, k, k) else np.broadcast_to(R2, (n, k, k))
+    dt = np.asarray(dt, dtype=np.float64)
+    dt = dt if dt.shape == (n,) else np.broadcast_to(dt, (n,))
     x = interleave_state(z2, (z2 - z1) / dt[:, None])
     P = interleave_covariance(R2, R2 / dt[:, None, None], (R1 + R2) / dt[:, None, None] ** 2)
     return x, P

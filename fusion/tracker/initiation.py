@@ -76,6 +76,7 @@ def pair_plots(
     radius = np.full(len(z), v_max * max_dt)
     new_i, old_j = window_pairs(z, radius, buffer.z)
     dt = (time[new_i] - buffer.time[old_j]) * 1e-9
-    dist = np.linalg.norm(z[new_i] - buffer.z[old_j], axis=1)
+    d = z[new_i] - buffer.z[old_j]
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))  # ‖z₂ − z₁‖
     ok = (dt >= min_dt) & (dt <= max_dt) & (dist <= v_max * dt)
     return old_j[ok], new_i[ok], dt[ok]
