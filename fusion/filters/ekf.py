@@ -1,9 +1,9 @@
 """Batched extended-Kalman predict and update for linear or nonlinear models and
 measurements (spec 01 §2, 004 eq. 8-9 and 13-14), Joseph-form covariance.
 
-* predict: linear models use F(dt), Q(dt) (:func:`fusion.filters.kalman.predict`), or
-  the model's own ``predict(x, P, dt)`` of the same equations where it has one (CV);
-  nonlinear models (``model.nonlinear``, e.g. the coordinated turn) use
+* predict: the model's own ``predict(x, P, dt)`` of the same equations where it has one
+  (CV, coordinated turn: compiled); otherwise linear models use F(dt), Q(dt)
+  (:func:`fusion.filters.kalman.predict`) and nonlinear models (``model.nonlinear``)
   ``model.transition(x, dt) -> (f(x), ∂f/∂x)`` and ``model.Q(dt, x)``: P⁻ = J P Jᵀ + Q.
 * update: ẑ, H = measurement.predict(x⁻); S = H P⁻ Hᵀ + R; K = P⁻ Hᵀ S⁻¹;
   ν = residual(z, ẑ) (azimuth wrapped for polar measurements); x = x⁻ + K ν;
@@ -20,13 +20,13 @@ from . import kalman
 
 def predict(model, x: np.ndarray, P: np.ndarray, dt) -> tuple[np.ndarray, np.ndarray]:
     """Predict n states over dt (scalar or (n,)) seconds with ``model``."""
+    fused = getattr(model, "predict", None)  # the CV and CT models' compiled predictions
+    if fused is not None:
+        return fused(x, P, dt)
     if getattr(model, "nonlinear", False):
         xp, J = model.transition(x, dt)
         Pp = J @ P @ J.swapaxes(-1, -2) + model.Q(dt, x)
         return xp, 0.5 * (Pp + Pp.swapaxes(-1, -2))
-    fused = getattr(model, "predict", None)  # the CV model's compiled F x, F P Fᵀ + Q
-    if fused is not None:
-        return fused(x, P, dt)
     return kalman.predict(x, P, model.F(dt), model.Q(dt))
 
 

@@ -67,6 +67,16 @@ class CoordinatedTurn:
         x, t = states_and_dt(x, dt)
         return kernels.transition(x, t, self.vertical)
 
+    def predict(self, x: np.ndarray, P: np.ndarray, dt: float | np.ndarray):
+        """EKF prediction x⁻ = f(x), P⁻ = J P Jᵀ + Q(x) of n states over dt (scalar or
+        (n,)) s: :meth:`transition` and :meth:`Q` as one compiled call
+        (:func:`fusion.models.coordinated_turn_kernels.predict`)."""
+        x, t = states_and_dt(x, dt)
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        return kernels.predict(
+            x, P, t, self.sigma_a**2, self.sigma_omega**2, self.vertical, float(self.q_vertical)
+        )
+
     def Q(self, dt: float | np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
         """Process covariance (n, d, d) at states x (n, d) (the course ψ enters G)."""
         if x is None:

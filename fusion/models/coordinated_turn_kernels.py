@@ -112,6 +112,24 @@ def process_noise(
 
 
 @numba.njit(cache=True, nogil=True)
+def predict(x, P, t, var_a: float, var_w: float, vertical: bool, q_v: float):
+    """The EKF prediction over t (n,) s in one call: x⁻ = f(x), P⁻ = sym(J P Jᵀ + Q(x))
+    with J = ∂f/∂x and Q of :func:`process_noise` at the prior states (spec 01 §2, 004
+    eq. 8-9; what :func:`fusion.filters.ekf.predict` does with :func:`transition`)."""
+    xp, J = transition(x, t, vertical)
+    Q = process_noise(x, t, var_a, var_w, vertical, q_v)
+    Pp = sandwich(J, P)
+    n, d = x.shape
+    for k in range(n):
+        for i in range(d):
+            for j in range(i + 1):
+                h = 0.5 * ((Pp[k, i, j] + Q[k, i, j]) + (Pp[k, j, i] + Q[k, j, i]))
+                Pp[k, i, j] = h
+                Pp[k, j, i] = h
+    return xp, Pp
+
+
+@numba.njit(cache=True, nogil=True)
 def to_common(x: np.ndarray, P: np.ndarray, vertical: bool):
     """CT → common [x, vx, ax, y, vy, ay(, z, vz, az)]: v_x = v cosψ, v_y = v sinψ,
     a_x = −ω v_y, a_y = ω v_x (004 eq. 22), covariance by the Jacobian."""

@@ -73,6 +73,7 @@ def warm_up() -> float:
     ct = CoordinatedTurn()
     xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
     ct.transition(xt, 4.0)
+    ct.predict(xt, Pt, 4.0)
     ct.Q(4.0, xt)
     to_cv_layout(ct, xt, Pt)
     from_common(ct, *to_common(ct, xt, Pt))

@@ -200,3 +200,23 @@ def test_cv_predict_equals_the_matrix_products(ndim, q_vertical):
         np.testing.assert_allclose(xk, xr, rtol=1e-14, atol=1e-9)
         np.testing.assert_allclose(Pk, Pr, rtol=1e-13, atol=1e-9)
         np.testing.assert_array_equal(Pk, np.swapaxes(Pk, -1, -2))
+
+
+@pytest.mark.parametrize("vertical", [False, True])
+def test_coordinated_turn_fused_prediction_equals_jacobian_sandwich(vertical):
+    """CoordinatedTurn.predict (one compiled call) against f(x) and J P Jᵀ + Q(x) from
+    its transition and process noise, in 2-D and 3-D, turning and straight states."""
+    rng = np.random.default_rng(4)
+    ct = CoordinatedTurn(vertical=vertical)
+    n, d = 30, ct.dim
+    x = rng.normal(size=(n, d)) * np.array([1e4, 1e4, 1.0, 0.05, 100.0, 1e3, 10.0][:d])
+    x[:5, 3] = 0.0  # ω = 0: the series branch
+    A = rng.normal(size=(n, d, d))
+    P = A @ A.transpose(0, 2, 1) + np.eye(d)
+    dt = rng.uniform(0.5, 12.0, n)
+    xp, Pp = ct.predict(x, P, dt)
+    fx, J = ct.transition(x, dt)
+    ref = J @ P @ J.transpose(0, 2, 1) + ct.Q(dt, x)
+    np.testing.assert_array_equal(xp, fx)
+    np.testing.assert_allclose(Pp, 0.5 * (ref + ref.transpose(0, 2, 1)), rtol=1e-11, atol=1e-9)
+    assert np.array_equal(Pp, Pp.transpose(0, 2, 1))
