@@ -17,7 +17,7 @@ is kept. No equations here: the kernels are documented where they are defined
 :mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.tracker.reidentification`,
 :mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
 :mod:`fusion.tracker.existence`, :mod:`fusion.tracker.plot_validity_kernel`,
-:mod:`fusion.tracker.density.imm_likelihood_kernel`,
+:mod:`fusion.tracker.density.imm_likelihood_kernel`, :mod:`fusion.tracker.density.imm_mixture`,
 :mod:`fusion.registration.bias_filter_kernel`).
 """
 
@@ -34,6 +34,7 @@ from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
 from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likelihoods
+from skyfuse.fusion.tracker.density.imm_mixture import ModeTransition
 from skyfuse.fusion.tracker.existence import markov_chain_one
 from skyfuse.fusion.tracker.oosm import noise_terms
 from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
@@ -70,6 +71,7 @@ def warm_up() -> float:
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
     ConstantVelocity().predict(x[:2, :], P, np.array([1.0, 2.0]))
     markov_chain_one(0.98, 0.0).predict(np.array([[0.5, 0.0]]), np.array([1.0]))
+    ModeTransition(np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0)(np.array([1.0, 2.0]))
     ct = CoordinatedTurn()
     xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
     ct.transition(xt, 4.0)

@@ -172,6 +172,15 @@ def test_mode_transition_composes_and_rejects_bad_matrices():
     P8 = tr(np.array([8.0]))[0]
     np.testing.assert_allclose(P8, np.linalg.matrix_power(tr.tpm, 2), atol=1e-12)
     np.testing.assert_allclose(tr(np.array([0.0]))[0], np.eye(2), atol=1e-12)
+    from scipy.linalg import fractional_matrix_power
+
+    tpm3 = np.full((3, 3), 0.05) + 0.85 * np.eye(3)  # eigenvalues 1, 0.85, 0.85
+    tr3 = ModeTransition(tpm3, 4.0)
+    got = tr3(np.array([1.0, 6.0, 4.0]))
+    for k, t in enumerate((1.0, 6.0, 4.0)):
+        ref = np.real(fractional_matrix_power(tpm3, t / 4.0))
+        np.testing.assert_allclose(got[k], ref, atol=1e-12)
+    np.testing.assert_allclose(got.sum(axis=2), 1.0, rtol=1e-15)
     with pytest.raises(ValueError, match="eigenvalues"):
         ModeTransition([[0.1, 0.9], [0.9, 0.1]], 4.0)
     with pytest.raises(ValueError, match="row-stochastic"):

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
@@ -144,7 +145,7 @@ class ModeTransition:
             )
         self.tpm, self.period = tpm, float(period)
         self._lam = np.clip(lam.real, 0.0, None)
-        self._V = V.real
+        self._V = np.ascontiguousarray(V.real)  # (a view of the complex array otherwise)
         self._Vinv = np.linalg.inv(self._V)
 
     @property
@@ -152,11 +153,33 @@ class ModeTransition:
         return len(self.tpm)
 
     def __call__(self, dt: np.ndarray) -> np.ndarray:
-        """Π(dt) for dt (n,) seconds, shape (n, r, r)."""
+        """Π(dt) for dt (n,) seconds, shape (n, r, r): V diag(λ^{dt/T}) V⁻¹, negative
+        rounding clipped to 0, rows renormalised (one compiled loop over the n)."""
         t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
-        M = (self._V[None] * self._lam[None, None, :] ** t[:, None, None]) @ self._Vinv
-        M = np.clip(M, 0.0, None)
-        return M / M.sum(axis=2, keepdims=True)
+        return _fractional_powers(self._V, self._lam, self._Vinv, np.ascontiguousarray(t))
+
+
+@numba.njit(cache=True, nogil=True)
+def _fractional_powers(V, lam, Vinv, t):
+    """Row-stochastic V diag(λ^t_k) V⁻¹ (n, r, r) for the exponents t (n,)."""
+    n, r = len(t), len(lam)
+    out = np.empty((n, r, r))
+    p = np.empty(r)
+    for k in range(n):
+        for j in range(r):
+            p[j] = lam[j] ** t[k]
+        for a in range(r):
+            tot = 0.0
+            for b in range(r):
+                m = 0.0
+                for j in range(r):
+                    m += V[a, j] * p[j] * Vinv[j, b]
+                m = max(m, 0.0)
+                out[k, a, b] = m
+                tot += m
+            for b in range(r):
+                out[k, a, b] /= tot
+    return out
 
 
 @dataclass
