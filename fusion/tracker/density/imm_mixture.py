@@ -346,7 +346,14 @@ class IMMMixtureDensity:
             xs, Ps = [x.copy()] * self.r, [P.copy()] * self.r
         else:
             xc, Pc = embed_common(x, P, self.ndim, self.init_acceleration, (1e8, 1e4))
-            conv = [from_common(m, xc, Pc) for m in self.models]
+            # a CV mode gets back exactly the CV entries it was embedded from
+            sym = 0.5 * (P + P.swapaxes(1, 2))
+            conv = [
+                (x.copy(), sym.copy())
+                if isinstance(m, ConstantVelocity) and m.ndim == x.shape[1] // 2
+                else from_common(m, xc, Pc)
+                for m in self.models
+            ]
             xs, Ps = [a for a, _ in conv], [b for _, b in conv]
         new = IMMComponents(
             n + np.arange(nn),
