@@ -51,13 +51,11 @@ def ecef_to_enu_rotation(lat_deg, lon_deg) -> np.ndarray:
     phi = np.radians(np.asarray(lat_deg, float))
     lam = np.radians(np.asarray(lon_deg, float))
     sp, cp, sl, cl = np.sin(phi), np.cos(phi), np.sin(lam), np.cos(lam)
-    z = np.zeros_like(sp)
-    rows = [
-        [-sl, cl, z],
-        [-sp * cl, -sp * sl, cp],
-        [cp * cl, cp * sl, sp],
-    ]
-    return np.moveaxis(np.asarray(rows, dtype=float), (0, 1), (-2, -1))
+    R = np.empty((*np.broadcast_shapes(sp.shape, sl.shape), 3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = -sl, cl, 0.0
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = -sp * cl, -sp * sl, cp
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = cp * cl, cp * sl, sp
+    return R
 
 
 @functools.lru_cache(maxsize=4096)
