@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .pairing_kernel import pair_residuals, partner_rows
+
 
 class PlotColumns:
     """Plots of tracks (arrays over k plots): track id, radar index, time ns, horizontal
@@ -85,13 +87,6 @@ class PlotColumns:
         return PlotColumns._packed(
             np.concatenate([a.ints, b.ints]), np.concatenate([a.floats, b.floats])
         )
-
-
-def _run_starts(sorted_keys: np.ndarray) -> np.ndarray:
-    """True at the first row of each run of equal keys."""
-    first = np.ones(len(sorted_keys), bool)
-    first[1:] = sorted_keys[1:] != sorted_keys[:-1]
-    return first
 
 
 _SIZES = (2, 4, 8, 4, 2, 4)  # z, R, H, applied, v, Pvv
@@ -166,25 +161,14 @@ class PairBuffer:
         nearest in time; ties: the first new row). The candidates are the stored rows of
         the same track, found by binary search on the store sorted by track (a few per
         plot: at most one per radar), not a new × store table."""
-        order = np.argsort(s.track, kind="stable")
+        # any sort: the kernel's choice within a track's rows does not depend on their order
+        order = np.argsort(s.track)
         st = s.track[order]
         lo = np.searchsorted(st, new.track, "left")
-        cnt = np.searchsorted(st, new.track, "right") - lo
-        a = np.repeat(np.arange(len(new)), cnt)  # candidate pairs (a new, b stored)
-        b = order[np.arange(len(a)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)]
-        cost = np.abs(new.time[a] - s.time[b])
-        ok = (new.radar[a] != s.radar[b]) & (cost <= self.max_dt_ns)
-        a, b, cost = a[ok], b[ok], cost[ok]
-        # the best stored row of each new plot: least |dt|, then the lowest stored row
-        best = np.lexsort((b, cost, a))
-        a, b, cost = a[best], b[best], cost[best]
-        first = _run_starts(a)
-        ia, ib, c = a[first], b[first], cost[first]
-        # the best new plot of each stored row: least |dt|, then the first new row
-        order = np.lexsort((ia, c, ib))
-        ia, ib = ia[order], ib[order]
-        first = _run_starts(ib)
-        return ia[first], ib[first]
+        hi = np.searchsorted(st, new.track, "right")
+        c = np.ascontiguousarray
+        return partner_rows(order, lo, hi, c(new.radar), c(new.time), c(s.radar), c(s.time),
+                            self.max_dt_ns)  # fmt: skip
 
     def _expire(self, t_now: int) -> None:
         fresh = np.flatnonzero(t_now - self.store.time <= self.max_dt_ns)
@@ -192,9 +176,9 @@ class PairBuffer:
             self.store = self.store.take(fresh)
 
     def _residuals(self, A: PlotColumns, B: PlotColumns) -> ResidualPairs:
-        dt = (A.time - B.time) * 1e-9
-        hb = lambda X, b: (X @ b[:, :, None])[:, :, 0]  # noqa: E731  (k, 2, 4) · (k, 4)
-        y = A.z - B.z - A.v * dt[:, None] + hb(A.H, A.applied) - hb(B.H, B.applied)
-        W = A.R + B.R + dt[:, None, None] ** 2 * A.Pvv
-        W[:, [0, 1], [0, 1]] += (self.q * np.abs(dt) ** 3 / 3.0)[:, None]
+        c = np.ascontiguousarray
+        y, W = pair_residuals(
+            c(A.time), c(B.time), c(A.z), c(B.z), c(A.v), c(A.H), c(B.H), c(A.applied),
+            c(B.applied), c(A.R), c(B.R), c(A.Pvv), self.q,
+        )  # fmt: skip
         return ResidualPairs(y, W, A.H, B.H, A.radar, B.radar, A.time.copy())

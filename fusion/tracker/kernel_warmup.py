@@ -18,7 +18,7 @@ is kept. No equations here: the kernels are documented where they are defined
 :mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
 :mod:`fusion.tracker.existence`, :mod:`fusion.tracker.plot_validity_kernel`,
 :mod:`fusion.tracker.density.imm_likelihood_kernel`, :mod:`fusion.tracker.density.imm_mixture`,
-:mod:`fusion.registration.bias_filter_kernel`).
+:mod:`fusion.registration.bias_filter_kernel`, :mod:`fusion.registration.pairing_kernel`).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_ro
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
+from skyfuse.fusion.registration.pairing_kernel import pair_residuals, partner_rows
 from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likelihoods
 from skyfuse.fusion.tracker.density.imm_mixture import ModeTransition
 from skyfuse.fusion.tracker.existence import markov_chain_one
@@ -79,6 +80,10 @@ def warm_up() -> float:
     ct.Q(4.0, xt)
     to_cv_layout(ct, xt, Pt)
     from_common(ct, *to_common(ct, xt, Pt))
+    i1 = np.zeros(1, np.int64)
+    partner_rows(i1, i1, i1 + 1, i1, i1, i1 + 1, i1, 10)
+    v2, m2, h = np.zeros((1, 2)), np.eye(2)[None].copy(), np.zeros((1, 2, 4))
+    pair_residuals(i1, i1, v2, v2, v2, h, h, np.zeros((1, 4)), np.zeros((1, 4)), m2, m2, m2, 1.0)
     counts = np.zeros(2, np.int64)
     gate_and_update(np.zeros(8), np.eye(8), np.arange(8) >= 4, np.ones(4), np.ones((1, 2)),
                     eye[None].copy(), np.ones((1, 2, 4)), np.ones((1, 2, 4)),

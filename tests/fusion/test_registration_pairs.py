@@ -65,3 +65,25 @@ def test_add_pairs_and_replaces():
     pairs = buf.add(one(7, 1, 2 * 10**9))
     assert len(pairs) == 1 and (pairs.a[0], pairs.b[0]) == (1, 0) and len(buf.store) == 0
     assert len(buf.add(one(8, 1, 20 * 10**9))) == 0  # expired: nothing to pair with
+
+
+def test_pair_residuals_equal_the_equations():
+    """The compiled residuals against eq. (2)-(3) written with NumPy matrix products."""
+    rng = np.random.default_rng(3)
+    A, B = columns(rng, 25, 10, 4, 0, 20), columns(rng, 25, 10, 4, 0, 20)
+    A = PlotColumns(A.track, A.radar, A.time, A.z, A.R, A.H, rng.normal(size=(25, 4)), A.v,
+                    np.tile(np.diag([4.0, 9.0]), (25, 1, 1)))  # fmt: skip
+    buf = PairBuffer(max_pair_dt=4.0, q=2.5, capacity=100)
+    got = buf._residuals(A, B)
+    dt = (A.time - B.time) * 1e-9
+    y = A.z - B.z - A.v * dt[:, None] + np.einsum("kij,kj->ki", A.H, A.applied)
+    y -= np.einsum("kij,kj->ki", B.H, B.applied)
+    W = (
+        A.R
+        + B.R
+        + dt[:, None, None] ** 2 * A.Pvv
+        + (2.5 * np.abs(dt) ** 3 / 3)[:, None, None] * np.eye(2)
+    )
+    np.testing.assert_allclose(got.y, y, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.W, W, rtol=1e-12)
+    assert got.a.tolist() == A.radar.tolist() and got.b.tolist() == B.radar.tolist()
