@@ -6,9 +6,10 @@
   ``searchsorted(x_i ± r_i)``); a plot j of the window is kept when
   |points[j, a] − centres[i, a]| ≤ r_i in every other coordinate a as well.
 * :func:`exact_gate`: for the pre-gated pairs (c, j), S = HPHᵀ_c + R_j, ν = z_j − ŷ_c,
-  d² = νᵀ S⁻¹ ν and ln det S; the pair is kept when d² < g. For k = 2 the closed forms of
-  :mod:`fusion.filters.small_spd` (the same operations in the same order, so the same
-  numbers), otherwise the Cholesky factor of
+  d² = νᵀ S⁻¹ ν and ln det S; the pair is kept when d² < g. For k = 2 the closed forms
+  det S = s₀₀ s₁₁ − s₀₁², d² = (s₁₁ ν₀² − 2 s₀₁ ν₀ ν₁ + s₀₀ ν₁²) / det S (no LAPACK
+  call: they agree with the factorisation to rounding for the well-conditioned
+  S = H P Hᵀ + R of a tracker), otherwise the Cholesky factor of
   :mod:`fusion.filters.cholesky_kernels` (d² = |L⁻¹ν|², ln det S = 2 Σ ln L_aa); an S that
   is not positive definite is outside every gate.
 
@@ -55,7 +56,7 @@ def box_pairs(order, lo, hi, centres, radii, points):
 
 @numba.njit(cache=True, nogil=True)
 def statistics_2x2(S, nu):
-    """d², ln det S of one 2 × 2 pair (small_spd's closed form, same operation order)."""
+    """d², ln det S of one 2 × 2 pair by the closed forms (d² = ∞: not positive definite)."""
     a, b, c = S[0, 0], S[0, 1], S[1, 1]
     det = a * c - b * b
     x, y = nu[0], nu[1]

@@ -19,7 +19,6 @@ import numba
 import numpy as np
 
 from .cholesky_kernels import cholesky_into, cholesky_solve_into
-from .small_spd import right_solve
 
 
 def predict(
@@ -35,15 +34,6 @@ def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.nda
     """S = H P Hᵀ + R, shape (n, m, m)."""
     S = H @ P @ H.T + R
     return 0.5 * (S + S.swapaxes(-1, -2))
-
-
-def gain(P: np.ndarray, H: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """K = P Hᵀ S⁻¹, shape (n, d, m), computed by a solve rather than an inverse."""
-    PHt = P @ H.T  # (n, d, m)
-    # K S = P Hᵀ  ⇔  Sᵀ Kᵀ = (P Hᵀ)ᵀ ; S is symmetric (closed form for m = 2).
-    if PHt.ndim == 3 and np.ndim(S) == 3:
-        return right_solve(PHt, S)
-    return np.swapaxes(np.linalg.solve(S, PHt.swapaxes(-1, -2)), -1, -2)
 
 
 def joseph_covariance(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -112,10 +102,10 @@ def _joseph(P, K, H, R):
 
 @numba.njit(cache=True, nogil=True)
 def _gain_into(P, H, S, K, L, B):
-    """K = P Hᵀ S⁻¹ (d, k) for one state: for k = 2 the closed-form inverse of
-    :func:`fusion.filters.small_spd.right_solve` (same operations), otherwise S = L Lᵀ
-    and Kᵀ = S⁻¹ (P Hᵀ)ᵀ (L, B: scratch (k, k), (k, d)). False if S is not positive
-    definite (k ≠ 2)."""
+    """K = P Hᵀ S⁻¹ (d, k) for one state, by a solve rather than an inverse: for k = 2
+    the closed form S⁻¹ = [[s₁₁, −s₀₁], [−s₀₁, s₀₀]] / (s₀₀ s₁₁ − s₀₁²), otherwise
+    S = L Lᵀ and Kᵀ = S⁻¹ (P Hᵀ)ᵀ (L, B: scratch (k, k), (k, d)). False if S is not
+    positive definite (k ≠ 2)."""
     d, k = K.shape
     for i in range(d):  # K ← P Hᵀ
         for j in range(k):
@@ -174,8 +164,8 @@ def update_with_innovation(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Kalman update of n predicted states x (n, d), P (n, d, d) whose innovations
     ν (n, k) and covariances S (n, k, k) are known (the gating computed them): K = P Hᵀ
-    S⁻¹, x + K ν and the Joseph covariance with R (n, k, k); one compiled loop over the
-    states, the same numbers as :func:`gain` and :func:`joseph_covariance` (k = 2)."""
+    S⁻¹, x + K ν and the Joseph covariance with R (n, k, k) or (k, k); one compiled loop
+    over the states (the Joseph step is :func:`joseph_covariance`'s)."""
     c = np.ascontiguousarray
     f = np.float64
     n = len(x)
@@ -192,10 +182,9 @@ def update(
     Returns ``(x_upd, P_upd, nu, S)`` where ``nu = z − H x`` is the innovation and ``S``
     its covariance (both useful for gating and likelihoods)."""
     S = innovation_covariance(P, H, R)
-    K = gain(P, H, S)
     nu = z - x @ H.T
-    x_new = x + np.einsum("...ij,...j->...i", K, nu)
-    return x_new, joseph_covariance(P, K, H, R), nu, S
+    x_new, P_new = update_with_innovation(x, P, H, S, nu, R)
+    return x_new, P_new, nu, S
 
 
 def gaussian_log_likelihood(nu: np.ndarray, S: np.ndarray) -> np.ndarray:

@@ -8,9 +8,10 @@ when H_k ≠ 0 and *used* when also
 
     d²_k = ν_kᵀ S_k⁻¹ ν_k ≤ gate,   ν_k = y_k − H_k s,   S_k = H_k P H_kᵀ + W_k,
 
-(a non-positive-definite S_k gives d² = ∞, as :func:`~fusion.filters.small_spd.
-quadratic_and_logdet`). Over the f free components (indices ``idx``) the used pairs
-update the information form (Bar-Shalom, Li & Kirubarajan 2001, eq. 7.2.1-3):
+(the gating's 2 × 2 closed form,
+:func:`~fusion.association.gating_kernels.statistics_2x2`: a non-positive-definite S_k
+gives d² = ∞). Over the f free components (indices ``idx``) the used pairs update the
+information form (Bar-Shalom, Li & Kirubarajan 2001, eq. 7.2.1-3):
 
     Λ⁺ = P_f⁻¹ + Σ_k H_kᵀ W_k⁻¹ H_k,   η⁺ = P_f⁻¹ s_f + Σ_k H_kᵀ W_k⁻¹ y_k,
     P_f ← sym((Λ⁺)⁻¹),   s_f ← (Λ⁺)⁻¹ η⁺.
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from skyfuse.fusion.association.gating_kernels import statistics_2x2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -48,11 +50,7 @@ def _d2(h, s, P, y, W) -> float:
     """ν_kᵀ S_k⁻¹ ν_k for one pair's h (2, N), y (2,), W (2, 2); ∞ if S is not PD."""
     nu = y - h @ s
     S = h @ P @ h.T + W
-    det = S[0, 0] * S[1, 1] - S[0, 1] * S[0, 1]
-    if not (S[0, 0] > 0.0 and det > 0.0):
-        return np.inf
-    x0, x1 = nu[0], nu[1]
-    return (S[1, 1] * x0 * x0 - 2.0 * S[0, 1] * x0 * x1 + S[0, 0] * x1 * x1) / det
+    return statistics_2x2(S, nu)[0]
 
 
 @numba.njit(cache=True, nogil=True)

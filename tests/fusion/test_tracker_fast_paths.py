@@ -1,13 +1,13 @@
 """The tracker's fast paths against independent references: closed-form 2x2 innovation
-algebra vs LAPACK, row/grouped moment matching vs explicit loops, the closed-form
-existence prediction vs the chain recursion, CV layout placement vs the selector
-matrix, and the one-pass plot validation vs hand-counted rejections."""
+algebra (the gating's per-pair kernels, the gain) vs LAPACK, row/grouped moment matching
+vs explicit loops, the closed-form existence prediction vs the chain recursion, CV layout
+placement vs the selector matrix, and the one-pass plot validation vs hand-counted
+rejections."""
 
 import numpy as np
 import pytest
-from skyfuse.fusion.filters.kalman import gain
 from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
-from skyfuse.fusion.filters.small_spd import largest_eigenvalue, quadratic_and_logdet, right_solve
+from skyfuse.fusion.filters.small_spd import largest_eigenvalue
 from skyfuse.fusion.models import ConstantVelocity
 from skyfuse.fusion.models.conversions import from_common, to_common
 from skyfuse.fusion.tracker.existence import markov_chain_one, markov_chain_two
@@ -19,11 +19,24 @@ def _spd(rng, n, k):
     return A @ A.transpose(0, 2, 1) + 0.5 * np.eye(k)
 
 
+def _pair_statistics(S, nu):
+    """d², ln det S of every pair by the gating's per-pair kernels (the closed form for
+    k = 2, the Cholesky form otherwise)."""
+    from skyfuse.fusion.association.gating_kernels import statistics_2x2, statistics_cholesky
+
+    k = S.shape[-1]
+    L, w = np.zeros((k, k)), np.empty(k)
+    one = (lambda A, v: statistics_2x2(A, v)) if k == 2 else (
+        lambda A, v: statistics_cholesky(np.ascontiguousarray(A), v, L, w)
+    )  # fmt: skip
+    return np.array([one(S[i], nu[i]) for i in range(len(S))]).T
+
+
 @pytest.mark.parametrize("k", [2, 3])
-def test_quadratic_and_logdet_against_inverse_and_slogdet(k):
+def test_pair_statistics_against_inverse_and_slogdet(k):
     rng = np.random.default_rng(1)
     S, nu = _spd(rng, 50, k), rng.normal(size=(50, k))
-    d2, logdet = quadratic_and_logdet(S, nu)
+    d2, logdet = _pair_statistics(S, nu)
     ref = np.einsum("ni,nij,nj->n", nu, np.linalg.inv(S), nu)
     np.testing.assert_allclose(d2, ref, rtol=1e-12)
     np.testing.assert_allclose(logdet, np.linalg.slogdet(S)[1], rtol=1e-12, atol=1e-12)
@@ -31,20 +44,26 @@ def test_quadratic_and_logdet_against_inverse_and_slogdet(k):
 
 def test_quadratic_of_indefinite_2x2_is_outside_every_gate():
     S = np.array([[[1.0, 2.0], [2.0, 1.0]], [[-1.0, 0.0], [0.0, -1.0]]])
-    d2, _ = quadratic_and_logdet(S, np.ones((2, 2)))
+    d2, _ = _pair_statistics(S, np.ones((2, 2)))
     assert np.isinf(d2).all()
 
 
 @pytest.mark.parametrize("k", [2, 3])
-def test_right_solve_and_gain_against_inverse(k):
+def test_gain_against_inverse(k):
+    """K of the compiled update (x + K ν with ν = e_j gives column j of K)."""
+    from skyfuse.fusion.filters.kalman import update_with_innovation
+
     rng = np.random.default_rng(2)
-    S, B = _spd(rng, 20, k), rng.normal(size=(20, 4, k))
-    np.testing.assert_allclose(right_solve(B, S), B @ np.linalg.inv(S), rtol=1e-10, atol=1e-12)
+    S = _spd(rng, 20, k)
     P = _spd(rng, 20, 4)
     H = np.zeros((k, 4))
     H[np.arange(k), np.arange(k)] = 1.0
     ref = P @ H.T @ np.linalg.inv(S)
-    np.testing.assert_allclose(gain(P, H, S), ref, rtol=1e-10, atol=1e-12)
+    for j in range(k):
+        nu = np.zeros((20, k))
+        nu[:, j] = 1.0
+        x, _ = update_with_innovation(np.zeros((20, 4)), P, H, S, nu, np.eye(k))
+        np.testing.assert_allclose(x, ref[:, :, j], rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize("k", [1, 2, 3])
