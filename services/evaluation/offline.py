@@ -10,9 +10,9 @@ own ``RadarSite`` messages), an :class:`OfflineConfig` and a list of :class:`Obs
   :class:`~skyfuse.services.fusion.pipeline.TrackPipeline` as the live fusion service
   (conversion to the system frame → tracker), and every observer sees each
   :class:`Step`. The system frame is fixed at the first plot batch of a radar with a
-  known site by :func:`~skyfuse.services.fusion.system_frame.frame_for_sites` — the rule
-  the live service applies — so a live replay and an offline run give the same frame and
-  the same tracks.
+  known site by :func:`~skyfuse.services.fusion.system_frame.frame_for_sites`, from the
+  sites recorded before it — the rule the live service applies when it applies its first
+  batch — so a live replay and an offline run give the same frame and the same tracks.
 * With ``tracker=None`` nothing is tracked: the recording's own ``TrackBatch`` messages
   (a live fusion service's output, e.g. ``skyfuse demo``) are handed to the observers,
   in the frame they carry.

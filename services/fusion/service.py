@@ -26,6 +26,9 @@ A batch seen twice (same radar, seq and time_end) is counted as a duplicate.
 **Sites.** A radar's site comes from its ``RadarSite`` messages or from the
 configuration; a batch from a radar without a known site is counted
 (``rejected["no site for radar"]``) and reported, never converted with a guessed site.
+Unless its origin is configured, the system frame is fixed when the first batch is
+applied, from the sites heard until then (its reorder hold included:
+:mod:`~skyfuse.services.fusion.system_frame`).
 
 **Latency** (plot time → track publication) is ``publish wall time − sender stamp``; the
 sender stamp is the wall-clock instant the sector sweep ended, sent as the sample
@@ -413,8 +416,10 @@ class FusionCore:
             self._start_pipeline()  # a configured origin: no need to wait for the plots
 
     def _start_pipeline(self) -> None:
-        """Fix the system frame from the sites known now (at the first plot batch of a
-        radar with a site, see :mod:`~skyfuse.services.fusion.system_frame`)."""
+        """Fix the system frame from the sites known now: when the first plot batch of a
+        radar with a site is applied, after its reorder hold — not when it is received,
+        since Zenoh delivers the site and plot keys on separate threads with no order
+        between them (:mod:`~skyfuse.services.fusion.system_frame`)."""
         known = [r.site for r in self.radars.values() if r.site is not None]
         frame = self.cfg.frame_spec(known)
         if frame is None:
@@ -464,8 +469,6 @@ class FusionCore:
     ) -> bool:
         """Queue a validated batch received at wall-clock ``recv_ns`` (default: now)."""
         r = self._radar(batch.radar_id)
-        if self.pipeline is None and r.site is not None:
-            self._start_pipeline()
         reason = self.buffer.push(batch, arrival, sent_ns, recv_ns)
         if reason is not None:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")

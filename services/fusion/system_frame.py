@@ -4,8 +4,15 @@ service (:class:`skyfuse.services.fusion.service.FusionCore`) and by the offline
 gives the same frame — and the same tracks — both ways.
 
 Rule: unless the origin is configured, the frame is centred on the **spherical mean of
-the sites known when the first plot batch of a radar with a known site arrives** (live:
-at receipt; offline: in recording order, which a replay preserves). The spherical mean is
+the sites known when the first plot batch of a radar with a known site is applied**.
+Live, that is after the batch's reorder hold (``reorder_wait``), not at its receipt:
+Zenoh runs each subscriber's callbacks on its own thread, so a site published before a
+plot batch on another key can be delivered after it (seen: two of three sites 90 ms
+late on a loaded machine, and a frame centred on one radar). Offline, it is at the first
+plot batch in recording order. A replay publishes every site of the recording that
+precedes its first plot batch before that batch, so both ways take the same sites, and
+give the same tracks; a site recorded after the first plot batch is in the offline frame
+never, in the live one if it is heard within that batch's hold. The spherical mean is
 the direction of the mean of the sites' unit vectors (x = cos φ cos λ, y = cos φ sin λ,
 z = sin φ; φ latitude, λ longitude), so that radars on both sides of the antimeridian get
 a centre between them, not on the other side of the Earth. The origin height is 0 m

@@ -89,9 +89,10 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulat
             inbox = Inbox()
             inbox.subscribe(s, keys.fusion_tracks("main"), "tracks")
             assert wait_for_tokens(s, [service_alive_key("fusion")], 20.0) == []
-            # the frame is fixed at the first plot from the sites known then: let the fusion
-            # know every site first, so that the race of sites and plots published back to
-            # back on a loaded machine cannot change it (the rule, not the race, is tested)
+            # the frame is fixed when the first plot batch is applied, from the sites known
+            # then; the fusion's reorder hold absorbs the race of sites and plots published
+            # back to back (test_service_registration_live relies on it). Here every site is
+            # known first, so this test is about the tracks, not the race
             wait_for_sites(s, sites)
             result = replay(s, rec, fast=True)
             assert result.plot_batches == n_batches

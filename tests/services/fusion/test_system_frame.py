@@ -40,22 +40,32 @@ def test_configured_origin_wins_and_no_site_gives_none():
     assert (one.kind, one.lat0, one.lon0, one.alt0) == (FrameKind.STEREOGRAPHIC, 44.0, 21.0, 0.0)
 
 
-def test_live_service_fixes_the_frame_at_the_first_plot_from_all_sites_known():
-    """Live: sites heard before the first plot batch all count (not only the first one);
-    a site heard later does not move the frame."""
+def test_live_service_fixes_the_frame_when_the_first_batch_is_applied():
+    """Live: the sites heard before the first plot batch is applied all count, a site
+    heard during that batch's reorder hold included (Zenoh delivers the site and plot
+    keys on separate threads: a site published first can arrive after the first plots);
+    a site heard after it does not move the frame."""
     import numpy as np
     from service_support import make_batch, make_site
+    from skyfuse.services.fusion.pipeline import TrackPipeline
     from skyfuse.services.fusion.service import FusionConfig, FusionCore
 
     frames = []
-    core = FusionCore(FusionConfig(reorder_wait=0.0), lambda f: frames.append(f) or f)
-    a, b = make_site("A", 44.0, 20.0), make_site("B", 46.0, 22.0)
+    cfg = FusionConfig(reorder_wait=1.0, future_tolerance=None)
+    core = FusionCore(cfg, lambda f: frames.append(f) or TrackPipeline(f))
+    a, b, c = make_site("A", 44.0, 20.0), make_site("B", 46.0, 22.0), make_site("C", 45.0, 23.0)
     core.on_site(a)
     core.on_site(b)
     assert frames == [] and core.status().message == "waiting for plots"
     core.on_plots(make_batch("A", 0, 0, 4, 3, np.random.default_rng(1)), arrival=0.0)
-    core.on_site(make_site("C", 50.0, 30.0))
-    assert frames == [frame_for_sites([a, b])]
-    lat, lon = sites_centre([a, b])
+    core.on_site(c)  # delivered after the first plots, within their hold
+    assert frames == [] and core.poll(now=0.5) == []  # still held
+    core.poll(now=1.0)
+    assert frames == [frame_for_sites([a, b, c])]
+    lat, lon = sites_centre([a, b, c])
     assert (frames[0].lat0, frames[0].lon0) == (lat, lon)
-    assert 44.9 < lat < 45.1 and 20.9 < lon < 21.1  # near the midpoint, not at site A
+    assert 44.9 < lat < 45.1 and 21.5 < lon < 21.8  # not at site A, nor at A and B only
+    core.on_site(make_site("D", 50.0, 30.0))
+    core.on_plots(make_batch("D", 0, 0, 4, 3, np.random.default_rng(2)), arrival=1.5)
+    core.poll(now=3.0)
+    assert frames == [frame_for_sites([a, b, c])]
