@@ -307,8 +307,13 @@ class Received:
 class Inbox:
     """A bounded FIFO shared by several subscriptions; drained by one thread.
 
-    ``capacity`` bounds memory; when full, Zenoh's delivery thread waits (back-pressure),
-    except after :meth:`close`, when new samples are discarded so shutdown never blocks."""
+    Each subscription's callback runs on its own thread (zenoh-python's default
+    ``indirect`` callbacks), so the FIFO keeps the order of one subscription's samples,
+    not an order between subscriptions: a sample published first on one key can come
+    after one published later on another (a site after the first plots,
+    :mod:`~skyfuse.services.fusion.system_frame`). ``capacity`` bounds memory; when full,
+    the delivering thread waits (back-pressure), except after :meth:`close`, when new
+    samples are discarded so shutdown never blocks."""
 
     def __init__(self, capacity: int = 100_000) -> None:
         self._q: queue.Queue[Received] = queue.Queue(maxsize=capacity)
