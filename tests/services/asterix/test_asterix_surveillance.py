@@ -329,3 +329,38 @@ def test_cat020_matches_the_independent_decoder():
     assert (ours.sigma_x_m, ours.sigma_y_m) == (sdp["SDPx"]["val"], sdp["SDPy"]["val"])
     assert ours.cov_xy_m2 == sdp["SDPxy"]["val"] == -4.0
     assert ours.sigma_h_m == ref["I500"]["SDH"]["STD_GH"]["val"]
+
+
+def test_adsb_positions_agree_with_multilateration_on_the_ground():
+    """An independent physical check of the CAT021 0.23 and CAT010 decoding: the same
+    aircraft (same 24-bit address) on the ground, its ADS-B position interpolated to the
+    MLAT report time, both in the east/north plane of the MLAT reference point. A wrong
+    LSB, sign or time item would put them hundreds of metres to kilometres apart."""
+    import pymap3d
+    from skyfuse.services.asterix import read_reports
+
+    mlat_path, adsb_path = SHARED_DATA / CAT010_FILES[0], SHARED_DATA / ADSB_FILE
+    if not (mlat_path.exists() and adsb_path.exists()):
+        pytest.skip("LEBL 2016 files absent")
+    ref = (41.29706278, 2.07844722, 4.0)  # the MLAT reference point (data README)
+    mlat = [r for r in read_reports(mlat_path)[0] if getattr(r, "mode_s", None) is not None]
+    adsb: dict[int, list] = {}
+    for r in read_reports(adsb_path)[0]:
+        adsb.setdefault(r.address, []).append(r)
+    dist = []
+    for r in mlat:
+        track = adsb.get(r.mode_s)
+        if not r.ground or not track:
+            continue
+        times = [a.time_ns for a in track]
+        k = next((i for i, t in enumerate(times) if t >= r.time_ns), None)
+        if k is None or k == 0 or times[k] - times[k - 1] > 3e9:
+            continue
+        w = (r.time_ns - times[k - 1]) / (times[k] - times[k - 1])
+        lat = track[k - 1].lat + w * (track[k].lat - track[k - 1].lat)
+        lon = track[k - 1].lon + w * (track[k].lon - track[k - 1].lon)
+        e, n, _ = pymap3d.geodetic2enu(lat, lon, ref[2], *ref)
+        dist.append(math.hypot(r.x_m - e, r.y_m - n))
+    dist.sort()
+    assert len(dist) > 1000
+    assert dist[len(dist) // 2] < 15.0 and dist[9 * len(dist) // 10] < 40.0
