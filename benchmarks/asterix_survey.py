@@ -134,6 +134,22 @@ def velocity_consistency(reps) -> dict:
     }
 
 
+def field_monitors(reps) -> dict:
+    """Reports with I020 RAB = 1 come from fixed transponders (field monitors): their
+    scatter is the sensor's own position noise at that place."""
+    out = {}
+    for addr in sorted({r.mode_s for r in reps if r.rab and r.mode_s is not None}):
+        xy = np.array([(r.x_m, r.y_m) for r in reps if r.rab and r.mode_s == addr], dtype=float)
+        out[f"{addr:06X}"] = {
+            "reports": len(xy),
+            "mean_x_m": float(xy[:, 0].mean()),
+            "mean_y_m": float(xy[:, 1].mean()),
+            "std_x_m": float(xy[:, 0].std()),
+            "std_y_m": float(xy[:, 1].std()),
+        }
+    return out
+
+
 def survey_cat010(reports) -> dict:
     reps = [r for r in reports if isinstance(r, cat010.Cat010Report)]
     with_pos = [r for r in reps if r.x_m is not None or r.rho_m is not None]
@@ -148,6 +164,7 @@ def survey_cat010(reports) -> dict:
         "target_type": dict(Counter(str(r.target_type) for r in reps)),
         "ground_bit_share": round(sum(r.ground for r in with_pos) / max(len(with_pos), 1), 4),
         "field_monitor_reports": sum(r.rab for r in reps),
+        "field_monitors": field_monitors(with_pos),
         "distinct_mode_s": len(np.unique(c["mode_s"][np.isfinite(c["mode_s"])])),
         "distinct_track_numbers": len(np.unique(c["track_number"])),
         "field_shares": shares(with_pos, REPORT_FIELDS_010),
