@@ -1,9 +1,12 @@
-"""ASTERIX adapter: CAT048/CAT034 plots in, CAT048/CAT034 and CAT062 out.
+"""ASTERIX adapter: CAT048/CAT034 plots and CAT010/CAT020/CAT021 reports in, CAT048/CAT034
+and CAT062 out.
 
 See ``docs/asterix.md``. Public API:
 
 * :func:`read_asterix` (pcap or raw file → :class:`AsterixReadResult`) and
   :class:`AsterixStreamDecoder` (UDP datagrams → PlotBatches as sectors complete);
+* :func:`read_reports` (pcap or raw file → CAT010 surface/MLAT, CAT020 WAM and CAT021
+  ADS-B target reports; the stream decoder hands them out too);
 * :func:`load_sites` (sites TOML → radar id ``"SAC-SIC"`` → RadarSite);
 * :class:`AsterixPlotWriter` (PlotBatch → CAT048 + CAT034 data blocks);
 * :class:`Cat062Writer` (TrackBatch → CAT062 data blocks), :func:`decode_cat062` and
@@ -25,6 +28,7 @@ from .reader import (
 )
 from .scan_period import estimate_scan_period
 from .sites import SitesError, load_sites, parse_sites, radar_id_for, sac_sic_of
+from .surveillance import SurveillanceDecoder, read_reports
 from .writer import AsterixPlotWriter
 
 __all__ = [
@@ -34,6 +38,7 @@ __all__ = [
     "Cat062Track",
     "Cat062Writer",
     "SitesError",
+    "SurveillanceDecoder",
     "TimeOfDayResolver",
     "altitude_to_flight_level",
     "build_pcap",
@@ -45,5 +50,6 @@ __all__ = [
     "radar_id_for",
     "read_asterix",
     "read_cat062",
+    "read_reports",
     "sac_sic_of",
 ]

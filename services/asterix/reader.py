@@ -69,14 +69,15 @@ from __future__ import annotations
 import bisect
 import datetime as dt
 import math
-from collections import Counter, OrderedDict
+from collections import Counter, OrderedDict, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
 
-from . import cat034, cat048
+from . import cat034, cat048, surveillance
 from .pcap import Datagram, iter_file_datagrams, split_datablocks
 from .records import RecordError, iter_records
 from .scan_period import estimate_scan_period
@@ -92,6 +93,7 @@ MAX_MESSAGES = 200
 DEDUP_WINDOW = 4096
 MAX_PERIOD_SAMPLES = 20_000
 IGNORED_CATEGORIES = frozenset({62, 63, 65})
+MAX_PENDING_REPORTS = 100_000
 
 
 def flight_level_to_altitude(fl: float) -> float:
@@ -221,7 +223,12 @@ class AsterixStreamDecoder:
     assigned to sectors by *time*, and a plot arriving after its sector was emitted
     goes into the next batch and is counted as ``late_plots``. 0 = emit at once.
     ``fast``: split CAT048 records with the compiled layout (:mod:`.layout`) instead of
-    building libasterix objects for each (same values, ~20× faster)."""
+    building libasterix objects for each (same values, ~20× faster).
+
+    CAT010/CAT020/CAT021 blocks go to :class:`.surveillance.SurveillanceDecoder`
+    (``cat021_edition``: ``"auto"`` or an edition name); their reports are handed to
+    ``report_sink`` when given, else kept for :meth:`take_reports` (at most
+    ``MAX_PENDING_REPORTS``; older ones are dropped and counted as ``reports_dropped``)."""
 
     def __init__(
         self,
@@ -233,6 +240,8 @@ class AsterixStreamDecoder:
         skip_simulated: bool = False,
         max_plot_delay: float = 0.0,
         fast: bool = True,
+        cat021_edition: str = "auto",
+        report_sink: Callable[[surveillance.Report], None] | None = None,
     ) -> None:
         self.fast = fast
         if not max_plot_delay >= 0.0:
@@ -250,6 +259,16 @@ class AsterixStreamDecoder:
         self._radars: dict[str, _Radar] = {}
         self._recent: OrderedDict[bytes, None] = OrderedDict()
         self._datagrams = 0
+        self.surveillance = surveillance.SurveillanceDecoder(
+            stats=self.stats,
+            note=self._note,
+            resolve=self.clock.resolve,
+            is_duplicate=self._is_duplicate,
+            cat021_edition=cat021_edition,
+            fast=fast,
+        )
+        self._reports: deque[surveillance.Report] = deque()
+        self._report_sink = report_sink
 
     # ---------------------------------------------------------------- public API
     def feed(self, datagram: bytes, recv_time_ns: int | None = None) -> list[PlotBatch]:
@@ -270,12 +289,15 @@ class AsterixStreamDecoder:
                 self._cat048_block(data, dgram.time_ns, out, where)
             elif cat == cat034.CATEGORY:
                 self._cat034_block(data, dgram.time_ns, out, where)
+            elif cat in surveillance.CATEGORIES:
+                reports = self.surveillance.decode_block(cat, data, dgram.time_ns, where)
+                self._keep_reports(reports)
             elif cat in IGNORED_CATEGORIES:
                 self.stats[f"ignored_category_{cat}"] += 1
             else:
                 self.stats[f"unknown_category_{cat}"] += 1
                 if self.stats[f"unknown_category_{cat}"] == 1:
-                    self._note(f"{where}: category {cat} is not CAT048/CAT034: blocks skipped")
+                    self._note(f"{where}: category {cat} is not decoded: blocks skipped")
         self._emit_ready(out)
         return out
 
@@ -323,6 +345,24 @@ class AsterixStreamDecoder:
             sites[rid] = site
             source[rid] = src
         return sites, source
+
+    def take_reports(self) -> list[surveillance.Report]:
+        """The CAT010/CAT020/CAT021 reports decoded since the last call (file order)."""
+        out = list(self._reports)
+        self._reports.clear()
+        return out
+
+    def _keep_reports(self, reports: list[surveillance.Report]) -> None:
+        if self._report_sink is not None:
+            for r in reports:
+                self._report_sink(r)
+            return
+        self._reports.extend(reports)
+        over = len(self._reports) - MAX_PENDING_REPORTS
+        if over > 0:
+            self.stats["reports_dropped"] += over
+            for _ in range(over):
+                self._reports.popleft()
 
     @property
     def radars(self) -> dict[str, int]:

@@ -52,3 +52,10 @@ def sub_quantity(variation: Any, name: str, unit: str) -> float:
 def sub_uint(variation: Any, name: str) -> int:
     """Raw unsigned value of a subitem of a Group/Extended variation."""
     return variation.get_item(name).as_uint()
+
+
+def item_bytes(record: Any) -> dict[str, bytes]:
+    """The bytes of each present top-level item of a parsed libasterix record, by item
+    name (the form :mod:`.layout` splits a record into): decoders that convert item
+    bytes themselves use it to read what libasterix parsed."""
+    return {name: nsp.unparse().to_bytes() for name, nsp in record.items_regular.items()}

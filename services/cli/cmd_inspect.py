@@ -1,13 +1,15 @@
-"""``skyfuse inspect FILE.mcap [--json [FILE]]``: what a recording holds — radars and their
-sites, plots per radar, scans, duration, targets, tracks, topics and metadata. A file that
-is not MCAP is an error (exit 1) that says so."""
+"""``skyfuse inspect FILE [--json [FILE]]``: what a recording holds. For MCAP: radars and
+their sites, plots per radar, scans, duration, targets, tracks, topics and metadata. For
+ASTERIX (pcap or raw ``.ast``): categories, sensors (SAC/SIC) with their records by kind,
+time-of-day span, distinct addresses and track numbers, and the reader's rejections. A
+file that is neither is an error (exit 1) that says so."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 from pydantic import BaseModel, Field
@@ -25,14 +27,16 @@ from skyfuse.services.recording.mcap_io import (
 
 
 class InspectConfig(BaseModel):
-    file: Path = Field(description="MCAP recording to inspect")
+    file: Path = Field(description="MCAP recording or ASTERIX file (pcap, raw) to inspect")
     json_out: str | None = Field(
         None, description="Write JSON to FILE instead of tables (--json alone or -: to stdout)"
     )
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("inspect", help="summarise an MCAP recording", description=__doc__)
+    p = sub.add_parser(
+        "inspect", help="summarise an MCAP recording or an ASTERIX file", description=__doc__
+    )
     add_model_arguments(p, InspectConfig, positional=("file",), skip=("json_out",))
     add_json_argument(p, "Print JSON instead of tables; --json FILE writes it to FILE")
     p.set_defaults(func=run)
@@ -117,6 +121,88 @@ def inspect_recording(path: Path) -> dict:
     }
 
 
+REJECTION_HINTS = ("malformed", "_no_", "_bad_", "truncated", "unknown", "resync", "dropped")
+
+
+def inspect_asterix(path: Path) -> dict:
+    """Summarise a pcap or raw ASTERIX file (pure data): per sensor (category, SAC/SIC)
+    the records by kind, the time-of-day span, distinct addresses and track numbers;
+    CAT048 plots per radar; the reader's counts and rejections. Raises
+    :class:`NotMcapError` when no ASTERIX block of a decoded category is found."""
+    from skyfuse.services.asterix import AsterixStreamDecoder
+    from skyfuse.services.asterix.pcap import iter_file_datagrams
+
+    sensors: dict[str, dict] = {}
+
+    def sink(report) -> None:
+        cat = int(type(report).__name__[3:6])
+        key = f"CAT{cat:03d} {report.sac}/{report.sic}"
+        s = sensors.setdefault(key, {"kinds": Counter(), "tod": [], "ids": set(), "tracks": set()})
+        kind = getattr(report, "message_type", None)
+        s["kinds"]["reports" if kind is None else f"type {kind}"] += 1
+        s["tod"].append(report.tod)
+        address = getattr(report, "mode_s", None) or getattr(report, "address", None)
+        if address is not None:
+            s["ids"].add(address)
+        if getattr(report, "track_number", None) is not None:
+            s["tracks"].add(report.track_number)
+
+    decoder = AsterixStreamDecoder(report_sink=sink)
+    for dgram in iter_file_datagrams(path, decoder.stats):
+        decoder.feed_with_types(dgram)
+    decoder.flush_with_types()
+    stats = dict(decoder.stats)
+    categories = {k[:6]: v for k, v in stats.items() if k[:3] == "cat" and k.endswith("_records")}
+    if not categories:
+        raise NotMcapError(f"no ASTERIX block of a decoded category either ({stats})")
+    return {
+        "file": str(path),
+        "size_bytes": path.stat().st_size,
+        "format": "asterix",
+        "categories": categories,
+        "sensors": [
+            {
+                "sensor": key,
+                "records": dict(s["kinds"]),
+                "first_tod_s": min(s["tod"]),
+                "last_tod_s": max(s["tod"]),
+                "addresses": len(s["ids"]),
+                "track_numbers": len(s["tracks"]),
+            }
+            for key, s in sorted(sensors.items())
+        ],
+        "radars": decoder.radars,
+        "rejected": {k: v for k, v in stats.items() if any(h in k for h in REJECTION_HINTS)},
+        "counts": stats,
+        "messages": decoder.messages[:10],
+    }
+
+
+def print_asterix_report(info: dict, console: Console) -> None:
+    cats = ", ".join(f"{k.upper()}: {v} records" for k, v in info["categories"].items())
+    console.print(f"[bold]{info['file']}[/] {info['size_bytes'] / 1e6:.2f} MB, ASTERIX ({cats})")
+    t = Table(title="sensors")
+    for c in ("sensor", "records", "time of day", "addresses", "track numbers"):
+        t.add_column(c, justify="left" if c in ("sensor", "records") else "right")
+    for s in info["sensors"]:
+        span = f"{_hms(s['first_tod_s'])}-{_hms(s['last_tod_s'])}"
+        kinds = ", ".join(f"{n} {k}" for k, n in s["records"].items())
+        t.add_row(s["sensor"], kinds, span, str(s["addresses"]), str(s["track_numbers"]))
+    if info["sensors"]:
+        console.print(t)
+    for rid, n in info["radars"].items():
+        console.print(f"CAT048 radar {rid}: {n} plots")
+    if info["rejected"]:
+        console.print(f"[red]rejected or skipped[/]: {info['rejected']}")
+        for msg in info["messages"][:5]:
+            console.print(f"  {msg}")
+
+
+def _hms(tod: float) -> str:
+    h, rem = divmod(tod, 3600.0)
+    return f"{int(h):02d}:{int(rem // 60):02d}:{rem % 60:06.3f}"
+
+
 def print_report(info: dict, console: Console) -> None:
     console.print(
         f"[bold]{info['file']}[/] {info['size_bytes'] / 1e6:.2f} MB, {info['messages']} messages, "
@@ -173,14 +259,22 @@ def run(args: argparse.Namespace) -> int:
     cfg = build_config(InspectConfig, args)
     try:
         info = inspect_recording(cfg.file)
-    except (FileNotFoundError, NotMcapError) as e:
+    except FileNotFoundError as e:
         print(f"skyfuse inspect: {e}", file=sys.stderr)
         return 1
+    except NotMcapError as not_mcap:
+        try:
+            info = inspect_asterix(cfg.file)
+        except NotMcapError as e:
+            print(f"skyfuse inspect: {not_mcap}; {e}", file=sys.stderr)
+            return 1
     if cfg.json_out == "-":
         json.dump(info, sys.stdout, indent=2, default=str)
         sys.stdout.write("\n")
     elif cfg.json_out is not None:
         Path(cfg.json_out).write_text(json.dumps(info, indent=2, default=str) + "\n")
+    elif info.get("format") == "asterix":
+        print_asterix_report(info, Console())
     else:
         print_report(info, Console())
     return 0
