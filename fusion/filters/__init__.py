@@ -3,7 +3,8 @@
 * :mod:`.kalman` — linear KF primitives (Joseph form);
 * :mod:`.ekf` — predict/update for nonlinear models and measurements;
 * :mod:`.model_filter` — :func:`ConvertedMeasurementKF`, :func:`PolarEKF`, initiation;
-* :mod:`.imm` — :class:`IMM`, :func:`imm2_pcwpa`, :func:`imm3_cv_singer_ct` (spec 01 §5).
+* :mod:`.imm` — :class:`IMM`, :func:`imm2_pcwpa`, :func:`imm3_cv_singer_ct` (spec 01 §5);
+* :mod:`.imm_interaction` — the IMM interaction (mixing) step, [Dikić] eq. 15-17.
 """
 
 from .gaussian_state import GaussianState

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..models import ConstantVelocity, CoordinatedTurn, Singer
 from .gaussian_state import GaussianState
+from .imm_interaction import interact
 from .measurement_models import PolarMeasurement, wrap_angle
 from .model_filter import (
     ConvertedMeasurementKF,
@@ -32,7 +33,7 @@ from .model_filter import (
     common_one_point,
     common_two_point,
 )
-from .moment_matching import moment_match_rows, moment_match_rows_each
+from .moment_matching import moment_match_rows
 
 G0 = 9.80665
 
@@ -139,19 +140,9 @@ class IMM:
 
     # --- the cycle ------------------------------------------------------------------------
     def mix(self, state: IMMState):
-        """Step 1 (eq. 15-17): mixed initial conditions per mode and c (n, r)."""
-        c = state.mu @ self.tpm  # c_j = Σ_i p_ij μ_i
-        w = state.mu[:, :, None] * self.tpm[None] / np.maximum(c[:, None, :], 1e-300)
-        common = [self._to_common(i, state.x[i], state.P[i]) for i in range(self.r)]
-        xs = np.stack([cx for cx, _ in common], axis=1)  # (n, r, dc)
-        Ps = np.stack([cP for _, cP in common], axis=1)
-        xm, Pm = moment_match_rows_each(w, xs, Ps)  # every target mode j at once
-        x0, P0 = [], []
-        for j in range(self.r):
-            xj, Pj = self._from_common(j, xm[:, j], Pm[:, j])
-            x0.append(xj)
-            P0.append(Pj)
-        return x0, P0, c
+        """Step 1 (eq. 15-17, :func:`fusion.filters.imm_interaction.interact`): mixed
+        initial conditions per mode and c (n, r)."""
+        return interact(state.mu, self.tpm, state.x, state.P, [f.model for f in self.filters])
 
     def predict(self, state: IMMState, dt) -> IMMState:
         x0, P0, c = self.mix(state)

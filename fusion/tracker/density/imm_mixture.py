@@ -9,7 +9,8 @@ recursion and the association are unchanged: they only see the track likelihoods
 
 Per batch, for the components of the tracks in coverage over their dt:
 
-1. **Interaction** (eq. 15-17): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
+1. **Interaction** (eq. 15-17, :func:`fusion.filters.imm_interaction.interact`, the one
+   IMM interaction of skyfuse): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
    Π_T per period T, fractional power by eigendecomposition); c_j = Σ_i Π_ij μ_i,
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
    common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
@@ -52,13 +53,10 @@ import numba
 import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
+from skyfuse.fusion.filters.imm_interaction import interact, same_layout
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import update_with_innovation
-from skyfuse.fusion.filters.moment_matching import (
-    moment_match,
-    moment_match_rows,
-    moment_match_rows_each,
-)
+from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
 from skyfuse.fusion.filters.small_spd import largest_eigenvalue
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
@@ -294,7 +292,7 @@ class IMMMixtureDensity:
         self.reach = ReachGate(reach_speed, ndim)
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
-        self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
+        self.same_layout = same_layout(self.models)
         r = len(self.models)
         self.slots = ComponentSlots(
             IMMComponents(
@@ -329,11 +327,6 @@ class IMMMixtureDensity:
 
     def _native(self, j: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return (x, P) if self.same_layout else from_common(self.models[j], x, P)
-
-    def _stack_common(self, comp: IMMComponents) -> tuple[np.ndarray, np.ndarray]:
-        """All modes in the common layout: (C, r, dc), (C, r, dc, dc)."""
-        pairs = [self._common(j, comp.x[j], comp.P[j]) for j in range(self.r)]
-        return np.stack([a for a, _ in pairs], axis=1), np.stack([b for _, b in pairs], axis=1)
 
     # ------------------------------------------------------------------ tracks
     def add(self, x: np.ndarray, P: np.ndarray) -> None:
@@ -376,18 +369,10 @@ class IMMMixtureDensity:
     # ------------------------------------------------------------------ predict
     def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
         """Mixing (eq. 15-17) and mode-matched prediction; returns mu = c."""
-        Pi = self.transition(dt)  # (C, r, r)
-        c = np.einsum("ci,cij->cj", comp.mu, Pi)
+        x0, P0, c = interact(comp.mu, self.transition(dt), comp.x, comp.P, self.models)
         xs, Ps = [], []
-        if self.r == 1:
-            mixed = [(comp.x[0], comp.P[0])]
-        else:
-            wmix = comp.mu[:, :, None] * Pi / np.maximum(c[:, None, :], 1e-300)
-            xc, Pc = self._stack_common(comp)
-            xm, Pm = moment_match_rows_each(wmix, xc, Pc)  # every target mode at once
-            mixed = [self._native(j, xm[:, j], Pm[:, j]) for j in range(self.r)]
         for j, model in enumerate(self.models):
-            xj, Pj = self._predict_mode(model, mixed[j][0], mixed[j][1], dt)
+            xj, Pj = self._predict_mode(model, x0[j], P0[j], dt)
             xs.append(xj)
             Ps.append(Pj)
         self._straight_coast(xs, Ps, dt)
