@@ -28,8 +28,9 @@ Per batch, for the components of the tracks in coverage over their dt:
    P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
    track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
-   per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
-   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
+   per-model gating of 003; ``gating = "mixed"``: if the gate of the component's
+   mode-mixed prediction holds it); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G
+   (eq. 18, 4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
    :class:`ReachGate`, eq. C1): a pair whose plot is farther from the track's last fix
    than v_max times the time since, plus √g times the largest σ of the fix and of the
    plot, is dropped first.
@@ -260,7 +261,9 @@ class IMMMixtureDensity:
     models: the r mode models (CV, CoordinatedTurn, Singer; position-measured);
     transition: :class:`ModeTransition`; mu0 (r,): mode probabilities of new tracks;
     init_acceleration: σ (m/s²) of the zero acceleration of new tracks in the common
-    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture."""
+    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture;
+    gating: ``per-mode`` (a plot is gated if any mode's gate holds it, [MZD] §5) or
+    ``mixed`` (the gate of each component's mode-mixed prediction, eq. 20-21 over c)."""
 
     def __init__(
         self,
@@ -275,9 +278,12 @@ class IMMMixtureDensity:
         coast_after: float | None = None,
         coast_step: float = 10.0,
         reach_speed: float | None = None,
+        gating: str = "per-mode",
     ) -> None:
         if transition.r != len(models):
             raise ValueError(f"{len(models)} modes but a {transition.r}-mode transition matrix")
+        if gating not in ("per-mode", "mixed"):
+            raise ValueError(f"gating = {gating!r}: must be 'per-mode' or 'mixed'")
         self.models = list(models)
         self.transition = transition
         self.mu0 = np.asarray(mu0, dtype=np.float64) / np.sum(mu0)
@@ -290,6 +296,7 @@ class IMMMixtureDensity:
         self.coast_after = coast_after
         self.coast_step = coast_step
         self.reach = ReachGate(reach_speed, ndim)
+        self.gating = gating
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
         self.same_layout = same_layout(self.models)
@@ -428,8 +435,11 @@ class IMMMixtureDensity:
         uid = self._next_uid + np.arange(m, dtype=np.int64)
         self._next_uid += m
         C, r = pred.y.shape[:2]
-        g_pairs = gate(pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), z, R, g)
-        key = np.unique((g_pairs.state // r) * max(m, 1) + g_pairs.plot)
+        y, HPH, per = pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), r
+        if self.gating == "mixed":  # one gate per component: its mode-mixed prediction
+            (y, HPH), per = moment_match_rows(pred.comp.mu, pred.y, pred.HPH), 1
+        g_pairs = gate(y, HPH, z, R, g)
+        key = np.unique((g_pairs.state // per) * max(m, 1) + g_pairs.plot)
         pc, pp = key // max(m, 1), key % max(m, 1)
         if pred.since is not None and len(pp):
             sigma_z = largest_sigma(R)[pp]  # once per plot, not per pair
@@ -610,11 +620,20 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         other = Singer(tau=cfg.imm_singer_tau, sigma_m=cfg.imm_singer_sigma_m, ndim=ndim)
     else:
         raise ValueError(f"IMM second model {second!r}: must be 'ct' or 'singer'")
+    return configured_density(cfg, [cv, other], cfg.imm_tpm, cfg.imm_mu0)
+
+
+def configured_density(cfg, models: list, tpm, mu0) -> IMMMixtureDensity:
+    """An IMM density of the ``models`` with the transition matrix ``tpm`` (r², row-major)
+    per ``imm_tpm_period``, mode probabilities ``mu0`` of new tracks and every other
+    setting (memory, pruning, initial acceleration, coasting, reachability, gating) from
+    the TrackerConfig ``cfg``."""
+    r = len(models)
     return IMMMixtureDensity(
-        [cv, other],
-        ModeTransition(np.reshape(cfg.imm_tpm, (2, 2)), cfg.imm_tpm_period),
-        cfg.imm_mu0,
-        ndim,
+        models,
+        ModeTransition(np.reshape(tpm, (r, r)), cfg.imm_tpm_period),
+        mu0,
+        cfg.ndim,
         cfg.memory_depth,
         cfg.prune_threshold,
         cfg.max_components,
@@ -622,4 +641,5 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         cfg.imm_coast_after,
         cfg.imm_coast_step,
         cfg.v_max if cfg.reach_gate else None,
+        cfg.imm_gating,
     )
