@@ -145,3 +145,114 @@ def test_the_three_model_motion_needs_three_modes_and_runs_with_them():
     )  # fmt: skip
     d = make_density(cfg)
     assert [type(m).__name__ for m in d.models] == ["ConstantVelocity", "Singer", "CoordinatedTurn"]
+
+
+IMM3 = {
+    "imm_q_cv": (G0 / 2) ** 2, "imm_singer_tau": 10.0, "imm_singer_sigma_m": 2 * G0,
+    "imm_ct_sigma_a": 2.0, "imm_ct_sigma_omega": 0.02,
+    "imm_tpm": [0.9, 0.05, 0.05, 0.05, 0.9, 0.05, 0.05, 0.05, 0.9],
+}  # fmt: skip
+"""[Dikić]'s three-model IMM with the parameters of the crossing-4g baseline."""
+
+
+def _density(motion, **settings):
+    cfg = TrackerConfig(
+        tracker="gnn", motion=motion, imm_tpm_period=T, reach_gate=False, imm_coast_after=None,
+        imm_init_acceleration=10.0, **settings,
+    )  # fmt: skip
+    return make_density(cfg)
+
+
+def _own_plots(density, z, R, start):
+    """n tracks, each updated with its own plot z[i, k] (n, steps, m) of every scan k ≥
+    ``start``; returns the mean mode probabilities after each scan."""
+    n = z.shape[0]
+    rows = np.arange(n)
+    mus = []
+    for k in range(start, z.shape[1]):
+        pred = density.predict(rows, np.full(n, T))
+        table = density.likelihoods(pred, z[:, k], np.broadcast_to(R, (n, *R.shape)), 1e4)
+        own = table.tp_plot == pred.rows[table.tp_track]
+        assert own.sum() == n
+        density.update(pred, table, np.zeros(n), own.astype(float))
+        for P in density.comp.P:
+            assert np.isfinite(P).all()
+        mus.append(density.mode_probabilities(rows).mean(axis=0))
+    return np.array(mus)
+
+
+def _turning_truth(n_runs, rng, steps=20, turn=(8, 11)):
+    """Straight flight at 300 m/s, then a 4 g turn between scans turn[0] and turn[1]."""
+    pos, v = np.array([0.0, 0.0]), np.array([300.0, 0.0])
+    out = []
+    for k in range(steps):
+        for _ in range(400):
+            if turn[0] <= k < turn[1]:
+                v = v + 4 * G0 * np.array([-v[1], v[0]]) / np.linalg.norm(v) * 0.01
+            pos = pos + v * 0.01
+        out.append(pos.copy())
+    truth = np.array(out)
+    return truth, truth[None] + rng.normal(0, 50.0, (n_runs, steps, 2)), np.eye(2) * 50.0**2
+
+
+@pytest.mark.parametrize(
+    "motion,settings",
+    [
+        ("imm-pcwpa", {"imm_tpm": [0.95, 0.05, 0.1, 0.9], "imm_mu0": [0.9, 0.1]}),
+        ("imm-cv-singer-ct", IMM3 | {"imm_mu0": [0.9, 0.05, 0.05]}),
+    ],
+)
+def test_the_manoeuvre_modes_take_over_during_a_4g_turn(motion, settings):
+    from skyfuse.fusion.filters.initiation import two_point
+
+    density = _density(motion, **settings)
+    n = 100
+    truth, z, R = _turning_truth(n, np.random.default_rng(6))
+    density.add(*two_point(z[:, 0], R, z[:, 1], R, T))
+    mus = _own_plots(density, z, R, 2)  # index k − 2
+    cv_before = mus[4 - 2 : 6 - 2, 0].mean()  # scans 4-5
+    cv_during = mus[9 - 2 : 11 - 2, 0].mean()  # scans 9-10
+    assert cv_before > 0.6
+    assert cv_during < cv_before - 0.3
+    x, _ = density.estimate(np.arange(n))
+    err = np.linalg.norm(x[:, [0, 2]] - truth[-1], axis=1)
+    assert np.sqrt((err**2).mean()) < 200
+
+
+def test_the_three_model_imm_from_a_one_point_start_converges_without_blowing_up():
+    """Zero initial velocity leaves the turn mode's course undefined: the conversion falls
+    back to an uninformative course instead of exploding (1e7 m errors once)."""
+    from skyfuse.fusion.filters.initiation import one_point
+
+    density = _density("imm-cv-singer-ct", **IMM3, imm_mu0=[1.0, 1.0, 1.0])
+    rng = np.random.default_rng(11)
+    n = 50
+    R = np.eye(2) * 100.0**2
+    truth = np.array([30_000.0, 30_000.0]) + np.arange(10)[:, None] * T * np.array([-220.0] * 2)
+    z = truth[None] + rng.normal(0, 100.0, (n, 10, 2))
+    density.add(*one_point(z[:, 0], R, 350.0**2))
+    _own_plots(density, z, R, 1)
+    x, _ = density.estimate(np.arange(n))
+    err = np.linalg.norm(x[:, [0, 2]] - truth[-1], axis=1)
+    assert np.sqrt((err**2).mean()) < 150
+
+
+def test_the_three_model_imm_with_the_altitude_channel_tracks_a_climbing_target():
+    from skyfuse.fusion.filters.initiation import two_point
+
+    density = _density("imm-cv-singer-ct", **IMM3, imm_mu0=[1.0, 1.0, 1.0], ndim=3, q_vertical=1.0)
+    assert density.models[0].labels == ("x", "vx", "y", "vy", "z", "vz")
+    rng = np.random.default_rng(12)
+    n = 40
+    R = np.diag([80.0**2, 80.0**2, 30.0**2])
+    truth = np.array([10_000.0, 20_000.0, 3000.0]) + np.arange(12)[:, None] * T * np.array(
+        [250.0, -100.0, 10.0]
+    )
+    z = truth[None] + rng.normal(size=(n, 12, 3)) * np.sqrt(np.diag(R))
+    density.add(*two_point(z[:, 0], R, z[:, 1], R, T))
+    _own_plots(density, z, R, 2)
+    x, _ = density.estimate(np.arange(n))
+    assert x.shape == (n, 6)
+    np.testing.assert_allclose(x[:, 5].mean(), 10.0, atol=3.0)  # climb rate
+    err = np.linalg.norm(x[:, [0, 2, 4]] - truth[-1], axis=1)
+    assert np.sqrt((err**2).mean()) < 100
