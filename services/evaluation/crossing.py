@@ -28,14 +28,14 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
 G0 = 9.80665
-TURN_START_S, TURN_END_S = 34.0, 42.0  # crossing-4g defaults (spec 01 §7), for the windows
+TURN_START_S, TURN_END_S = 34.0, 42.0  # crossing-4g defaults ([MZD] §2), for the windows
 
 FILTER_HELP = {
     "kf": "PCWPA (CV) KF, σ = --kf-sigma",
     "singer": "Singer KF (τ, A_max, P_max, P_0)",
     "imm2": "two-model PCWPA IMM, σ = g/2 and 2g, the source's printed TPM (p22 = 0.1)",
     "imm2-p22": "the same IMM with p22 = 0.9",
-    "imm3": "three-model IMM: CV + Singer + coordinated turn (spec 01 §4-5)",
+    "imm3": "three-model IMM: CV + Singer + coordinated turn ([Dikić])",
 }
 
 
@@ -118,11 +118,7 @@ def baseline_settings(name: str, cfg: CrossingEvalConfig, scan_period: float) ->
     plots no track takes, the filter's motion and parameters (module docstring); the IMM
     transition matrices are per scan (``scan_period`` s)."""
     from skyfuse.fusion.models import Singer
-    from skyfuse.fusion.tracker.density.source_motions import (
-        G0,
-        SOURCE_TPM_IMM2,
-        TYPICAL_TPM_IMM2,
-    )
+    from skyfuse.fusion.tracker.density.source_motions import SOURCE_TPM_IMM2, TYPICAL_TPM_IMM2
 
     common = {
         "tracker": "gnn", "life_cycle": "m_of_n", "confirm_m_of_n": [2, 3], "max_misses": 3,
