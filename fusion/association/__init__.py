@@ -1,6 +1,6 @@
-"""Data association: vectorised gating, optimal assignment (auction with ε-scaling and
-scipy's Jonker-Volgenant, both with "no assignment" options) and the GNN tracker with
-M-of-N confirmation (spec 01 §6)."""
+"""Data association: vectorised gating and optimal assignment (auction with ε-scaling and
+scipy's Jonker-Volgenant, both with "no assignment" options; spec 01 §6). The trackers
+that use them are in :mod:`fusion.tracker` (the GNN of [MZD] is its ``gnn`` kind)."""
 
 from .assignment import (
     Assignment,
@@ -12,16 +12,10 @@ from .assignment import (
     track_clusters,
 )
 from .gating import GatedPairs, gate, gate_threshold
-from .gnn import CONFIRMED, TENTATIVE, GNNConfig, GNNTracker, ScanReport
 
 __all__ = [
-    "CONFIRMED",
-    "TENTATIVE",
     "Assignment",
-    "GNNConfig",
-    "GNNTracker",
     "GatedPairs",
-    "ScanReport",
     "assign_auction",
     "assign_jv",
     "assign_sparse",

@@ -1,7 +1,7 @@
 """Batched Gaussian track states: ``x`` (n, d), ``P`` (n, d, d).
 
-A small container with the index operations a tracker needs (take a subset, write a
-subset back, concatenate), so that filters work on arrays over all tracks."""
+A small container (shapes checked) so that the single-model filters of
+:mod:`fusion.filters.model_filter` work on arrays over all tracks."""
 
 from __future__ import annotations
 
@@ -28,19 +28,3 @@ class GaussianState:
 
     def __len__(self) -> int:
         return self.x.shape[0]
-
-    def take(self, idx) -> GaussianState:
-        return GaussianState(self.x[idx], self.P[idx])
-
-    def put(self, idx, other: GaussianState) -> None:
-        self.x[idx] = other.x
-        self.P[idx] = other.P
-
-    @staticmethod
-    def concat(states: list[GaussianState]) -> GaussianState:
-        return GaussianState(
-            np.concatenate([s.x for s in states]), np.concatenate([s.P for s in states])
-        )
-
-    def copy(self) -> GaussianState:
-        return GaussianState(self.x.copy(), self.P.copy())

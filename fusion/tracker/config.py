@@ -77,6 +77,23 @@ class TrackerConfig(BaseModel):
         description="Scans with a plot (weight > 0.5) after initiation before confirmation "
         "(spec 02 §8: above τ_c 'long enough')",
     )
+    life_cycle: Literal["existence", "m_of_n"] = Field(
+        "existence",
+        description="Confirmation and termination by existence (tau_confirm, tau_terminate) or "
+        "by counting scans (m_of_n: confirm_m_of_n, max_misses; the classical GNN life cycle, "
+        "existence is then computed but decides nothing)",
+    )
+    confirm_m_of_n: list[int] = Field(
+        [2, 3],
+        description="life_cycle m_of_n: confirm a tentative track with a plot in M of its first "
+        "N scans in coverage (the scan that started it is one), delete it when it no longer can",
+    )
+    max_misses: int = Field(
+        3,
+        ge=1,
+        description="life_cycle m_of_n: end a confirmed track after this many consecutive scans "
+        "in coverage without a plot",
+    )
     initiation: Literal["two_point", "one_point", "none"] = Field(
         "two_point", description="Track initiation: two_point (3.25-3.27), one_point, none"
     )
@@ -227,6 +244,11 @@ class TrackerConfig(BaseModel):
         "aircraft flies straight; fusion/tracker/density/imm_mixture.py); None: one step",
     )
     imm_coast_step: float = Field(10.0, gt=0.0, description="IMM: step of a coast's prediction, s")
+    imm_gating: Literal["per-mode", "mixed"] = Field(
+        "per-mode",
+        description="IMM: a plot is gated if any mode's gate holds it (per-mode, [MZD] §5) or if "
+        "the gate of the mode-mixed prediction does (mixed)",
+    )
     reach_gate: bool = Field(
         True,
         description="IMM: a plot farther from the track's last fix than v_max × the time "
@@ -273,6 +295,9 @@ class TrackerConfig(BaseModel):
                 f"imm_tpm has {len(self.imm_tpm)} entries and imm_mu0 = {self.imm_mu0}: need "
                 f"{r}x{r} = {r * r} transition probabilities and non-negative mode weights"
             )
+        m_of_n = self.confirm_m_of_n
+        if len(m_of_n) != 2 or not 1 <= m_of_n[0] <= m_of_n[1]:
+            raise ValueError(f"confirm_m_of_n = {m_of_n}: must be [M, N] with 1 <= M <= N")
         if self.init_min_dt >= self.init_max_dt:
             raise ValueError(
                 f"init_min_dt = {self.init_min_dt} s must be below init_max_dt = "

@@ -3,6 +3,11 @@
 * Confirm when ψ_{k|k} ≥ τ_c (and the track had at least ``min_updates`` scans with a
   plot); confirmation is kept until termination (hysteresis).
 * Terminate when ψ < τ_t.
+* Or, with ``life_cycle = "m_of_n"``, by counting scans (the classical GNN life cycle of
+  [MZD] §1: tracks not confirmed by new plots within a time window are deleted): confirm
+  a tentative track with a plot in M of its first N scans in coverage (the scan that
+  started it is one), delete it once M can no longer be reached, and end a confirmed
+  track after ``max_misses`` consecutive scans without a plot.
 * Duplicates: two tracks whose most likely plot in this batch is the same one and whose
   state estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target (targets in
   formation keep their own plots and are not merged); the weaker is deleted
@@ -27,6 +32,28 @@ def to_confirm(
 
 def to_terminate(psi: np.ndarray, tau_t: float) -> np.ndarray:
     return psi < tau_t
+
+
+def to_confirm_m_of_n(confirmed: np.ndarray, updates: np.ndarray, m: int) -> np.ndarray:
+    """Tentative tracks with M scans with a plot: ``updates`` after the one that started
+    them (a tentative track past its first N scans has been deleted already)."""
+    return ~confirmed & (updates + 1 >= m)
+
+
+def to_terminate_by_count(
+    confirmed: np.ndarray,
+    updates: np.ndarray,
+    scans: np.ndarray,
+    misses: np.ndarray,
+    m_of_n: tuple[int, int],
+    max_misses: int,
+) -> np.ndarray:
+    """Tentative tracks that cannot reach M plots in their first N ``scans`` any more
+    (plots so far + scans left < M), and confirmed tracks with ``max_misses`` consecutive
+    ``misses``."""
+    m, n = m_of_n
+    hopeless = ~confirmed & (updates + 1 + np.maximum(n - scans, 0) < m)
+    return hopeless | (confirmed & (misses >= max_misses))
 
 
 def shared_plot_pairs(tp_track: np.ndarray, tp_plot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,9 @@ is one new module plus one ``register_*`` call here.
   (particle clouds, :class:`fusion.particles.density.ParticleDensity`, spec 02 §6 and
   spec 04 A.2, over the ``single`` / ``lm`` associations);
 * motions: ``cv`` (constant velocity, :class:`GaussianMixtureDensity`), ``imm-cv-ct``
-  and ``imm-cv-singer`` (:class:`IMMMixtureDensity`, spec 01 §5 inside every component).
+  and ``imm-cv-singer`` (:class:`IMMMixtureDensity`, spec 01 §5 inside every component);
+  the filters of [MZD] and [Dikić]: ``singer``, ``imm-pcwpa``, ``imm-cv-singer-ct``
+  (:mod:`fusion.tracker.density.source_motions`).
 """
 
 from __future__ import annotations
@@ -108,6 +110,15 @@ def _imm_density(second: str):
     return factory
 
 
+def _source_motion(name: str):
+    def factory(cfg):
+        from .density import source_motions
+
+        return getattr(source_motions, name)(cfg)
+
+    return factory
+
+
 def _particle_density(cfg):
     from skyfuse.fusion.particles.density import ParticleDensity  # lazy: no import cycle
 
@@ -132,3 +143,12 @@ register_tracker("lmipf", "lm", False, "LM-IPF, particle clouds", _particle_dens
 register_motion("cv", _cv_density, "constant velocity")
 register_motion("imm-cv-ct", _imm_density("ct"), "IMM of CV and coordinated turn")
 register_motion("imm-cv-singer", _imm_density("singer"), "IMM of CV and Singer")
+register_motion("singer", _source_motion("singer_density"), "Singer KF ([MZD])")
+register_motion(
+    "imm-pcwpa", _source_motion("imm_pcwpa_density"), "IMM of two PCWPA, σ = g/2 and 2g ([MZD])"
+)
+register_motion(
+    "imm-cv-singer-ct",
+    _source_motion("imm_cv_singer_ct_density"),
+    "IMM of CV, Singer and coordinated turn ([Dikić]; 3x3 imm_tpm)",
+)

@@ -39,7 +39,14 @@ from .density.base import GatedTable, Prediction, TrackDensity
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
 from .ipda import AssociationResult
-from .management import duplicates, shared_plot_pairs, to_confirm, to_terminate
+from .management import (
+    duplicates,
+    shared_plot_pairs,
+    to_confirm,
+    to_confirm_m_of_n,
+    to_terminate,
+    to_terminate_by_count,
+)
 from .measurements import MeasurementBatch
 from .oosm_pass import OutOfSequence
 from .registry import ASSOCIATIONS, make_density
@@ -159,8 +166,10 @@ class Tracker:
 
     Track arrays (rows aligned with ``self.density``): ids, exist (n, 2) Markov-chain
     state, t_last (ns), confirmed, updates, radar_mask, last_update (ns), height (m, of
-    the last plot, NaN unknown) and coast_from (ns: the last plot or the last batch that
-    found the track in a cone of silence; ``max_coast`` counts from it)."""
+    the last plot, NaN unknown), coast_from (ns: the last plot or the last batch that
+    found the track in a cone of silence; ``max_coast`` counts from it), scans (batches
+    that saw the track, the one that started it included) and misses (consecutive of them
+    without a plot; both for ``life_cycle = "m_of_n"``)."""
 
     def __init__(self, config: TrackerConfig | None = None) -> None:
         self.cfg = cfg = config or TrackerConfig()
@@ -192,6 +201,8 @@ class Tracker:
         self.fix_x = np.zeros((0, self.d))
         self.fix_P = np.zeros((0, self.d, self.d))
         self.fix_t = np.zeros(0, np.int64)
+        self.scans = np.zeros(0, np.int64)
+        self.misses = np.zeros(0, np.int64)
         self.terminated = TerminatedTracks(
             self.model,
             cfg.reid_max_gap or 0.0,
@@ -248,7 +259,7 @@ class Tracker:
 
     _ARRAYS = (
         "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
-        "height", "coast_from", "born", "fix_x", "fix_P", "fix_t",
+        "height", "coast_from", "born", "fix_x", "fix_P", "fix_t", "scans", "misses",
     )  # fmt: skip
 
     def _remove(self, keep: np.ndarray) -> None:
@@ -276,6 +287,8 @@ class Tracker:
             "fix_x": x,
             "fix_P": P,
             "fix_t": t,
+            "scans": np.ones(nn, np.int64),
+            "misses": zeros,
         }
         self._next_id += nn
         for name in self._ARRAYS:
@@ -429,6 +442,9 @@ class Tracker:
         """Update counters of detected tracks (weight of a plot > 0.5) and return each
         track's most likely plot of the batch (−1: none, or β₀ larger)."""
         hit = sel[(1.0 - res.beta0) > 0.5]
+        self.scans[sel] += 1
+        self.misses[sel] += 1
+        self.misses[hit] = 0
         self.updates[hit] += 1
         self.radar_mask[hit] |= bit
         self.last_update[hit] = t_pred[hit]
@@ -505,10 +521,13 @@ class Tracker:
         """Confirmation of the updated tracks (hysteresis: never revoked)."""
         cfg = self.cfg
         psi_sel = self.chain.existence(self.exist[sel]) if len(sel) else np.zeros(0)
-        conf = to_confirm(
-            psi_sel, self.confirmed[sel], self.updates[sel], cfg.tau_confirm,
-            cfg.confirm_min_updates,
-        )  # fmt: skip
+        if cfg.life_cycle == "m_of_n":
+            conf = to_confirm_m_of_n(self.confirmed[sel], self.updates[sel], cfg.confirm_m_of_n[0])
+        else:
+            conf = to_confirm(
+                psi_sel, self.confirmed[sel], self.updates[sel], cfg.tau_confirm,
+                cfg.confirm_min_updates,
+            )  # fmt: skip
         rows = sel[conf & keep[sel]]
         self.confirmed[rows] = True
         psi_rows = self.chain.existence(self.exist[rows]) if len(rows) else np.zeros(0)
@@ -571,7 +590,15 @@ class Tracker:
         psi_now = np.ones(self.n)
         if len(rows):  # (usually none: every track's bound is above τ_t)
             psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
-        term = (to_terminate(psi_now, cfg.tau_terminate) | coasting) & keep
+        ended, why = to_terminate(psi_now, cfg.tau_terminate), "existence below tau_t"
+        if cfg.life_cycle == "m_of_n":  # the counts decide, not ψ (reported as it is)
+            psi_now = self.existence()
+            ended = to_terminate_by_count(
+                self.confirmed, self.updates, self.scans, self.misses, cfg.confirm_m_of_n,
+                cfg.max_misses,
+            )  # fmt: skip
+            why = "max_misses scans without a plot"
+        term = (ended | coasting) & keep
         for r in np.flatnonzero(term & self.confirmed):
             events.append(
                 TrackEventRecord(
@@ -579,7 +606,7 @@ class Tracker:
                     "terminated",
                     int(self.ids[r]),
                     float(psi_now[r]),
-                    reason="no plot for max_coast" if coasting[r] else "existence below tau_t",
+                    reason="no plot for max_coast" if coasting[r] else why,
                 )
             )
         stats["terminated"] = int(term.sum())

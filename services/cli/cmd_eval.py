@@ -76,7 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     t = p.add_argument_group(
         "tracker settings (scenario runs: override the source's settings; FILE.mcap: the tracker)"
     )
-    add_model_arguments(t, TrackerConfig, skip=("p_gate",))
+    add_model_arguments(t, TrackerConfig, skip=("p_gate", "imm_gating"))
     r = p.add_argument_group("ASTERIX recordings (FILE.ast, FILE.pcap)")
     r.add_argument(
         "--sites", type=Path, default=None, help="Sites TOML ([[radar]] sac, sic, lat, lon, alt)"
@@ -136,7 +136,7 @@ def run_crossing(args: argparse.Namespace) -> int:
 
     print(
         f"crossing-4g: {cfg.runs} runs, σ_θ = {cfg.sigma_az_mrad} mrad, filters "
-        f"{','.join(cfg.filters)}, solver {cfg.solver}, {cfg.workers} worker(s)"
+        f"{','.join(cfg.filters)}, {cfg.workers} worker(s)"
     )
     summary, results = evaluate_crossing(cfg, progress)
     elapsed = time.perf_counter() - t0

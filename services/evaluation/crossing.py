@@ -1,10 +1,18 @@
-"""crossing-4g (spec 01 §7, source 003): two targets crossing with opposite 4 g turns, one
-2-D radar, σ_r = 20 m, σ_θ 2.5 or 6 mrad, GNN association with the filters compared in the
-source (PCWPA KF, Singer KF, two-model IMM), plus the IMM with p22 = 0.9 and the three-model
-CV/Singer/CT IMM; and any existence tracker of :mod:`fusion.tracker` with any motion
-density, named ``KIND:MOTION`` (e.g. ``jipda:imm-cv-ct``, ``ipda:cv``; spec 02-03 with the
-IMM of spec 01 §5 inside). Position RMSE per scan per filter, runs in which the two tracks
-swap or are lost. Every filter sees the same simulated plots in a run (seed + run index).
+"""crossing-4g ([MZD] §2, §4): two targets crossing with opposite 4 g turns, one 2-D
+radar, σ_r = 20 m, σ_θ 2.5 or 6 mrad, GNN association with the filters compared in the
+source (PCWPA KF, Singer KF, two-model IMM), plus the IMM with p22 = 0.9 and [Dikić]'s
+three-model CV/Singer/CT IMM; and any tracker of :mod:`fusion.tracker` with any motion
+density, named ``KIND:MOTION`` (e.g. ``jipda:imm-cv-ct``, ``ipda:cv``). Position RMSE per
+scan per filter, runs in which the two tracks swap or are lost. Every filter sees the same
+simulated plots in a run (seed + run index).
+
+Every filter runs in :class:`fusion.tracker.Tracker`. The source's filters (the baseline,
+:func:`baseline_settings`) are the ``gnn`` kind with the classical life cycle
+(``life_cycle = "m_of_n"``: a one-point tentative track from every unassigned plot,
+confirmed with plots in 2 of its first 3 scans, deleted after 3 consecutive misses; [MZD]
+§1 deletes tracks without new plots within a time window, the counts are [IMPL]) and the
+motions ``cv`` (q = σ²), ``singer``, ``imm-pcwpa`` and ``imm-cv-singer-ct``
+(:mod:`fusion.tracker.density.source_motions`).
 """
 
 from __future__ import annotations
@@ -20,14 +28,14 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
 G0 = 9.80665
-TURN_START_S, TURN_END_S = 34.0, 42.0  # crossing-4g defaults (spec 01 §7), for the windows
+TURN_START_S, TURN_END_S = 34.0, 42.0  # crossing-4g defaults ([MZD] §2), for the windows
 
 FILTER_HELP = {
     "kf": "PCWPA (CV) KF, σ = --kf-sigma",
     "singer": "Singer KF (τ, A_max, P_max, P_0)",
     "imm2": "two-model PCWPA IMM, σ = g/2 and 2g, the source's printed TPM (p22 = 0.1)",
     "imm2-p22": "the same IMM with p22 = 0.9",
-    "imm3": "three-model IMM: CV + Singer + coordinated turn (spec 01 §4-5)",
+    "imm3": "three-model IMM: CV + Singer + coordinated turn ([Dikić])",
 }
 
 
@@ -60,10 +68,11 @@ class CrossingEvalConfig(BaseModel):
     seed: int = Field(1, ge=0, description="Seed; run r uses seed·100003 + r")
     out: Path | None = Field(None, description="Directory for the table and PNG figures")
     workers: int = Field(1, ge=1, le=64, description="Worker processes")
-    solver: Literal["auction", "jv"] = Field("auction", description="GNN assignment solver")
     p_gate: float = Field(0.9997, gt=0, lt=1, description="Gate probability P_G")
     imm_gating: Literal["mixed", "per-mode"] = Field(
-        "per-mode", description="IMM gating: one matrix per mode (003) or mode-mixed"
+        "per-mode",
+        description="IMM gating of the baseline filters: any mode's gate ([MZD] §5) or the "
+        "mode-mixed prediction's",
     )
     kf_sigma: float = Field(
         G0, gt=0, description="PCWPA KF acceleration σ, m/s² (source: not given; g)"
@@ -95,29 +104,47 @@ class CrossingEvalConfig(BaseModel):
 # --------------------------------------------------------------------------------------
 # crossing-4g: the computation (no I/O)
 # --------------------------------------------------------------------------------------
-def make_filter(name: str, cfg: CrossingEvalConfig):
-    from skyfuse.fusion.filters import (
-        SOURCE_TPM_IMM2,
-        TYPICAL_TPM_IMM2,
-        ConvertedMeasurementKF,
-        imm2_pcwpa,
-        imm3_cv_singer_ct,
-    )
-    from skyfuse.fusion.models import ConstantVelocity, Singer
+SIGMA_V = 350.0
+"""σ of the zero velocity of a one-point tentative track, m/s ([IMPL]): the tracker's
+one-point initiation gives σ_v = v_max/√3, so the baseline runs with v_max = σ_v √3."""
+IMM3_TPM = (0.90, 0.05, 0.05, 0.05, 0.90, 0.05, 0.05, 0.05, 0.90)
+"""Transition matrix of the three-model IMM per scan (row-major; [IMPL], the source gives
+none)."""
 
+
+def baseline_settings(name: str, cfg: CrossingEvalConfig, scan_period: float) -> dict:
+    """TrackerConfig settings of a baseline filter (``kf``, ``singer``, ``imm2``,
+    ``imm2-p22``, ``imm3``): GNN, the classical life cycle, one-point initiation from the
+    plots no track takes, the filter's motion and parameters (module docstring); the IMM
+    transition matrices are per scan (``scan_period`` s)."""
+    from skyfuse.fusion.models import Singer
+    from skyfuse.fusion.tracker.density.source_motions import SOURCE_TPM_IMM2, TYPICAL_TPM_IMM2
+
+    common = {
+        "tracker": "gnn", "life_cycle": "m_of_n", "confirm_m_of_n": [2, 3], "max_misses": 3,
+        "initiation": "one_point", "v_max": SIGMA_V * math.sqrt(3.0), "init_free_weight": 1.0,
+        "reid_max_gap": None, "reach_gate": False, "imm_coast_after": None,
+        "imm_init_acceleration": 10.0, "imm_tpm_period": scan_period, "imm_gating": cfg.imm_gating,
+        "p_gate": cfg.p_gate,
+    }  # fmt: skip
     if name == "kf":
-        return ConvertedMeasurementKF(ConstantVelocity(q=cfg.kf_sigma**2), "kf")
+        return common | {"motion": "cv", "q": cfg.kf_sigma**2}
     if name == "singer":
         model = Singer.from_maneuver(
             cfg.singer_tau, cfg.singer_a_max, cfg.singer_p_max, cfg.singer_p_0
         )
-        return ConvertedMeasurementKF(model, "singer")
-    if name == "imm2":
-        return imm2_pcwpa(SOURCE_TPM_IMM2)
-    if name == "imm2-p22":
-        return imm2_pcwpa(TYPICAL_TPM_IMM2)
+        return common | {
+            "motion": "singer", "imm_singer_tau": model.tau, "imm_singer_sigma_m": model.sigma_m,
+        }  # fmt: skip
+    if name in ("imm2", "imm2-p22"):
+        tpm = SOURCE_TPM_IMM2 if name == "imm2" else TYPICAL_TPM_IMM2
+        return common | {"motion": "imm-pcwpa", "imm_tpm": list(tpm), "imm_mu0": [0.5, 0.5]}
     if name == "imm3":
-        return imm3_cv_singer_ct()
+        return common | {
+            "motion": "imm-cv-singer-ct", "imm_q_cv": (G0 / 2) ** 2, "imm_singer_tau": 10.0,
+            "imm_singer_sigma_m": 2 * G0, "imm_ct_sigma_a": 2.0, "imm_ct_sigma_omega": 0.02,
+            "imm_tpm": list(IMM3_TPM), "imm_mu0": [1.0, 1.0, 1.0],
+        }  # fmt: skip
     raise ValueError(f"filter {name!r} is not known")
 
 
@@ -151,10 +178,10 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
     track of a target was deleted or is farther than ``follow_distance`` from both;
     ``first_cross_scan``: the first scan at which a target's track is nearest the other
     target (None if never); and the track positions."""
-    scans, times_ns, tpos, t0, p_d = _simulate(cfg, run)
+    scans, times_ns, tpos, t0, site = _simulate(cfg, run)
     out = {}
     for name in cfg.filters:
-        step = _stepper(name, cfg, t0, p_d)
+        step = _stepper(name, cfg, site)
         t_start = time.process_time()
         out[name] = _score(cfg, step, scans, tpos)
         out[name]["cpu_s"] = time.process_time() - t_start
@@ -163,7 +190,7 @@ def crossing_run(cfg: CrossingEvalConfig, run: int) -> dict:
 
 def _simulate(cfg: CrossingEvalConfig, run: int):
     """Plots of run ``run`` converted to the system frame: [(z, R, t_ns)], scan times,
-    truth positions (n_scans, 2, 2), start time (ns), P_D."""
+    truth positions (n_scans, 2, 2), start time (ns), the radar site."""
     from skyfuse.fusion.frames import SystemFrame, convert_plots
     from skyfuse.fusion.sim import Simulator, build_scenario
 
@@ -180,40 +207,32 @@ def _simulate(cfg: CrossingEvalConfig, run: int):
     times_ns = np.array([t for *_, t in scans], np.int64)
     truth = sim.truth_at(times_ns)
     tpos = np.stack([truth["x"], truth["y"]], axis=-1)  # (n_scans, 2 targets, 2)
-    return scans, times_ns, tpos, sc.start_time, float(site.p_detection)
+    return scans, times_ns, tpos, sc.start_time, site
 
 
-def _stepper(name: str, cfg: CrossingEvalConfig, t0: int, p_d: float):
-    """``step(z, R, t_ns) -> (ids, confirmed (n,) bool, positions (n, 2))`` of a filter:
-    the GNN baseline with a filter of :func:`make_filter`, or an existence tracker
-    ``KIND:MOTION``."""
-    if name in FILTER_HELP:
-        from skyfuse.fusion.association import CONFIRMED, GNNConfig, GNNTracker
-
-        gnn_cfg = GNNConfig(p_gate=cfg.p_gate, solver=cfg.solver, imm_gating=cfg.imm_gating)
-        trk = GNNTracker(make_filter(name, cfg), gnn_cfg)
-
-        def step_gnn(z, R, t_ns):
-            trk.step(z, R, (t_ns - t0) * 1e-9)
-            return trk.ids, trk.status == CONFIRMED, trk.positions()
-
-        return step_gnn
+def _stepper(name: str, cfg: CrossingEvalConfig, site):
+    """``step(z, R, t_ns) -> (ids, confirmed (n,) bool, positions (n, 2))`` of a filter: a
+    :class:`fusion.tracker.Tracker` with the baseline's settings (:func:`baseline_settings`)
+    or, for ``KIND:MOTION``, ``--tracker-config``'s with that kind and motion."""
     from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
 
-    kind, _, motion = name.partition(":")
-    settings = {}
-    if cfg.tracker_config is not None:
-        from skyfuse.services.cli.config import load_toml
+    if name in FILTER_HELP:
+        settings = baseline_settings(name, cfg, site.scan_period)
+    else:
+        kind, _, motion = name.partition(":")
+        settings = {}
+        if cfg.tracker_config is not None:
+            from skyfuse.services.cli.config import load_toml
 
-        settings = load_toml(cfg.tracker_config, "tracker")
-    settings.update(tracker=kind, motion=motion, p_gate=cfg.p_gate)
+            settings = load_toml(cfg.tracker_config, "tracker")
+        settings.update(tracker=kind, motion=motion, p_gate=cfg.p_gate)
     tracker = Tracker(TrackerConfig(**settings))
 
-    def step_existence(z, R, t_ns):
-        out = tracker.step(MeasurementBatch(t_ns, "radar", z, R, p_d, 0.0))
+    def step(z, R, t_ns):
+        out = tracker.step(MeasurementBatch(t_ns, "radar", z, R, float(site.p_detection), 0.0))
         return out.ids, out.confirmed, out.states[:, 0::2][:, :2]
 
-    return step_existence
+    return step
 
 
 def _score(cfg: CrossingEvalConfig, step, scans, tpos) -> dict:

@@ -324,7 +324,7 @@ def _parts_problem(saved: dict) -> str | None:
 
 TRACK_ROWS = (
     "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update", "height",
-    "coast_from",
+    "coast_from", "scans", "misses",
 )  # fmt: skip
 """The tracker's per-track arrays (one row per track, the order of ``ids``)."""
 

@@ -1,5 +1,5 @@
-"""Gating and assignment against brute force; auction == Jonker-Volgenant (hypothesis);
-GNN life cycle on scripted scenes."""
+"""Gating and assignment against brute force; auction == Jonker-Volgenant (hypothesis).
+(The GNN life cycle on scripted scenes: tests/fusion/test_tracker_m_of_n.py.)"""
 
 from __future__ import annotations
 
@@ -10,9 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from skyfuse.fusion.association import (
-    CONFIRMED,
-    GNNConfig,
-    GNNTracker,
     assign_auction,
     assign_jv,
     gate,
@@ -21,8 +18,6 @@ from skyfuse.fusion.association import (
     total_cost,
 )
 from skyfuse.fusion.association.assignment import EPS_FINAL_RELATIVE
-from skyfuse.fusion.filters import ConvertedMeasurementKF, imm2_pcwpa
-from skyfuse.fusion.models import ConstantVelocity
 
 
 def test_gate_threshold_is_the_chi_square_quantile():
@@ -127,83 +122,3 @@ def test_split_clusters_finds_connected_components():
     cl = split_clusters(track, plot, 5, 4)
     got = sorted((tuple(t.tolist()), tuple(p.tolist())) for t, p in cl)
     assert got == [((0, 1), (0, 1)), ((3, 4), (2,))]
-
-
-def _scene(steps, rng, targets, sigma=30.0, false_plot_at=None):
-    T = 4.0
-    scans = []
-    for k in range(steps):
-        z = [p0 + v * T * k + rng.normal(0, sigma, 2) for p0, v in targets]
-        if false_plot_at is not None and k == false_plot_at:
-            z.append(np.array([-40_000.0, 40_000.0]))
-        scans.append((np.array(z), np.broadcast_to(np.eye(2) * sigma**2, (len(z), 2, 2)), T * k))
-    return scans
-
-
-@pytest.mark.parametrize("solver", ["auction", "jv"])
-@pytest.mark.parametrize(
-    "make", [lambda: ConvertedMeasurementKF(ConstantVelocity(q=4.0)), lambda: imm2_pcwpa()]
-)
-def test_gnn_confirms_two_targets_keeps_ids_and_drops_a_false_plot(solver, make):
-    rng = np.random.default_rng(0)
-    targets = [
-        (np.array([0.0, 0.0]), np.array([200.0, 0.0])),
-        (np.array([0.0, 3000.0]), np.array([200.0, -20.0])),
-    ]
-    trk = GNNTracker(make(), GNNConfig(solver=solver))
-    ids_seen = []
-    for z, R, t in _scene(12, rng, targets, false_plot_at=5):
-        rep = trk.step(z, R, t)
-        ids_seen.append(rep.track_ids[rep.assigned_plot >= 0].tolist())
-    assert len(trk) == 2 and (trk.status == CONFIRMED).all()
-    assert sorted(trk.ids.tolist()) == [0, 1]  # the first two tracks survived all along
-    pos = trk.positions()
-    truth = np.array([p0 + v * 44.0 for p0, v in targets])
-    order = np.argsort(pos[:, 1])
-    assert np.abs(pos[order] - truth).max() < 150
-
-
-def test_gnn_deletes_a_confirmed_track_after_max_misses():
-    rng = np.random.default_rng(1)
-    targets = [(np.array([0.0, 0.0]), np.array([200.0, 0.0]))]
-    scans = _scene(10, rng, targets)
-    trk = GNNTracker(ConvertedMeasurementKF(ConstantVelocity(q=4.0)), GNNConfig(max_misses=3))
-    for z, R, t in scans[:5]:
-        trk.step(z, R, t)
-    assert (trk.status == CONFIRMED).sum() == 1
-    deleted_at = None
-    for k, (_, _, t) in enumerate(scans[5:]):
-        rep = trk.step(np.zeros((0, 2)), np.zeros((0, 2, 2)), t)
-        if rep.deleted:
-            deleted_at = k + 1
-            break
-    assert deleted_at == 3 and len(trk) == 0
-
-
-def test_gnn_with_per_mode_imm_gating_keeps_a_4g_turning_target():
-    """003 gates per model: the sharp mode's wider gate keeps the track through a 4 g turn
-    where the mode-mixed gate loses it (T = 4 s, 300 m/s, 100 m noise)."""
-    from skyfuse.fusion.filters import TYPICAL_TPM_IMM2
-
-    T, v, g = 4.0, 300.0, 9.80665
-    pos, vel = np.array([0.0, 0.0]), np.array([v, 0.0])
-    truth = []
-    for k in range(16):
-        for _ in range(400):
-            if 7 <= k < 9:
-                vel = vel + 4 * g * np.array([-vel[1], vel[0]]) / v * 0.01
-            pos = pos + vel * 0.01
-        truth.append(pos.copy())
-    kept = {}
-    for mode in ("per-mode", "mixed"):
-        n_kept = 0
-        for seed in range(6):
-            rng = np.random.default_rng(seed)
-            trk = GNNTracker(imm2_pcwpa(TYPICAL_TPM_IMM2), GNNConfig(imm_gating=mode))
-            for k, p in enumerate(truth):
-                z = (p + rng.normal(0, 100.0, 2))[None]
-                trk.step(z, np.eye(2)[None] * 100.0**2, k * T)
-            n_kept += trk.ids.tolist() == [0]
-        kept[mode] = n_kept
-    assert kept["per-mode"] >= 5
-    assert kept["per-mode"] >= kept["mixed"]

@@ -9,7 +9,8 @@ recursion and the association are unchanged: they only see the track likelihoods
 
 Per batch, for the components of the tracks in coverage over their dt:
 
-1. **Interaction** (eq. 15-17): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
+1. **Interaction** (eq. 15-17, :func:`fusion.filters.imm_interaction.interact`, the one
+   IMM interaction of skyfuse): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
    Π_T per period T, fractional power by eigendecomposition); c_j = Σ_i Π_ij μ_i,
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
    common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
@@ -27,8 +28,9 @@ Per batch, for the components of the tracks in coverage over their dt:
    P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
    track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
-   per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
-   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
+   per-model gating of 003; ``gating = "mixed"``: if the gate of the component's
+   mode-mixed prediction holds it); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G
+   (eq. 18, 4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
    :class:`ReachGate`, eq. C1): a pair whose plot is farther from the track's last fix
    than v_max times the time since, plus √g times the largest σ of the fix and of the
    plot, is dropped first.
@@ -52,13 +54,10 @@ import numba
 import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.ekf import predict as ekf_predict
+from skyfuse.fusion.filters.imm_interaction import interact, same_layout
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import update_with_innovation
-from skyfuse.fusion.filters.moment_matching import (
-    moment_match,
-    moment_match_rows,
-    moment_match_rows_each,
-)
+from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
 from skyfuse.fusion.filters.small_spd import largest_eigenvalue
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
@@ -262,7 +261,9 @@ class IMMMixtureDensity:
     models: the r mode models (CV, CoordinatedTurn, Singer; position-measured);
     transition: :class:`ModeTransition`; mu0 (r,): mode probabilities of new tracks;
     init_acceleration: σ (m/s²) of the zero acceleration of new tracks in the common
-    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture."""
+    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture;
+    gating: ``per-mode`` (a plot is gated if any mode's gate holds it, [MZD] §5) or
+    ``mixed`` (the gate of each component's mode-mixed prediction, eq. 20-21 over c)."""
 
     def __init__(
         self,
@@ -277,9 +278,12 @@ class IMMMixtureDensity:
         coast_after: float | None = None,
         coast_step: float = 10.0,
         reach_speed: float | None = None,
+        gating: str = "per-mode",
     ) -> None:
         if transition.r != len(models):
             raise ValueError(f"{len(models)} modes but a {transition.r}-mode transition matrix")
+        if gating not in ("per-mode", "mixed"):
+            raise ValueError(f"gating = {gating!r}: must be 'per-mode' or 'mixed'")
         self.models = list(models)
         self.transition = transition
         self.mu0 = np.asarray(mu0, dtype=np.float64) / np.sum(mu0)
@@ -292,9 +296,10 @@ class IMMMixtureDensity:
         self.coast_after = coast_after
         self.coast_step = coast_step
         self.reach = ReachGate(reach_speed, ndim)
+        self.gating = gating
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
-        self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
+        self.same_layout = same_layout(self.models)
         r = len(self.models)
         self.slots = ComponentSlots(
             IMMComponents(
@@ -329,11 +334,6 @@ class IMMMixtureDensity:
 
     def _native(self, j: int, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return (x, P) if self.same_layout else from_common(self.models[j], x, P)
-
-    def _stack_common(self, comp: IMMComponents) -> tuple[np.ndarray, np.ndarray]:
-        """All modes in the common layout: (C, r, dc), (C, r, dc, dc)."""
-        pairs = [self._common(j, comp.x[j], comp.P[j]) for j in range(self.r)]
-        return np.stack([a for a, _ in pairs], axis=1), np.stack([b for _, b in pairs], axis=1)
 
     # ------------------------------------------------------------------ tracks
     def add(self, x: np.ndarray, P: np.ndarray) -> None:
@@ -376,18 +376,10 @@ class IMMMixtureDensity:
     # ------------------------------------------------------------------ predict
     def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
         """Mixing (eq. 15-17) and mode-matched prediction; returns mu = c."""
-        Pi = self.transition(dt)  # (C, r, r)
-        c = np.einsum("ci,cij->cj", comp.mu, Pi)
+        x0, P0, c = interact(comp.mu, self.transition(dt), comp.x, comp.P, self.models)
         xs, Ps = [], []
-        if self.r == 1:
-            mixed = [(comp.x[0], comp.P[0])]
-        else:
-            wmix = comp.mu[:, :, None] * Pi / np.maximum(c[:, None, :], 1e-300)
-            xc, Pc = self._stack_common(comp)
-            xm, Pm = moment_match_rows_each(wmix, xc, Pc)  # every target mode at once
-            mixed = [self._native(j, xm[:, j], Pm[:, j]) for j in range(self.r)]
         for j, model in enumerate(self.models):
-            xj, Pj = self._predict_mode(model, mixed[j][0], mixed[j][1], dt)
+            xj, Pj = self._predict_mode(model, x0[j], P0[j], dt)
             xs.append(xj)
             Ps.append(Pj)
         self._straight_coast(xs, Ps, dt)
@@ -443,8 +435,11 @@ class IMMMixtureDensity:
         uid = self._next_uid + np.arange(m, dtype=np.int64)
         self._next_uid += m
         C, r = pred.y.shape[:2]
-        g_pairs = gate(pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), z, R, g)
-        key = np.unique((g_pairs.state // r) * max(m, 1) + g_pairs.plot)
+        y, HPH, per = pred.y.reshape(C * r, k), pred.HPH.reshape(C * r, k, k), r
+        if self.gating == "mixed":  # one gate per component: its mode-mixed prediction
+            (y, HPH), per = moment_match_rows(pred.comp.mu, pred.y, pred.HPH), 1
+        g_pairs = gate(y, HPH, z, R, g)
+        key = np.unique((g_pairs.state // per) * max(m, 1) + g_pairs.plot)
         pc, pp = key // max(m, 1), key % max(m, 1)
         if pred.since is not None and len(pp):
             sigma_z = largest_sigma(R)[pp]  # once per plot, not per pair
@@ -625,11 +620,20 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         other = Singer(tau=cfg.imm_singer_tau, sigma_m=cfg.imm_singer_sigma_m, ndim=ndim)
     else:
         raise ValueError(f"IMM second model {second!r}: must be 'ct' or 'singer'")
+    return configured_density(cfg, [cv, other], cfg.imm_tpm, cfg.imm_mu0)
+
+
+def configured_density(cfg, models: list, tpm, mu0) -> IMMMixtureDensity:
+    """An IMM density of the ``models`` with the transition matrix ``tpm`` (r², row-major)
+    per ``imm_tpm_period``, mode probabilities ``mu0`` of new tracks and every other
+    setting (memory, pruning, initial acceleration, coasting, reachability, gating) from
+    the TrackerConfig ``cfg``."""
+    r = len(models)
     return IMMMixtureDensity(
-        [cv, other],
-        ModeTransition(np.reshape(cfg.imm_tpm, (2, 2)), cfg.imm_tpm_period),
-        cfg.imm_mu0,
-        ndim,
+        models,
+        ModeTransition(np.reshape(tpm, (r, r)), cfg.imm_tpm_period),
+        mu0,
+        cfg.ndim,
         cfg.memory_depth,
         cfg.prune_threshold,
         cfg.max_components,
@@ -637,4 +641,5 @@ def imm_density(cfg, second: str) -> IMMMixtureDensity:
         cfg.imm_coast_after,
         cfg.imm_coast_step,
         cfg.v_max if cfg.reach_gate else None,
+        cfg.imm_gating,
     )

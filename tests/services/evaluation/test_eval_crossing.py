@@ -89,3 +89,31 @@ def test_eval_runs_existence_trackers_with_imm(tmp_path):
     assert "IMM of CV and Singer" in f["description"]
     with pytest.raises(ValueError, match="KIND:MOTION"):
         CrossingEvalConfig(scenario="crossing-4g", filters=["gnn:ukf"])
+
+
+@pytest.mark.parametrize(
+    "name,motion,modes",
+    [("kf", "cv", 0), ("singer", "singer", 1), ("imm2", "imm-pcwpa", 2),
+     ("imm2-p22", "imm-pcwpa", 2), ("imm3", "imm-cv-singer-ct", 3)],
+)  # fmt: skip
+def test_the_baseline_filters_are_configurations_of_the_one_tracker(name, motion, modes):
+    """kf, singer, imm2, imm2-p22, imm3: the ``gnn`` tracker with the M-of-N life cycle,
+    one-point tentative tracks of velocity σ 350 m/s, the filter as its motion, and the
+    IMM gating of ``--imm-gating``."""
+    from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+    from skyfuse.services.evaluation.crossing import SIGMA_V, baseline_settings
+
+    cfg = CrossingEvalConfig(scenario="crossing-4g", imm_gating="mixed")
+    tc = TrackerConfig(**baseline_settings(name, cfg, 4.0))
+    assert (tc.tracker, tc.life_cycle, tc.confirm_m_of_n, tc.max_misses) == (
+        "gnn", "m_of_n", [2, 3], 3
+    )  # fmt: skip
+    assert (tc.motion, tc.initiation, tc.p_gate) == (motion, "one_point", 0.9997)
+    trk = Tracker(tc)
+    assert getattr(trk.density, "r", 0) == modes
+    if modes > 1:
+        assert trk.density.gating == "mixed"
+        assert trk.density.transition.tpm[1, 1] == (0.1 if name == "imm2" else 0.9)
+    trk.step(MeasurementBatch(0, "radar", np.array([[1e4, 2e4]]), np.eye(2)[None], 1.0, 0.0))
+    _, P = trk.estimates()
+    np.testing.assert_allclose(P[0, [1, 3], [1, 3]], SIGMA_V**2, rtol=1e-12)
