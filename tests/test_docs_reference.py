@@ -161,4 +161,5 @@ def test_units_are_read_from_descriptions(ref):
     assert ref.unit_of("Hold each batch this long to order radars, s") == "s"
     assert ref.unit_of("CV acceleration variance, m²/s⁴ (25: turning aircraft)") == "m²/s⁴"
     assert ref.unit_of("Azimuth where the sector sweep starts, rad clockwise from north") == "rad"
+    assert ref.unit_of("Maximum target speed, m/s: two-point pairing") == "m/s"
     assert ref.unit_of("Fusion service id") == ""

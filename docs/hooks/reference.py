@@ -146,7 +146,7 @@ _UNITS = (
     "g",
 )
 _UNIT_RE = re.compile(
-    r",\s*(" + "|".join(re.escape(u) for u in _UNITS) + r")(?=$|[\s;(.,)])", re.UNICODE
+    r",\s*(" + "|".join(re.escape(u) for u in _UNITS) + r")(?=$|[\s;:(.,)])", re.UNICODE
 )
 
 
@@ -173,12 +173,12 @@ def _type_name(ann: object) -> str:
         parts = [_type_name(a) for a in typing.get_args(ann) if a is not type(None)]
         return " | ".join(parts) + (" | None" if type(None) in typing.get_args(ann) else "")
     if origin is typing.Literal:
-        return " \\| ".join(repr(a).replace("'", '"') for a in typing.get_args(ann))
+        return " | ".join(repr(a).replace("'", '"') for a in typing.get_args(ann))
     if origin in (list, tuple, dict, set):
         args = ", ".join(_type_name(a) for a in typing.get_args(ann) if a is not Ellipsis)
         return f"{origin.__name__}[{args}]"
     if inspect.isclass(ann) and issubclass(ann, enum.Enum):
-        return " \\| ".join(f'"{e.value}"' for e in ann)
+        return " | ".join(f'"{e.value}"' for e in ann)
     return getattr(ann, "__name__", str(ann))
 
 
