@@ -31,7 +31,12 @@ PAGES = {
     "reference/cli.md": "cli_markdown",
     "reference/configuration.md": "config_markdown",
     "reference/wire.md": "wire_markdown",
+    "reports/result-tables.md": "result_tables_markdown",
 }
+
+#: Folders of result tables the benchmarks write beside the logs (not pages of the guide:
+#: mkdocs.yml ``not_in_nav``); the generated index links every one of them.
+RESULT_FOLDERS = ("crossing-4g", "reproduction")
 
 
 @dataclass(frozen=True)
@@ -585,6 +590,32 @@ def wire_markdown() -> str:
                 f"| `{fname}` | {_cell(_type_name(f.annotation))} | {_default(f)} | "
                 f"{_cell(unit_of(f.description))} | {_cell(f.description or '')} |"
             )
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------
+# the index of generated result tables
+# --------------------------------------------------------------------------------------
+def result_tables_markdown() -> str:
+    """An index of every Markdown table the benchmarks wrote under ``docs/crossing-4g/``
+    and ``docs/reproduction/``, so that each is reachable from the navigation."""
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[1]
+    lines = [
+        "# Result tables",
+        "",
+        "The tables the evaluation scripts wrote beside their JSON and figures, referred to by "
+        "the [reproduction log](reproduction-log.md) and the [crossing-4g log](crossing-4g-log.md) "
+        "(historical, like them). The current results: [Reproduction](../reproduction.md).",
+        "",
+    ]
+    for folder in RESULT_FOLDERS:
+        lines += [f"## `{folder}/`", ""]
+        for path in sorted((docs / folder).rglob("*.md")):
+            rel = path.relative_to(docs).as_posix()
+            lines.append(f"* [`{path.relative_to(docs / folder).as_posix()}`](../{rel})")
         lines.append("")
     return "\n".join(lines) + "\n"
 
