@@ -352,18 +352,26 @@ def _dest_flags(dest: str, names: tuple[str, ...], commands) -> list[tuple[str, 
     return out
 
 
-def _flag_cell(flags: list[tuple[str, str]]) -> str:
+def _flag_cell(flags: list[tuple[str, str]], every: tuple[str, ...] = ()) -> str:
+    """``--flag`` and the commands that take it (left out when that is all of ``every``,
+    the commands of the table, listed in its heading)."""
     if not flags:
         return "—"
     by_flag: dict[str, list[str]] = {}
     for cname, flag in flags:
         by_flag.setdefault(flag, []).append(cname)
-    return "; ".join(
-        f"`{flag}` ({', '.join(f'[{c}](cli.md#{c})' for c in cs)})" for flag, cs in by_flag.items()
-    )
+    cells = []
+    for flag, cs in by_flag.items():
+        if every and set(cs) == set(every):
+            cells.append(f"`{flag}`")
+        else:
+            cells.append(f"`{flag}` ({', '.join(f'[{c}](cli.md#{c})' for c in cs)})")
+    return "; ".join(cells)
 
 
-def _model_table(model: type[BaseModel], key_prefix: str | None, flags_of) -> list[str]:
+def _model_table(
+    model: type[BaseModel], key_prefix: str | None, flags_of, every: tuple[str, ...] = ()
+) -> list[str]:
     head = (
         "| TOML key | type | default | unit | meaning | flag |"
         if key_prefix is not None
@@ -380,7 +388,7 @@ def _model_table(model: type[BaseModel], key_prefix: str | None, flags_of) -> li
         key = f"`{name}`"
         out.append(
             f"| {key} | {_cell(_type_name(ann))} | {_default(f)} | {_cell(unit_of(f.description))}"
-            f" | {_cell(f.description or '')} | {_flag_cell(flags_of(name))} |"
+            f" | {_cell(f.description or '')} | {_flag_cell(flags_of(name), every)} |"
         )
     for name, sub in nested:
         table = f"[[{key_prefix}.{name}]]" if key_prefix else name
@@ -479,7 +487,9 @@ def config_markdown() -> str:
             f"{t.note} Model: `{model.__module__}.{model.__name__}`.",
             "",
         ]
-        lines += _model_table(model, t.name, flags_of)
+        cmds = ", ".join(f"[{c}](cli.md#{c})" for c in t.commands)
+        lines += [f"Flags: of the commands {cmds} unless the row names others.", ""]
+        lines += _model_table(model, t.name, flags_of, t.commands)
         lines.append("")
     lines += _sites_file_markdown()
     lines += [
