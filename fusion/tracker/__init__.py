@@ -19,6 +19,7 @@ The wire adapter (PlotBatch → MeasurementBatch) lives in
 """
 
 from .config import TrackerConfig
+from .detections import batch_from_positions, batch_from_wgs84
 from .measurements import MeasurementBatch, SectorCoverage
 from .tracker import Tracker, TrackerOutput, TrackEventRecord
 
@@ -29,4 +30,6 @@ __all__ = [
     "Tracker",
     "TrackerConfig",
     "TrackerOutput",
+    "batch_from_positions",
+    "batch_from_wgs84",
 ]
