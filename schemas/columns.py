@@ -8,6 +8,7 @@ Checks run in NumPy so a 500-plot batch validates in microseconds.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -88,6 +89,18 @@ def check_codes(name: str, values: list[int | None], hi: int) -> None:
         for i, v in enumerate(values):
             if v is not None and not 0 <= v <= hi:
                 raise ValueError(f"{name}[{i}] = {v}: must be in 0..{hi}")
+
+
+def check_strings(name: str, values: list[str | None], pattern: re.Pattern, what: str) -> None:
+    """Reject strings (None = absent) that do not match ``pattern`` (``what`` says what
+    they must be); the message names the first offending index and value (its first 20
+    characters)."""
+    match = pattern.match
+    if all(v is None or match(v) for v in values):
+        return
+    for i, v in enumerate(values):
+        if v is not None and not match(v):
+            raise ValueError(f"{name}[{i}] = {v[:20]!r}: must be {what}")
 
 
 def check_non_decreasing(name: str, values: list[int]) -> None:
