@@ -80,6 +80,21 @@ def _within(arr: np.ndarray, lo, hi, hi_open: bool, allow_nan: bool) -> bool:
     return high < hi if hi_open else high <= hi
 
 
+def check_nullable_range(
+    name: str, values: list[float | None], lo: float, hi: float, *, hi_open: bool, unit: str
+) -> None:
+    """Reject values of a nullable float column outside ``[lo, hi]`` (``[lo, hi)`` with
+    ``hi_open``), for columns whose non-finite values the model has already rejected:
+    the minimum and maximum of the values present in plain Python (for the short columns
+    of a sector, 3-10 times cheaper than arrays); a bad value goes to :func:`check_range`
+    for the message naming it."""
+    present = [v for v in values if v is not None]
+    if present:
+        low, high = min(present), max(present)
+        if low < lo or (high >= hi if hi_open else high > hi):
+            check_range(name, values, lo, hi, hi_open=hi_open, allow_nan=True, unit=unit)
+
+
 def check_codes(name: str, values: list[int | None], hi: int) -> None:
     """Reject integer codes outside ``0..hi`` (None = no code; Mode-S addresses,
     Mode-3/A codes): the minimum and maximum of the codes present, then, only when one

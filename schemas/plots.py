@@ -242,12 +242,12 @@ class PlotBatch(WireModel):
         return self
 
     def _check_secondary(self) -> None:
-        """The bounded secondary-surveillance columns (null allowed) and the callsigns."""
+        """The bounded secondary-surveillance columns (null allowed; NaN and inf were
+        rejected by the field types) and the callsigns."""
         for name, lo, hi, hi_open, unit in _SSR_RANGES:
             values = getattr(self, name)
             if values is not None:
-                self._keep(name, col.check_range(name, values, lo, hi, hi_open=hi_open,
-                                                 allow_nan=True, unit=unit))  # fmt: skip
+                col.check_nullable_range(name, values, lo, hi, hi_open=hi_open, unit=unit)
         if self.callsign is not None:
             col.check_strings("callsign", self.callsign, ident.CALLSIGN_RE,
                               "1-8 characters A-Z, 0-9 and inner spaces")  # fmt: skip

@@ -54,6 +54,9 @@ LSB_NM_S = 2.0**-14  # NM/s
 AGE_LSB = 0.25  # s
 AGE_MAX = 255
 
+_KINEMATIC_FIELDS = frozenset(("track_id", "time", "status", "existence", "state",
+                               "covariance", "lat", "lon", "alt", "vel_east", "vel_north",
+                               "vel_up", "speed", "heading", "radars", "updates"))  # fmt: skip
 I380_SLOTS = ("ADR", "ID", "MHG", "IAS", "TAS", "SAL", "FSS", "TIS", "TID", "COM", "SAB", "ACS",
               "BVR", "GVR", "RAN", "TAR", "TAN", "GS", "VUN", "MET", "EMC", "POS", "GAL", "PUN",
               "MB", "IAR", "MAC", "BPS")  # fmt: skip
@@ -193,9 +196,16 @@ def _i340(t: Track) -> dict[str, Any]:
     return out
 
 
+_IDENTITY_FIELDS = frozenset(
+    name for name in Track.model_fields if name not in _KINEMATIC_FIELDS
+)  # fmt: skip
+
+
 def identity_items(t: Track) -> tuple[dict[str, Any], int]:
     """Raw values of I060, I245, I380, I290, I295 and I340 for ``t`` (only those with
     content) and the number of values clipped to their field."""
+    if _IDENTITY_FIELDS.isdisjoint(t.model_fields_set):
+        return {}, 0  # a track made without identity fields: nothing to look at
     raw: dict[str, Any] = {}
     if t.mode_3a is not None:
         raw["060"] = t.mode_3a

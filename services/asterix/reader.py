@@ -111,6 +111,8 @@ SECONDARY_COLUMNS = (
     "flight_status", *(q.name for q in DOWNLINKED),
 )  # fmt: skip
 """The PlotBatch columns a CAT048 plot fills besides geometry, amplitude and codes."""
+_DOWNLINKED = tuple(q.name for q in DOWNLINKED)
+_NO_DOWNLINK = (None,) * len(DOWNLINKED)
 
 
 def flight_level_to_altitude(fl: float) -> float:
@@ -519,10 +521,11 @@ class AsterixStreamDecoder:
         if callsign is not None and not CALLSIGN_RE.match(callsign):
             self.stats["cat048_bad_callsign"] += 1
             callsign = None
+        downlinked = _NO_DOWNLINK if not values else tuple(values.get(n) for n in _DOWNLINKED)
         return (
             plot.mode_3a_not_validated, plot.mode_3a_garbled, plot.mode_3a_smoothed, callsign,
             plot.flight_level, plot.flight_level_not_validated, plot.flight_level_garbled,
-            plot.spi, plot.flight_status, *(values.get(q.name) for q in DOWNLINKED),
+            plot.spi, plot.flight_status, *downlinked,
         )  # fmt: skip
 
     def _fixed_sector_advance(self, radar: _Radar, t: int, az: float) -> None:
