@@ -19,7 +19,8 @@ Per reply (:func:`reply_columns`, the plot columns of :mod:`schemas.identity`):
   value as the ``altitude`` column (Mode C, noisy and quantised by the radar model);
 * with probability ``garble_probability`` each, a reply's code or flight level is
   *garbled*: one random bit of the code flipped, or the level off by a random multiple
-  of 100 ft (up to ±1,000 ft), and the G flag set (so a consumer can drop it);
+  of 100 ft (up to ±1,000 ft), and the G flag set (so a consumer can drop it; the plot
+  of a 2-D radar then has no altitude, as the ASTERIX reader leaves it);
 * downlinked parameters of EHS aircraft from the truth at the plot time: ground speed
   and true track (velocity east/north), track angle rate (the track's change over
   ±0.5 s), roll angle of a coordinated turn φ = atan(V ω / g), inertial and barometric

@@ -162,7 +162,8 @@ def radar_scan(
     ``identity_rng`` (the sensor's own stream for replies, so the plots above do not
     change) also the other secondary-surveillance columns (:mod:`fusion.sim.identity`:
     the code at the plot time, flight level, callsign, garbled replies, downlinked
-    parameters), the reported height of a 2-D radar as the flight level."""
+    parameters), the reported height of a 2-D radar as the flight level; a 2-D plot
+    whose flight level is garbled has no altitude (NaN)."""
     site = cfg.site
     period = site.scan_period
     t0 = cfg.scan_time(k)
@@ -192,6 +193,8 @@ def radar_scan(
             secondary = _secondary(cfg, targets, cand_ok, tt, reported, locate, identity_rng,
                                    cr.size, order)  # fmt: skip
             mode_3a = secondary.pop("mode_3a")
+            if not three_d:  # a garbled Mode C reply gives no altitude (as a reader drops it)
+                third_all = np.where(secondary["flight_level_garbled"], np.nan, third_all)
     return ScanData(
         radar_id=site.radar_id,
         radar_index=radar_index,

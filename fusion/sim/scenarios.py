@@ -422,8 +422,9 @@ _REGIONAL_PARAMS = {
         in_range(0, 1),
     ),
     "garble_probability": Param(
-        0.005,
-        "probability that a reply's Mode-3/A code, or its flight level, is garbled",
+        0.0,
+        "probability that a reply's Mode-3/A code, or its flight level, is garbled (a garbled "
+        "level leaves a 2-D radar's plot without altitude)",
         in_range(0, 1),
     ),
     "area_radius": Param(170_000.0, "radius of the traffic area around the centre, m", positive),

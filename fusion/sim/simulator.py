@@ -136,7 +136,12 @@ class Simulator:
                 if scan.elevation is not None:
                     cols["elevation"] = scan.elevation[sl].tolist()
                 if scan.altitude is not None:
-                    cols["altitude"] = scan.altitude[sl].tolist()
+                    alt = scan.altitude[sl]
+                    cols["altitude"] = (
+                        [None if x != x else x for x in alt.tolist()]
+                        if np.isnan(alt).any()
+                        else alt.tolist()
+                    )
                 for name in ("mode_s", "mode_3a"):
                     v = getattr(scan, name)
                     if v is not None:

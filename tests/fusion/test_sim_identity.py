@@ -64,6 +64,9 @@ def test_mode_s_aircraft_carry_a_callsign_and_a_flight_level(run):
     np.testing.assert_allclose(
         p["flight_level"][two_d], np.round(p["altitude"][two_d] / FL_M * 4) / 4
     )
+    # a garbled level gives no altitude (what the ASTERIX reader makes of it)
+    garbled = mode_s & (p["kind"] == "2d") & p["flight_level_garbled"]
+    assert garbled.sum() > 5 and np.isnan(p["altitude"][garbled]).all()
 
 
 def test_code_changes_take_effect_at_their_time_and_garbled_replies_are_flagged(run):
