@@ -162,8 +162,7 @@ def radar_scan(
     ``identity_rng`` (the sensor's own stream for replies, so the plots above do not
     change) also the other secondary-surveillance columns (:mod:`fusion.sim.identity`:
     the code at the plot time, flight level, callsign, garbled replies, downlinked
-    parameters), the reported height of a 2-D radar as the flight level; a 2-D plot
-    whose flight level is garbled has no altitude (NaN)."""
+    parameters)."""
     site = cfg.site
     period = site.scan_period
     t0 = cfg.scan_time(k)
@@ -193,8 +192,7 @@ def radar_scan(
             secondary = _secondary(cfg, targets, cand_ok, tt, reported, locate, identity_rng,
                                    cr.size, order)  # fmt: skip
             mode_3a = secondary.pop("mode_3a")
-            if not three_d:  # a garbled Mode C reply gives no altitude (as a reader drops it)
-                third_all = np.where(secondary["flight_level_garbled"], np.nan, third_all)
+            third_all = _drop_garbled_levels(third_all, secondary, three_d)
     return ScanData(
         radar_id=site.radar_id,
         radar_index=radar_index,
@@ -214,6 +212,14 @@ def radar_scan(
         mode_3a=None if mode_3a is None else mode_3a.astype(np.int64),
         secondary=secondary,
     )
+
+
+def _drop_garbled_levels(third: np.ndarray, secondary: dict, three_d: bool) -> np.ndarray:
+    """A 2-D radar's plot whose Mode C reply is garbled has no altitude (NaN), as the
+    ASTERIX reader leaves it; a 3-D radar's elevation is not from the reply."""
+    if three_d:
+        return third
+    return np.where(secondary["flight_level_garbled"], np.nan, third)
 
 
 def _secondary(cfg, targets, index, t, height, locate, rng, n_clutter, order) -> dict:
