@@ -1,6 +1,10 @@
 """Encode/decode rate of a 500-plot PlotBatch (JSON via pydantic), the wire format.
 
-python benchmarks/schema_codec.py [--plots 500] [--seconds 2] [--json out.json]
+python benchmarks/schema_codec.py [--plots 500] [--seconds 2] [--secondary] [--json out.json]
+
+``--secondary`` adds the secondary-surveillance columns a Mode S radar's plots carry
+(schemas.identity: codes and flags, callsign, flight level, the downlinked parameters of
+about half the plots), as the ASTERIX reader fills them.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import numpy as np
 from skyfuse.schemas import PlotBatch
 
 
-def make_batch(n: int, seed: int = 0) -> PlotBatch:
+def make_batch(n: int, seed: int = 0, secondary: bool = False) -> PlotBatch:
     rng = np.random.default_rng(seed)
     t0 = 1_767_225_600_000_000_000
     return PlotBatch(
@@ -33,7 +37,35 @@ def make_batch(n: int, seed: int = 0) -> PlotBatch:
         amplitude=rng.uniform(0, 60, n).tolist(),
         mode_s=[int(v) if v > 0.3 else None for v in rng.uniform(0, 1, n)],
         target_id=rng.integers(-1, 100, n).tolist(),
+        **(secondary_columns(n) if secondary else {}),
     )
+
+
+def secondary_columns(n: int, seed: int = 1) -> dict:
+    """Secondary-surveillance columns of ``n`` plots: 80 % with a reply, half of those
+    with downlinked parameters."""
+    from skyfuse.schemas.identity import DOWNLINKED
+
+    rng = np.random.default_rng(seed)
+    reply = rng.random(n) < 0.8
+    ehs = reply & (rng.random(n) < 0.5)
+
+    def where(mask, values):
+        return [v if m else None for m, v in zip(mask.tolist(), values)]
+
+    cols = {
+        "mode_3a": where(reply, rng.integers(0, 4096, n).tolist()),
+        "callsign": where(reply, [f"ABC{i % 9000}" for i in range(n)]),
+        "flight_level": where(reply, (rng.integers(0, 1600, n) / 4).tolist()),
+        "flight_status": where(reply, rng.integers(0, 2, n).tolist()),
+    }
+    for flag in ("mode_3a_not_validated", "mode_3a_garbled", "mode_3a_smoothed",
+                 "flight_level_not_validated", "flight_level_garbled", "spi"):  # fmt: skip
+        cols[flag] = (rng.random(n) < 0.01).tolist()
+    for q in DOWNLINKED:
+        hi = q.hi * 0.999
+        cols[q.name] = where(ehs, rng.uniform(q.lo, hi, n).tolist())
+    return cols
 
 
 def rate(fn, seconds: float) -> float:
@@ -48,14 +80,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--plots", type=int, default=500)
     ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--secondary", action="store_true", help="with the identity columns")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
-    b = make_batch(a.plots)
+    b = make_batch(a.plots, secondary=a.secondary)
     data = b.to_json_bytes()
     enc = rate(b.to_json_bytes, a.seconds)
     dec = rate(lambda: PlotBatch.from_json_bytes(data), a.seconds)
     res = {
         "plots_per_batch": a.plots,
+        "secondary_columns": a.secondary,
         "payload_bytes": len(data),
         "encode_batches_per_s": round(enc, 1),
         "decode_batches_per_s": round(dec, 1),

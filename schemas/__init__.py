@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from . import keys
 from .base import SCHEMA_VERSION, WireModel
+from .identity import Emergency
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
@@ -17,6 +18,7 @@ from .tracks import (
     FeedKind,
     FrameKind,
     FrameSpec,
+    MeasuredPlot,
     Track,
     TrackBatch,
     TrackEvent,
@@ -54,11 +56,13 @@ __all__ = [
     "MODELS",
     "SCHEMA_VERSION",
     "Backlog",
+    "Emergency",
     "FeedKind",
     "FrameKind",
     "FrameSpec",
     "LateStats",
     "LatencyStats",
+    "MeasuredPlot",
     "PlotBatch",
     "RadarBias",
     "RadarBiasEstimate",

@@ -8,6 +8,7 @@ Checks run in NumPy so a 500-plot batch validates in microseconds.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -79,6 +80,21 @@ def _within(arr: np.ndarray, lo, hi, hi_open: bool, allow_nan: bool) -> bool:
     return high < hi if hi_open else high <= hi
 
 
+def check_nullable_range(
+    name: str, values: list[float | None], lo: float, hi: float, *, hi_open: bool, unit: str
+) -> None:
+    """Reject values of a nullable float column outside ``[lo, hi]`` (``[lo, hi)`` with
+    ``hi_open``), for columns whose non-finite values the model has already rejected:
+    the minimum and maximum of the values present in plain Python (for the short columns
+    of a sector, 3-10 times cheaper than arrays); a bad value goes to :func:`check_range`
+    for the message naming it."""
+    present = [v for v in values if v is not None]
+    if present:
+        low, high = min(present), max(present)
+        if low < lo or (high >= hi if hi_open else high > hi):
+            check_range(name, values, lo, hi, hi_open=hi_open, allow_nan=True, unit=unit)
+
+
 def check_codes(name: str, values: list[int | None], hi: int) -> None:
     """Reject integer codes outside ``0..hi`` (None = no code; Mode-S addresses,
     Mode-3/A codes): the minimum and maximum of the codes present, then, only when one
@@ -88,6 +104,18 @@ def check_codes(name: str, values: list[int | None], hi: int) -> None:
         for i, v in enumerate(values):
             if v is not None and not 0 <= v <= hi:
                 raise ValueError(f"{name}[{i}] = {v}: must be in 0..{hi}")
+
+
+def check_strings(name: str, values: list[str | None], pattern: re.Pattern, what: str) -> None:
+    """Reject strings (None = absent) that do not match ``pattern`` (``what`` says what
+    they must be); the message names the first offending index and value (its first 20
+    characters)."""
+    match = pattern.match
+    if all(v is None or match(v) for v in values):
+        return
+    for i, v in enumerate(values):
+        if v is not None and not match(v):
+            raise ValueError(f"{name}[{i}] = {v[:20]!r}: must be {what}")
 
 
 def check_non_decreasing(name: str, values: list[int]) -> None:

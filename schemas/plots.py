@@ -6,6 +6,13 @@ every present field describes plot i.
 
 Geometry is either polar (``range`` + ``azimuth``, with ``elevation`` for 3-D radars
 or ``altitude`` for 2-D radars) or planar (``x`` + ``y`` for the cartesian test sensor).
+
+Secondary-surveillance columns (:mod:`schemas.identity`: names, units, bounds): the
+identity of the reply (``mode_3a`` with its flags, ``mode_s``, ``callsign``,
+``flight_level`` with its flags, ``spi``, ``flight_status``) and the downlinked aircraft
+parameters (``selected_altitude_mcp`` … ``inertial_vertical_rate``). All optional: an
+absent column costs nothing, an absent flag column means "not set" for every plot
+(recordings from before the flags carried validated, ungarbled codes only).
 """
 
 from __future__ import annotations
@@ -16,19 +23,44 @@ import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
 from . import columns as col
+from . import identity as ident
 from .base import INT64_MAX, Int64, NonNegInt64, WireModel
 from .keys import ID_PATTERN
 
 _FLOAT_COLUMNS = ("range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude")
-OPTIONAL_PLOT_COLUMNS = (*_FLOAT_COLUMNS, "mode_s", "mode_3a", "target_id")
+FLAG_COLUMNS = (
+    "mode_3a_not_validated", "mode_3a_garbled", "mode_3a_smoothed",
+    "flight_level_not_validated", "flight_level_garbled", "spi",
+)  # fmt: skip
+"""Boolean columns: null (or an absent column) means false."""
+_CODE_COLUMNS = (  # integer columns: null → -1 in :meth:`PlotBatch.column`
+    ("mode_s", ident.MODE_S_MAX), ("mode_3a", ident.MODE_3A_MAX),
+    ("flight_status", ident.FLIGHT_STATUS_MAX),
+)  # fmt: skip
+IDENTITY_COLUMNS = (
+    "mode_3a", *FLAG_COLUMNS[:3], "mode_s", "callsign", "flight_level", *FLAG_COLUMNS[3:],
+    "flight_status", *(q.name for q in ident.DOWNLINKED),
+)  # fmt: skip
+"""The secondary-surveillance columns (:mod:`schemas.identity`)."""
+OPTIONAL_PLOT_COLUMNS = (*_FLOAT_COLUMNS, *IDENTITY_COLUMNS, "target_id")
 """The per-plot columns of a ``PlotBatch`` that may be absent (``None``); ``time`` is not."""
 _ALL_COLUMNS = ("time", *OPTIONAL_PLOT_COLUMNS)
+_SSR_RANGES = (  # column, lower bound, upper bound, upper bound open, unit (null allowed)
+    ("flight_level", ident.FLIGHT_LEVEL_MIN, ident.FLIGHT_LEVEL_MAX, False, "FL"),
+    *((q.name, q.lo, q.hi, q.hi_open, q.unit) for q in ident.DOWNLINKED),
+)
+_INT_COLUMNS = frozenset(("time", "target_id", *(name for name, _ in _CODE_COLUMNS)))
 _RANGES = (  # column, lower bound, upper bound, upper bound open, null allowed, unit
     ("range", 0.0, None, False, False, "m"),
     ("azimuth", 0.0, 2 * math.pi, True, False, "rad"),
     ("elevation", -math.pi / 2, math.pi / 2, False, True, "rad"),
     ("altitude", -1_000.0, 100_000.0, False, True, "m"),
 )
+
+
+def _downlinked(name: str):
+    q = ident.DOWNLINKED_BY_NAME[name]
+    return Field(None, description=f"{q.description}; null if not downlinked")
 
 
 class _ColumnArrays(dict):
@@ -104,6 +136,53 @@ class PlotBatch(WireModel):
     mode_3a: list[int | None] | None = Field(
         None, description="Mode-3/A code as an integer 0..4095 (octal 0000-7777), null if none"
     )
+    mode_3a_not_validated: list[bool | None] | None = Field(
+        None, description="Mode-3/A code not validated (I048/070 V); null/absent = false"
+    )
+    mode_3a_garbled: list[bool | None] | None = Field(
+        None, description="Mode-3/A code garbled (I048/070 G); null/absent = false"
+    )
+    mode_3a_smoothed: list[bool | None] | None = Field(
+        None,
+        description="Mode-3/A code not extracted in this scan, kept from the last one "
+        "(I048/070 L); null/absent = false",
+    )
+    callsign: list[str | None] | None = Field(
+        None,
+        description="Aircraft identification (BDS 2,0 / I048/240): 1-8 characters A-Z, 0-9 "
+        "and inner spaces, no padding; null if none",
+    )
+    flight_level: list[float | None] | None = Field(
+        None,
+        description="Flight level as replied (Mode C, I048/090), FL (pressure altitude / "
+        "100 ft, not a height; see schemas.identity), whatever its flags; null if none",
+    )
+    flight_level_not_validated: list[bool | None] | None = Field(
+        None, description="Flight level not validated (I048/090 V); null/absent = false"
+    )
+    flight_level_garbled: list[bool | None] | None = Field(
+        None, description="Flight level garbled (I048/090 G); null/absent = false"
+    )
+    spi: list[bool | None] | None = Field(
+        None, description="Special position identification (I048/020 SPI); null/absent = false"
+    )
+    flight_status: list[int | None] | None = Field(
+        None,
+        description="Mode S flight status 0..7 (I048/230 STAT: 0 airborne, 1 on ground, "
+        "2/3 alert airborne/on ground, 4 alert + SPI, 5 SPI, 7 unknown); null if none",
+    )
+    selected_altitude_mcp: list[float | None] | None = _downlinked("selected_altitude_mcp")
+    selected_altitude_fms: list[float | None] | None = _downlinked("selected_altitude_fms")
+    roll_angle: list[float | None] | None = _downlinked("roll_angle")
+    true_track: list[float | None] | None = _downlinked("true_track")
+    ground_speed: list[float | None] | None = _downlinked("ground_speed")
+    track_angle_rate: list[float | None] | None = _downlinked("track_angle_rate")
+    true_airspeed: list[float | None] | None = _downlinked("true_airspeed")
+    magnetic_heading: list[float | None] | None = _downlinked("magnetic_heading")
+    indicated_airspeed: list[float | None] | None = _downlinked("indicated_airspeed")
+    mach: list[float | None] | None = _downlinked("mach")
+    baro_vertical_rate: list[float | None] | None = _downlinked("baro_vertical_rate")
+    inertial_vertical_rate: list[float | None] | None = _downlinked("inertial_vertical_rate")
     target_id: list[Int64] | None = Field(
         None,
         description="Simulation only: originating target id, -1 for clutter "
@@ -156,10 +235,22 @@ class PlotBatch(WireModel):
         for name, allow_nan in (("x", False), ("y", False), ("doppler", True), ("amplitude", True)):
             if getattr(self, name) is not None:
                 self._keep(name, col.as_float_array(name, getattr(self, name), allow_nan=allow_nan))
-        for name, hi in (("mode_s", 0xFFFFFF), ("mode_3a", 0o7777)):
+        for name, hi in _CODE_COLUMNS:
             if getattr(self, name) is not None:
                 col.check_codes(name, getattr(self, name), hi)
+        self._check_secondary()
         return self
+
+    def _check_secondary(self) -> None:
+        """The bounded secondary-surveillance columns (null allowed; NaN and inf were
+        rejected by the field types) and the callsigns."""
+        for name, lo, hi, hi_open, unit in _SSR_RANGES:
+            values = getattr(self, name)
+            if values is not None:
+                col.check_nullable_range(name, values, lo, hi, hi_open=hi_open, unit=unit)
+        if self.callsign is not None:
+            col.check_strings("callsign", self.callsign, ident.CALLSIGN_RE,
+                              "1-8 characters A-Z, 0-9 and inner spaces")  # fmt: skip
 
     def _check_time(self) -> None:
         """Times ≥ 0 ns and non-decreasing (one comparison when they are)."""
@@ -184,9 +275,10 @@ class PlotBatch(WireModel):
 
     # --- NumPy views -------------------------------------------------------------------
     def column(self, name: str) -> np.ndarray | None:
-        """Return a column as a NumPy array (float64, int64 for time/target_id), or None.
-        Optional integer columns (mode_s, mode_3a) use -1 for null, float columns NaN.
-        The array is read-only and shared by every call (copy it to modify it)."""
+        """Return a column as a NumPy array, or None: float64 (NaN for null), int64 for
+        time/target_id and the codes (mode_s, mode_3a, flight_status: -1 for null), bool
+        for the flags (false for null), str for callsign ("" for null). The array is
+        read-only and shared by every call (copy it to modify it)."""
         values = getattr(self, name)
         if values is None:
             return None
@@ -194,10 +286,32 @@ class PlotBatch(WireModel):
         kept = None if arrays is None else arrays.get(name)
         if kept is not None and kept[0] is values and len(kept[1]) == len(values):
             return kept[1]
-        if name in ("time", "target_id"):
-            arr = np.asarray(values, dtype=np.int64)
-        elif name in ("mode_s", "mode_3a"):
-            arr = np.asarray([-1 if v is None else v for v in values], dtype=np.int64)
+        if name in _INT_COLUMNS:
+            if name in ("time", "target_id"):
+                arr = np.asarray(values, dtype=np.int64)
+            else:
+                arr = np.asarray([-1 if v is None else v for v in values], dtype=np.int64)
+        elif name in FLAG_COLUMNS:
+            arr = np.asarray([bool(v) for v in values], dtype=bool)
+        elif name == "callsign":
+            arr = np.asarray(["" if v is None else v for v in values], dtype="<U8")
         else:
             arr = np.asarray(values, dtype=np.float64)
         return self._keep(name, arr)
+
+    def validated_column(self, name: str) -> np.ndarray | None:
+        """``mode_3a`` (-1) or ``flight_level`` (NaN) without the replies flagged not
+        validated or garbled: the values to trust as an identity or a level."""
+        arr = self.column(name)
+        if arr is None:
+            return None
+        bad = np.zeros(len(arr), bool)
+        for flag in (f"{name}_not_validated", f"{name}_garbled"):
+            f = self.column(flag)
+            if f is not None:
+                bad |= f
+        if not bad.any():
+            return arr
+        out = arr.copy()
+        out[bad] = -1 if arr.dtype.kind == "i" else np.nan
+        return out

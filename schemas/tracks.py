@@ -34,7 +34,8 @@ from enum import StrEnum
 import numpy as np
 from pydantic import Field, model_validator
 
-from .base import WireModel
+from . import identity as ident
+from .base import NonNegInt64, WireModel
 from .keys import ID_PATTERN
 
 
@@ -64,9 +65,50 @@ class FrameSpec(WireModel):
     alt0: float = Field(0.0, description="Frame origin height above the ellipsoid, m")
 
 
+def _downlinked(name: str):
+    q = ident.DOWNLINKED_BY_NAME[name]
+    bounds = {"ge": q.lo, "lt" if q.hi_open else "le": q.hi}
+    return Field(None, **bounds, description=f"{q.description}; None if not known")
+
+
+def _confirmed(what: str):
+    return Field(None, ge=0, description=f"When {what} was last confirmed by a plot, ns UTC")
+
+
+class MeasuredPlot(WireModel):
+    """What the last plot that updated a track measured (the content of CAT062 I340):
+    its radar, time, polar position and the codes it replied with (names, units and
+    flags as the plot columns, :mod:`schemas.identity`)."""
+
+    radar_id: str = Field(pattern=ID_PATTERN, description="Radar of the plot")
+    time: NonNegInt64 = Field(description="Plot time, ns UTC")
+    range: float | None = Field(None, ge=0.0, description="Slant range, m")
+    azimuth: float | None = Field(
+        None, ge=0.0, lt=2 * math.pi, description="Azimuth, rad clockwise from true north"
+    )
+    plot_type: int | None = Field(
+        None, ge=0, le=7, description="Detection type (I048/020 TYP: 1 PSR, 2 SSR, 3 SSR + "
+        "PSR, 4 Mode S all-call, 5 roll-call, 6/7 all-call/roll-call + PSR)",
+    )  # fmt: skip
+    flight_level: float | None = Field(
+        None, ge=ident.FLIGHT_LEVEL_MIN, le=ident.FLIGHT_LEVEL_MAX, description="Mode C, FL"
+    )
+    flight_level_not_validated: bool = False
+    flight_level_garbled: bool = False
+    mode_3a: int | None = Field(None, ge=0, le=ident.MODE_3A_MAX, description="Mode-3/A code")
+    mode_3a_not_validated: bool = False
+    mode_3a_garbled: bool = False
+    mode_3a_smoothed: bool = False
+
+
 class Track(WireModel):
     """One fused track at ``time``. ``state``/``covariance`` are in the system frame of the
-    enclosing TrackBatch, ordered as its ``state_labels`` (metres, m/s)."""
+    enclosing TrackBatch, ordered as its ``state_labels`` (metres, m/s).
+
+    Identity and downlinked parameters (optional; names and units as the plot columns,
+    :mod:`schemas.identity`): what the track currently shows, each identity attribute
+    with the time a plot last confirmed it (its age is ``time`` minus that), the
+    downlinked parameters with the time of their register's last report."""
 
     track_id: int = Field(ge=0, description="Stable track id")
     time: int = Field(ge=0, description="Time of the estimate, ns UTC")
@@ -86,6 +128,63 @@ class Track(WireModel):
     )
     radars: list[str] = Field(default_factory=list, description="Radars that updated the track")
     updates: int = Field(0, ge=0, description="Number of scans with a plot assigned (weight>0.5)")
+
+    mode_3a: int | None = Field(
+        None, ge=0, le=ident.MODE_3A_MAX, description="Mode-3/A code (integer of its 12 bits)"
+    )
+    mode_3a_time: int | None = _confirmed("the Mode-3/A code")
+    mode_s: int | None = Field(
+        None, ge=0, le=ident.MODE_S_MAX, description="Mode-S 24-bit ICAO aircraft address"
+    )
+    mode_s_time: int | None = _confirmed("the Mode-S address")
+    callsign: str | None = Field(
+        None, pattern=ident.CALLSIGN_PATTERN, description="Aircraft identification (callsign)"
+    )
+    callsign_time: int | None = _confirmed("the callsign")
+    flight_level: float | None = Field(
+        None,
+        ge=ident.FLIGHT_LEVEL_MIN,
+        le=ident.FLIGHT_LEVEL_MAX,
+        description="Measured flight level (Mode C), FL (pressure altitude / 100 ft)",
+    )
+    flight_level_time: int | None = _confirmed("the flight level")
+    spi: bool | None = Field(None, description="Special position identification is set")
+    emergency: ident.Emergency | None = Field(
+        None, description="Declared emergency (Mode-3/A 7500/7600/7700, Mode S)"
+    )
+    selected_altitude_mcp: float | None = _downlinked("selected_altitude_mcp")
+    selected_altitude_fms: float | None = _downlinked("selected_altitude_fms")
+    intention_time: int | None = Field(
+        None, ge=0, description="Time of the selected altitudes (BDS 4,0 report), ns UTC"
+    )
+    roll_angle: float | None = _downlinked("roll_angle")
+    true_track: float | None = _downlinked("true_track")
+    ground_speed: float | None = _downlinked("ground_speed")
+    track_angle_rate: float | None = _downlinked("track_angle_rate")
+    true_airspeed: float | None = _downlinked("true_airspeed")
+    track_turn_time: int | None = Field(
+        None, ge=0, description="Time of the track and turn parameters (BDS 5,0), ns UTC"
+    )
+    magnetic_heading: float | None = _downlinked("magnetic_heading")
+    indicated_airspeed: float | None = _downlinked("indicated_airspeed")
+    mach: float | None = _downlinked("mach")
+    baro_vertical_rate: float | None = _downlinked("baro_vertical_rate")
+    inertial_vertical_rate: float | None = _downlinked("inertial_vertical_rate")
+    heading_speed_time: int | None = Field(
+        None, ge=0, description="Time of the heading and speed parameters (BDS 6,0), ns UTC"
+    )
+    psr_time: int | None = Field(
+        None, ge=0, description="Last update by a plot with a primary detection, ns UTC"
+    )
+    ssr_time: int | None = Field(
+        None, ge=0, description="Last update by a plot with a Mode A/C (SSR) reply, ns UTC"
+    )
+    mode_s_update_time: int | None = Field(
+        None, ge=0, description="Last update by a plot with a Mode S reply, ns UTC"
+    )
+    last_plot: MeasuredPlot | None = Field(
+        None, description="What the last plot that updated the track measured"
+    )
 
     @model_validator(mode="after")
     def _check_shapes(self) -> Track:

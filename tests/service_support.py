@@ -4,15 +4,22 @@ sites and batches) and the paths they read. Not a test module: tests import it b
 
 ``SHARED_DATA``: the public data of the project's data README (the 7-radar ASTERIX
 snippet, the CAT062 sample, the Barcelona traffic), ``../shared/data`` next to the
-repository or ``$SKYFUSE_SHARED_DATA``; tests that need it skip when it is absent."""
+repository or ``$SKYFUSE_SHARED_DATA``; tests that need it skip when it is absent.
+
+:func:`independent_asterix_decode`: ASTERIX decoded by an independent decoder
+(asterix-decoder, CroatiaControl's C++ decoder, in a virtualenv of its own)."""
 
 from __future__ import annotations
 
+import fcntl
+import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -156,86 +163,91 @@ def wait_for_router(cfg: TransportConfig, timeout: float = 30.0) -> None:
             time.sleep(0.2)
 
 
+# --- an independent ASTERIX decoder ---------------------------------------------------
+ASTERIX_DECODER = "asterix-decoder==0.7.11"
+"""The independent decoder (PyPI ``asterix-decoder``, CroatiaControlLtd/asterix: GPL, a
+C++ extension; needs g++ and libexpat1-dev to build). It installs a top-level ``asterix``
+package, as libasterix does, so it lives in a virtualenv of its own and runs in a
+subprocess: it never enters skyfuse's environment."""
 ASTERIX_DECODER_VENV = Path(
-    os.environ.get(
-        "SKYFUSE_ASTERIX_DECODER_VENV",
-        Path.home() / ".cache" / "skyfuse" / "asterix-decoder-venv",
-    )
+    os.environ.get("SKYFUSE_ASTERIX_DECODER_VENV")
+    or Path(tempfile.gettempdir()) / "skyfuse-asterix-decoder-0.7.11"
 )
-"""Where the independent ASTERIX decoder lives: its own virtualenv, because
-asterix-decoder and libasterix both install a top-level ``asterix`` package."""
+"""Where that virtualenv is made, once, and kept for later sessions
+(``$SKYFUSE_ASTERIX_DECODER_VENV``, default in the system's temporary directory)."""
 
-_ASTERIX_DECODE_SCRIPT = """
+
+class IndependentDecoderUnavailable(RuntimeError):
+    """asterix-decoder could not be installed here (the message says why)."""
+
+
+_decoder_failure: str | None = None
+
+
+def independent_decoder_python(timeout: float = 900.0) -> Path:
+    """The Python of the asterix-decoder virtualenv, made on first use (a file lock
+    keeps concurrent test sessions from building it twice; a half-made one is never
+    used: it is built aside and renamed). Raises :class:`IndependentDecoderUnavailable`."""
+    global _decoder_failure
+    if _decoder_failure is not None:
+        raise IndependentDecoderUnavailable(_decoder_failure)
+    venv = ASTERIX_DECODER_VENV
+    python = venv / "bin" / "python"
+    if python.exists():
+        return python
+    venv.parent.mkdir(parents=True, exist_ok=True)
+    with open(f"{venv}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if python.exists():
+            return python
+        work = Path(f"{venv}.building")
+        shutil.rmtree(work, ignore_errors=True)
+        steps = (
+            [sys.executable, "-m", "venv", str(work)],
+            [str(work / "bin" / "python"), "-m", "pip", "install", "-q", ASTERIX_DECODER],
+        )
+        for cmd in steps:
+            try:
+                done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+            except (OSError, subprocess.TimeoutExpired) as e:
+                done = None
+                error = f"{type(e).__name__}: {e}"
+            if done is None or done.returncode != 0:
+                tail = error if done is None else (done.stderr or done.stdout)[-800:]
+                _decoder_failure = f"{' '.join(cmd[-2:])} failed: {tail.strip()}"
+                shutil.rmtree(work, ignore_errors=True)
+                raise IndependentDecoderUnavailable(_decoder_failure)
+        work.rename(venv)
+    return python
+
+
+_DECODE_SCRIPT = """
 import json, sys
 import asterix
 for definition in sys.argv[2:]:
     asterix.init(definition)
-with open(sys.argv[1], "rb") as f:
-    records = asterix.parse(f.read(), verbose=False)
-json.dump(records, sys.stdout, default=str)
+data = open(sys.argv[1], "rb").read()
+json.dump(asterix.parse(data, verbose=False), sys.stdout, default=str)
 """
 
 
-def asterix_decoder_python() -> Path:
-    """The Python of a virtualenv holding asterix-decoder (CroatiaControl's ASTERIX
-    decoder: GPL, C++, independent of libasterix), built on first use under
-    :data:`ASTERIX_DECODER_VENV` (a file lock keeps concurrent builds apart). Skips the
-    calling test with the reason when it cannot be built (no compiler, no package index)."""
-    import fcntl
-
-    import pytest
-
-    python = ASTERIX_DECODER_VENV / "bin" / "python"
-    marker = ASTERIX_DECODER_VENV / ".skyfuse-ready"
-    if marker.exists():
-        return python
-    ASTERIX_DECODER_VENV.parent.mkdir(parents=True, exist_ok=True)
-    lock_path = ASTERIX_DECODER_VENV.parent / (ASTERIX_DECODER_VENV.name + ".lock")
-    with open(lock_path, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if marker.exists():
-            return python
-        steps = (
-            [sys.executable, "-m", "venv", str(ASTERIX_DECODER_VENV)],
-            [str(python), "-m", "pip", "install", "-q", "asterix-decoder"],
-            [str(python), "-c", "import asterix, _asterix"],
-        )
-        for cmd in steps:
-            try:
-                done = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
-            except (OSError, subprocess.TimeoutExpired) as exc:
-                pytest.skip(f"asterix-decoder venv not built ({' '.join(cmd[:4])}): {exc}")
-            if done.returncode != 0:
-                tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
-                pytest.skip(f"asterix-decoder venv not built ({' '.join(cmd[:4])}): {tail}")
-        marker.write_text("asterix-decoder\n")
-    return python
-
-
 def independent_asterix_decode(
-    data: bytes | Path, definitions: tuple[Path, ...] = ()
+    data: bytes | str | Path, definitions: tuple[Path, ...] = ()
 ) -> list[dict]:
-    """Decode ASTERIX data blocks (bytes, or a raw file) with asterix-decoder in its own
-    virtualenv (:func:`asterix_decoder_python`), in a subprocess: one dict per record as
-    ``asterix.parse(data, verbose=False)`` gives it (``{"category": 48, "I010": {"SAC":
-    {"val": 25}, ...}, ...}``). ``definitions``: extra XML category definitions loaded
-    with ``asterix.init`` first (the package ships one edition per category)."""
-    import tempfile
-
-    python = asterix_decoder_python()
+    """ASTERIX data blocks (bytes, or a raw ``.ast`` file) decoded by asterix-decoder:
+    one dict per record, as that decoder gives it (``category``, then ``I010``,
+    ``I140``, … each a dict of subfields ``{"val": …}``; repetitive items as lists).
+    Its editions: CAT048 1.21, CAT062 1.18, CAT034 1.27, CAT021 2.6, CAT010 1.1, …
+    (``asterix.list_configuration_files()``); ``definitions``: extra XML category
+    definitions loaded with ``asterix.init`` first. Raises IndependentDecoderUnavailable."""
+    python = independent_decoder_python()
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(data) if isinstance(data, Path) else Path(tmp) / "blocks.ast"
-        if not isinstance(data, Path):
-            path.write_bytes(data)
-        done = subprocess.run(
-            [str(python), "-c", _ASTERIX_DECODE_SCRIPT, str(path), *map(str, definitions)],
-            capture_output=True,
-            text=True,
-            timeout=600,
-            cwd=tmp,
-        )
+        path = Path(data) if isinstance(data, (str, Path)) else Path(tmp) / "blocks.ast"
+        if not isinstance(data, (str, Path)):
+            path.write_bytes(bytes(data))
+        env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+        cmd = [str(python), "-c", _DECODE_SCRIPT, str(path), *map(str, definitions)]
+        done = subprocess.run(cmd, capture_output=True, timeout=600, env=env, cwd=tmp)
     if done.returncode != 0:
-        raise RuntimeError(f"asterix-decoder failed: {done.stderr.strip()[-500:]}")
-    import json
-
+        raise RuntimeError(f"asterix-decoder failed: {done.stderr.decode()[-800:]}")
     return json.loads(done.stdout)

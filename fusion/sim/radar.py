@@ -19,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 import pymap3d
 
+from .identity import reply_columns
 from .scan import ScanData
 from .sensor import AnnulusRegion, SensorConfig
 from .trajectories import TargetSet
@@ -70,7 +71,8 @@ def beam_crossing_times(
 
 def _target_plots(cfg: SensorConfig, t0: float, targets: TargetSet, locate: Locate, rng):
     """Detected target plots of the scan starting at t0 (s): (time s, target id, range m,
-    azimuth rad, elevation rad or altitude m, target index), biased then noisy."""
+    azimuth rad, elevation rad or altitude m, target index, true height m), biased then
+    noisy."""
     site = cfg.site
     t1 = t0 + site.scan_period
     three_d = site.kind == "3d"
@@ -108,7 +110,7 @@ def _target_plots(cfg: SensorConfig, t0: float, targets: TargetSet, locate: Loca
             third = np.round(third / cfg.altitude_quantum) * cfg.altitude_quantum
         third = np.clip(third, -1000.0, 100_000.0)
 
-    return tt, tid, rr, aa, third, cand[ok]
+    return tt, tid, rr, aa, third, cand[ok], alt[ok]
 
 
 def _clutter(cfg: SensorConfig, t0: float, rng: np.random.Generator):
@@ -138,6 +140,7 @@ def radar_scan(
     rng: np.random.Generator,
     start_time_ns: int,
     radar_index: int = 0,
+    identity_rng: np.random.Generator | None = None,
 ) -> ScanData:
     """Plots of scan ``k`` of a 2d/3d radar (see module docstring for the geometry).
 
@@ -153,13 +156,19 @@ def radar_scan(
     Systematic errors ``cfg.bias`` (:class:`fusion.frames.sensor_bias.SensorBias`, eq. 1)
     act on the target plots' true range and azimuth before the noise; the time offset
     shifts every reported time of the radar (plots, sector bounds), so the plot of a
-    target seen at true time t carries the time t + b_t."""
+    target seen at true time t carries the time t + b_t.
+
+    With ``cfg.report_mode_s`` the target plots carry their aircraft's codes; with an
+    ``identity_rng`` (the sensor's own stream for replies, so the plots above do not
+    change) also the other secondary-surveillance columns (:mod:`fusion.sim.identity`:
+    the code at the plot time, flight level, callsign, garbled replies, downlinked
+    parameters)."""
     site = cfg.site
     period = site.scan_period
     t0 = cfg.scan_time(k)
     three_d = site.kind == "3d"
 
-    tt, tid, rr, aa, third, cand_ok = _target_plots(cfg, t0, targets, locate, rng)
+    tt, tid, rr, aa, third, cand_ok, height = _target_plots(cfg, t0, targets, locate, rng)
     cr, ca, ct, cthird = _clutter(cfg, t0, rng)
 
     time_s = np.concatenate([tt, ct])
@@ -174,10 +183,16 @@ def radar_scan(
     sector = np.clip(np.searchsorted(bounds, time_ns, side="right") - 1, 0, site.n_sectors - 1)
     target_id = np.concatenate([tid, np.full(cr.size, -1, np.int64)])[order]
     third_all = np.concatenate([third, cthird])[order]
-    mode_s = mode_3a = None
+    mode_s = mode_3a = secondary = None
     if cfg.report_mode_s:
         mode_s = np.concatenate([targets.mode_s[cand_ok], np.full(cr.size, -1)])[order]
         mode_3a = np.concatenate([targets.mode_3a[cand_ok], np.full(cr.size, -1)])[order]
+        if identity_rng is not None:
+            reported = height if three_d else third
+            secondary = _secondary(cfg, targets, cand_ok, tt, reported, locate, identity_rng,
+                                   cr.size, order)  # fmt: skip
+            mode_3a = secondary.pop("mode_3a")
+            third_all = _drop_garbled_levels(third_all, secondary, three_d)
     return ScanData(
         radar_id=site.radar_id,
         radar_index=radar_index,
@@ -195,4 +210,24 @@ def radar_scan(
         altitude=None if three_d else third_all,
         mode_s=None if mode_s is None else mode_s.astype(np.int64),
         mode_3a=None if mode_3a is None else mode_3a.astype(np.int64),
+        secondary=secondary,
     )
+
+
+def _drop_garbled_levels(third: np.ndarray, secondary: dict, three_d: bool) -> np.ndarray:
+    """A 2-D radar's plot whose Mode C reply is garbled has no altitude (NaN), as the
+    ASTERIX reader leaves it; a 3-D radar's elevation is not from the reply."""
+    if three_d:
+        return third
+    return np.where(secondary["flight_level_garbled"], np.nan, third)
+
+
+def _secondary(cfg, targets, index, t, height, locate, rng, n_clutter, order) -> dict:
+    """The replies' secondary-surveillance columns of the target plots (none for the
+    clutter after them), in plot order."""
+    cols = reply_columns(targets, index, t, height, locate, rng, cfg.garble_probability)
+    out = {}
+    for name, v in cols.items():
+        fill = {"b": False, "i": -1, "O": ""}.get(v.dtype.kind, np.nan)
+        out[name] = np.concatenate([v, np.full(n_clutter, fill, v.dtype)])[order]
+    return out

@@ -23,7 +23,8 @@ class ScanData:
     ``azimuth`` (rad clockwise from north, [0, 2π)) and ``elevation`` (3d, rad) or
     ``altitude`` (2d, m); the cartesian sensor fills ``x``/``y`` (m, scenario plane).
     ``target_id`` is the originating target, -1 for clutter. ``mode_s``/``mode_3a`` use -1
-    for "none"."""
+    for "none"; ``secondary`` holds the other secondary-surveillance columns of
+    :mod:`schemas.identity` (NaN, "" or False for none; :mod:`fusion.sim.identity`)."""
 
     radar_id: str
     radar_index: int
@@ -43,6 +44,7 @@ class ScanData:
     y: np.ndarray | None = None
     mode_s: np.ndarray | None = None
     mode_3a: np.ndarray | None = None
+    secondary: dict[str, np.ndarray] | None = None
 
     def __len__(self) -> int:
         return len(self.time)
@@ -75,6 +77,8 @@ class ScanData:
         ):  # fmt: skip
             v = getattr(self, name)
             cols[name] = None if v is None else v[mask]
+        if self.secondary is not None:
+            cols["secondary"] = {k: v[mask] for k, v in self.secondary.items()}
         return ScanData(
             radar_id=self.radar_id,
             radar_index=self.radar_index,

@@ -22,8 +22,10 @@
   8 s, Timișoara LRTR 2d 10 s, Novi Sad 3d 12 s; 62-137 km apart), stereographic system
   plane at their mean position; overflights with turning waypoints, climbs and descents,
   arrivals landing at and departures climbing out of Beograd; some airborne at t = 0,
-  others entering, some leaving or landing during the run; Mode-S on 80% of them;
-  uniform clutter plus a ground-clutter ring around each radar; horizon test at 0°.
+  others entering, some leaving or landing during the run; Mode-S on 80% of them, with
+  callsigns, flight levels, a few code changes and garbled replies, half of them
+  downlinking their track and turn (:mod:`fusion.sim.identity`); uniform clutter plus a
+  ground-clutter ring around each radar; horizon test at 0°.
 
 Scan numbering of the planar thesis scenarios follows the spec: scan k (k = 1..K) is a
 snapshot at t = k·T after the scenario start, and the targets' initial states are at
@@ -48,6 +50,7 @@ import numpy as np
 from skyfuse.fusion.frames import Stereographic
 from skyfuse.schemas import FrameKind, FrameSpec, RadarSite
 
+from .identity import IdentityParams, assign_identities, identity_rng
 from .scenario import (
     DEFAULT_START_TIME,
     Param,
@@ -405,6 +408,25 @@ _REGIONAL_PARAMS = {
     "sigma_altitude": Param(30.0, "2d radars' Mode C altitude σ, m", positive),
     "altitude_quantum_ft": Param(25.0, "2d altitude quantisation, ft (0 = none)", non_negative),
     "mode_s_fraction": Param(0.8, "fraction of aircraft with a Mode-S address", in_range(0, 1)),
+    "code_change_fraction": Param(
+        0.05,
+        "fraction of aircraft with a code that get a new Mode-3/A code during the run",
+        in_range(0, 1),
+    ),
+    "emergency_fraction": Param(
+        0.0, "fraction of those code changes that are to 7700 (emergency)", in_range(0, 1)
+    ),
+    "ehs_fraction": Param(
+        0.5,
+        "fraction of Mode-S aircraft that downlink BDS 5,0/6,0 (enhanced surveillance)",
+        in_range(0, 1),
+    ),
+    "garble_probability": Param(
+        0.0,
+        "probability that a reply's Mode-3/A code, or its flight level, is garbled (a garbled "
+        "level leaves a 2-D radar's plot without altitude)",
+        in_range(0, 1),
+    ),
     "area_radius": Param(170_000.0, "radius of the traffic area around the centre, m", positive),
     "airborne_fraction": Param(
         0.6, "fraction of aircraft (not departures) already airborne at t = 0", in_range(0, 1)
@@ -552,6 +574,7 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
                 altitude_quantum=quantum,
                 regions=(ring,),
                 report_mode_s=True,
+                garble_probability=p["garble_probability"],
             )
         )
     rng = _trajectory_rng(seed)
@@ -575,6 +598,9 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
         mode_s=np.where(has_mode_s, addresses, -1),
         mode_3a=np.where(has_mode_s, squawks, -1),
     )
+    ident = IdentityParams(p["code_change_fraction"], p["emergency_fraction"], p["ehs_fraction"],
+                           p["garble_probability"])  # fmt: skip
+    assign_identities(targets, identity_rng(seed), duration, ident)
     return targets, sensors, frame, plane
 
 

@@ -100,7 +100,9 @@ class SensorConfig:
     * ``regions``: extra clutter (``AnnulusRegion`` for polar, ``RectRegion`` for cartesian).
     * ``coverage``: cartesian sensor only, (x_min, x_max, y_min, y_max) m of the uniform
       clutter at ``site.clutter_density``.
-    * ``report_mode_s``: fill the mode_s / mode_3a columns (from the targets' codes).
+    * ``report_mode_s``: fill the mode_s / mode_3a columns (from the targets' codes) and
+      the other secondary-surveillance columns (:mod:`fusion.sim.identity`).
+    * ``garble_probability``: the share of replies whose code, or flight level, is garbled.
     * ``bias``: the radar's systematic errors (polar radars; truth for registration,
       never told to the tracker).
     """
@@ -115,6 +117,7 @@ class SensorConfig:
     regions: tuple = field(default_factory=tuple)
     coverage: tuple[float, float, float, float] | None = None
     report_mode_s: bool = False
+    garble_probability: float = 0.0
     bias: SensorBias = field(default_factory=SensorBias)
 
     def __post_init__(self) -> None:

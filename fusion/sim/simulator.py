@@ -32,6 +32,23 @@ from .scenario import Scenario
 _RANK = {"site": 0, "truth": 1, "plots": 2}
 
 
+def _secondary_columns(scan: ScanData, sl: slice) -> dict[str, list]:
+    """The PlotBatch secondary-surveillance columns of plots ``sl`` of a scan (null for
+    NaN, -1 and ""; the flags as booleans)."""
+    out: dict[str, list] = {}
+    for name, v in (scan.secondary or {}).items():
+        part = v[sl]
+        if part.dtype.kind == "b":
+            out[name] = part.tolist()
+        elif part.dtype.kind == "f":
+            out[name] = [None if x != x else x for x in part.tolist()]
+        elif part.dtype.kind == "O":
+            out[name] = [x or None for x in part.tolist()]
+        else:
+            out[name] = [None if x < 0 else x for x in part.tolist()]
+    return out
+
+
 @dataclass(frozen=True)
 class SimEvent:
     """One simulator output: ``time`` (emission time, ns UTC), ``kind`` ("site",
@@ -56,6 +73,11 @@ class Simulator:
     def _rng(self, index: int) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(1, index)))
 
+    def _reply_rng(self, index: int) -> np.random.Generator:
+        """Sensor ``index``'s stream for its replies' identity data (garbling): separate
+        from its plots' stream, so identity never changes the plots of a seed."""
+        return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(3, index)))
+
     def sensor_scans(self, index: int) -> Iterator[ScanData]:
         """All scans of sensor ``index`` (in ``scenario.sensors``) in time order."""
         sc = self.scenario
@@ -72,8 +94,10 @@ class Simulator:
                 truth = (alive[j], pos[j])
                 yield cartesian_scan(cfg, k, sc.targets, rng, sc.start_time, index, truth)
         else:
+            replies = self._reply_rng(index)
             for k in scans:
-                yield radar_scan(cfg, k, sc.targets, sc.geodetic, rng, sc.start_time, index)
+                yield radar_scan(cfg, k, sc.targets, sc.geodetic, rng, sc.start_time, index,
+                                 identity_rng=replies)  # fmt: skip
 
     def scans(self, radar_id: str | None = None) -> Iterator[ScanData]:
         """Per-scan arrays of all sensors (or one, by ``radar_id``), ordered by scan end
@@ -112,11 +136,17 @@ class Simulator:
                 if scan.elevation is not None:
                     cols["elevation"] = scan.elevation[sl].tolist()
                 if scan.altitude is not None:
-                    cols["altitude"] = scan.altitude[sl].tolist()
+                    alt = scan.altitude[sl]
+                    cols["altitude"] = (
+                        [None if x != x else x for x in alt.tolist()]
+                        if np.isnan(alt).any()
+                        else alt.tolist()
+                    )
                 for name in ("mode_s", "mode_3a"):
                     v = getattr(scan, name)
                     if v is not None:
                         cols[name] = [None if c < 0 else c for c in v[sl].tolist()]
+                cols.update(_secondary_columns(scan, sl))
             out.append(
                 PlotBatch(
                     radar_id=scan.radar_id,

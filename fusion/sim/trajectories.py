@@ -211,6 +211,12 @@ class TargetSet:
     seg_acc: np.ndarray  # (n, S, 3) m/s²
     mode_s: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # -1 = none
     mode_3a: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # -1 = none
+    # identity (fusion.sim.identity): callsign ("" = none), the code from
+    # mode_3a_change_time on (s; inf = never), enhanced surveillance (downlinks BDS 5,0/6,0)
+    callsign: np.ndarray = field(default_factory=lambda: np.zeros(0, object))
+    mode_3a_after: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    mode_3a_change_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ehs: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def __post_init__(self) -> None:
         n = len(self.target_id)
@@ -218,6 +224,14 @@ class TargetSet:
             self.mode_s = np.full(n, -1, np.int64)
         if self.mode_3a.size == 0:
             self.mode_3a = np.full(n, -1, np.int64)
+        if self.callsign.size == 0:
+            self.callsign = np.full(n, "", object)
+        if self.mode_3a_after.size == 0:
+            self.mode_3a_after = np.full(n, -1, np.int64)
+        if self.mode_3a_change_time.size == 0:
+            self.mode_3a_change_time = np.full(n, np.inf)
+        if self.ehs.size == 0:
+            self.ehs = np.zeros(n, bool)
         if len(np.unique(self.target_id)) != n:
             raise ValueError("target ids must be unique")
 

@@ -11,12 +11,25 @@ I062/100    system Cartesian position, LSB 0.5 m                   ``x``, ``y``
 I062/185    Cartesian velocity, LSB 0.25 m/s                       ``vx``, ``vy``
 I062/136    measured flight level, LSB 1/4 FL                      ``flight_level``
 I062/130    calculated geometric altitude, LSB 6.25 ft             ``geometric_alt_ft``
-I062/060    Mode-3/A code                                          ``mode_3a``
-I062/380    aircraft-derived data: ADR (Mode-S address)            ``mode_s``
+I062/060    Mode-3/A code (V = 0)                                  ``mode_3a``
+I062/245    target identification                                  ``callsign``
+I062/380    aircraft-derived data: ADR, ID, MHG, IAS (IAS or       ``mode_s``, ``callsign``
+            Mach), TAS, SAL, FSS, BVR, GVR, RAN, TAR, TAN, GS,     (without I245), the
+            IAR, MAC                                               ``downlinked`` dict
 I062/040    track number (16 bits)                                 ``track_number``
-I062/080    status: MON, CNF, SIM, TSB (first), TSE (last)         ``mono``, ``confirmed``…
+I062/080    status: MON, SPI, CNF, SIM, TSB (first), TSE (last),   ``mono``, ``spi``,
+            EMS (emergency)                                        ``confirmed``…,
+                                                                   ``emergency``
+I062/290    ages per technology (s)                                ``ages`` ("PSR", …)
+I062/295    ages of the data (s)                                   ``data_ages`` ("MFL", …)
 I062/500    accuracies: APC (x, y), COV, APW (lat, lon), ATV       ``sigma_*``, ``cov_xy``
+I062/340    measured information of the last plot: SID, POS,       ``last_plot`` dict
+            MDC, MDA, TYP
 ==========  =====================================================  ==================
+
+``downlinked`` uses the names and units of :mod:`schemas.identity` (SI; selected
+altitudes in FL: SAL → ``selected_altitude`` with ``selected_altitude_source`` 2 MCP/FCU
+or 3 FMS, FSS → ``selected_altitude_mcp``; GVR → ``inertial_vertical_rate``).
 
 Records that parse but carry an impossible value (time of day beyond one day, latitude
 beyond ±90°, no I010) are rejected with a reason; malformed records are counted and
@@ -25,13 +38,16 @@ the rest of their block is skipped (ASTERIX records have no length field).
 
 from __future__ import annotations
 
+import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import asterix.generated as gen
+from skyfuse.schemas.identity import FT_PER_MIN, KT
 
+from .cat048 import decode_callsign
 from .layout import compile_layout
 from .pcap import iter_file_datagrams, split_datablocks
 from .records import RecordError, iter_records, quantity, sub_quantity, sub_uint
@@ -72,6 +88,26 @@ class Cat062Track:
     sigma_lon: float | None = None
     sigma_vx: float | None = None
     sigma_vy: float | None = None
+    callsign: str | None = None
+    spi: bool | None = None
+    emergency: str | None = None
+    downlinked: dict[str, float] = field(default_factory=dict)
+    ages: dict[str, float] = field(default_factory=dict)
+    data_ages: dict[str, float] = field(default_factory=dict)
+    last_plot: dict[str, Any] = field(default_factory=dict)
+
+
+EMERGENCY_OF_EMS = {1: "general", 2: "medical", 3: "minimum_fuel", 4: "no_communications",
+                    5: "unlawful_interference", 6: "downed_aircraft"}  # fmt: skip
+"""I062/080 EMS → :class:`schemas.Emergency` value."""
+_I380_QUANTITIES = {  # subfield → (our name, libasterix unit, factor to SI / FL)
+    "MHG": ("magnetic_heading", "°", math.pi / 180), "TAS": ("true_airspeed", "kt", KT),
+    "BVR": ("baro_vertical_rate", "ft/min", FT_PER_MIN),
+    "GVR": ("inertial_vertical_rate", "ft/min", FT_PER_MIN),
+    "RAN": ("roll_angle", "°", math.pi / 180), "TAN": ("true_track", "°", math.pi / 180),
+    "GS": ("ground_speed", "NM/s", 1852.0), "IAR": ("indicated_airspeed", "kt", KT),
+    "MAC": ("mach", "Mach", 1.0),
+}  # fmt: skip
 
 
 def decode_record(rec: Any) -> Cat062Track | str:
@@ -111,23 +147,7 @@ def decode_record(rec: Any) -> Cat062Track | str:
         trk.vy = sub_quantity(i185.variation, "VY", "m/s")
     trk.flight_level = quantity(rec, "136", "FL")
     trk.geometric_alt_ft = quantity(rec, "130", "ft")
-    i060 = rec.get_item("060")
-    if i060 is not None and sub_uint(i060.variation, "V") == 0:
-        trk.mode_3a = sub_uint(i060.variation, "MODE3A")
-    i380 = rec.get_item("380")
-    if i380 is not None:
-        adr = i380.variation.get_item("ADR")
-        if adr is not None:
-            trk.mode_s = adr.as_uint()
-    i080 = rec.get_item("080")
-    if i080 is not None:
-        v = i080.variation
-        trk.mono = bool(sub_uint(v, "MON"))
-        trk.confirmed = sub_uint(v, "CNF") == 0
-        for name, attr in (("SIM", "simulated"), ("TSB", "first"), ("TSE", "last")):
-            sub = v.get_item(name)
-            if sub is not None:
-                setattr(trk, attr, bool(sub.as_uint()))
+    _identity(rec, trk)
     i500 = rec.get_item("500")
     if i500 is not None:
         v = i500.variation
@@ -148,6 +168,109 @@ def decode_record(rec: Any) -> Cat062Track | str:
             trk.sigma_vx = sub_quantity(atv.variation, "X", "m/s")
             trk.sigma_vy = sub_quantity(atv.variation, "Y", "m/s")
     return trk
+
+
+def _identity(rec: Any, trk: Cat062Track) -> None:
+    """I060, I245, I380, I080, I290, I295 and I340 into ``trk``."""
+    i060 = rec.get_item("060")
+    if i060 is not None and sub_uint(i060.variation, "V") == 0:
+        trk.mode_3a = sub_uint(i060.variation, "MODE3A")
+    i245 = rec.get_item("245")
+    if i245 is not None:
+        trk.callsign = decode_callsign(sub_uint(i245.variation, "CHR"))
+    i380 = rec.get_item("380")
+    if i380 is not None:
+        _aircraft_derived(i380.variation, trk)
+    i080 = rec.get_item("080")
+    if i080 is not None:
+        v = i080.variation
+        trk.mono = bool(sub_uint(v, "MON"))
+        trk.spi = bool(sub_uint(v, "SPI"))
+        trk.confirmed = sub_uint(v, "CNF") == 0
+        for name, attr in (("SIM", "simulated"), ("TSB", "first"), ("TSE", "last")):
+            sub = v.get_item(name)
+            if sub is not None:
+                setattr(trk, attr, bool(sub.as_uint()))
+        ems = v.get_item("EMS")
+        if ems is not None and ems.as_uint():
+            trk.emergency = EMERGENCY_OF_EMS.get(ems.as_uint(), "undefined")
+    for name, attr in (("290", "ages"), ("295", "data_ages")):
+        item = rec.get_item(name)
+        if item is not None:
+            setattr(trk, attr, _ages(item.variation))
+    i340 = rec.get_item("340")
+    if i340 is not None:
+        trk.last_plot = _measured(i340.variation)
+
+
+def _aircraft_derived(v: Any, trk: Cat062Track) -> None:
+    """I062/380 subfields into ``trk``."""
+    adr = v.get_item("ADR")
+    if adr is not None:
+        trk.mode_s = adr.as_uint()
+    ident = v.get_item("ID")
+    if ident is not None and trk.callsign is None:
+        trk.callsign = decode_callsign(ident.as_uint())
+    out = trk.downlinked
+    for sub, (name, unit, factor) in _I380_QUANTITIES.items():
+        item = v.get_item(sub)
+        if item is not None:
+            out[name] = item.variation.content.as_quantity(unit) * factor
+    ias = v.get_item("IAS")
+    if ias is not None:  # IM = 0: IAS, LSB 2^-14 NM/s; IM = 1: Mach, LSB 0.001
+        raw = sub_uint(ias.variation, "IAS")
+        if sub_uint(ias.variation, "IM"):
+            out.setdefault("mach", raw * 0.001)
+        else:
+            out.setdefault("indicated_airspeed", raw * 2.0**-14 * 1852.0)
+    for sub, name in (("SAL", "selected_altitude"), ("FSS", "selected_altitude_mcp")):
+        item = v.get_item(sub)
+        if item is not None:
+            out[name] = sub_quantity(item.variation, "ALT", "ft") / 100.0
+            if sub == "SAL":
+                out["selected_altitude_source"] = sub_uint(item.variation, "SRC")
+    tar = v.get_item("TAR")
+    if tar is not None:
+        rate = sub_quantity(tar.variation, "ROT", "°/s")
+        out["track_angle_rate"] = math.radians(rate)
+        out["turn_indicator"] = sub_uint(tar.variation, "TI")
+
+
+def _ages(v: Any) -> dict[str, float]:
+    """The present subfields of I062/290 or I062/295, in seconds."""
+    out = {}
+    for nsp in v.cv_items_list:
+        name = getattr(nsp, "cv_name", None)
+        item = v.get_item(name) if name else None
+        if item is not None:
+            out[name] = item.variation.content.as_quantity("s")
+    return out
+
+
+def _measured(v: Any) -> dict[str, Any]:
+    """I062/340 subfields (SID as ``radar_id`` "SAC-SIC", RHO NM, THETA °, MDC FL)."""
+    out: dict[str, Any] = {}
+    sid = v.get_item("SID")
+    if sid is not None:
+        out["radar_id"] = f"{sub_uint(sid.variation, 'SAC')}-{sub_uint(sid.variation, 'SIC')}"
+    pos = v.get_item("POS")
+    if pos is not None:
+        out["rho_nm"] = sub_quantity(pos.variation, "RHO", "NM")
+        out["theta_deg"] = sub_quantity(pos.variation, "THETA", "°")
+    mdc = v.get_item("MDC")
+    if mdc is not None:
+        out["flight_level"] = sub_quantity(mdc.variation, "LMC", "FL")
+        out["flight_level_not_validated"] = bool(sub_uint(mdc.variation, "V"))
+        out["flight_level_garbled"] = bool(sub_uint(mdc.variation, "G"))
+    mda = v.get_item("MDA")
+    if mda is not None:
+        out["mode_3a"] = sub_uint(mda.variation, "MODE3A")
+        for flag, key in (("V", "not_validated"), ("G", "garbled"), ("L", "smoothed")):
+            out[f"mode_3a_{key}"] = bool(sub_uint(mda.variation, flag))
+    typ = v.get_item("TYP")
+    if typ is not None:
+        out["plot_type"] = sub_uint(typ.variation, "TYP")
+    return out
 
 
 def _decode_block(cat: int, data: bytes, stats: Counter, out: list[Cat062Track]) -> None:

@@ -11,16 +11,22 @@ I062/100    system Cartesian x/y (LSB 0.5 m), only for a stereographic batch fra
             (the system plane of I100 is a stereographic projection)
 I062/185    velocity VX = ``vel_east``, VY = ``vel_north``, LSB 0.25 m/s
 I062/040    track number = ``track_id`` mod 65536 (I040 has 16 bits)
+I062/060    Mode-3/A code, I062/245 target identification, I062/380 aircraft
+            derived data: :mod:`.cat062_identity`
 I062/080    status: MON (1 = monosensor: at most one radar updated the track; 0 =
-            multisensor: two or more), CNF (0 confirmed /
+            multisensor: two or more), SPI, CNF (0 confirmed /
             1 tentative), SIM, TSB (first message of the track from this writer),
-            TSE (last message: status terminated)
-I062/136    measured flight level where the altitude is known:
-            ``alt`` / 30.48 m (the inverse of the reader's FL → altitude; pressure
-            altitude taken as height, see docs/asterix.md), LSB 1/4 FL
+            TSE (last message: status terminated), EMS (emergency status, in the
+            fifth octet, only when the track has an emergency)
+I062/290    ages per technology, I062/295 ages of the data: :mod:`.cat062_identity`
+I062/136    measured flight level: ``flight_level`` (the last Mode C level the track
+            shows), else where the altitude is known ``alt`` / 30.48 m (the inverse
+            of the reader's FL → altitude; pressure altitude taken as height, see
+            docs/asterix.md), LSB 1/4 FL
 I062/500    accuracies from the state covariance: APC σx, σy (m, LSB 0.5), COV
             sign(Cxy)·√|Cxy| (m), APW σlat, σlon (deg, via the WGS-84 radii of
             curvature), ATV σvx, σvy (m/s, LSB 0.25); each clipped to its item's range
+I062/340    the last plot's measured information: :mod:`.cat062_identity`
 ==========  ===================================================================
 
 Position/velocity axes of the covariance: the state labels ``x``, ``y``, ``vx``,
@@ -38,6 +44,7 @@ import numpy as np
 from skyfuse.schemas import FrameKind, Track, TrackBatch, TrackStatus
 
 from . import cat062
+from .cat062_identity import build_identity, identity_items, pack_identity
 from .layout import RecordLayout, build_fspec
 from .reader import altitude_to_flight_level
 from .writer import datablocks, time_ticks
@@ -45,6 +52,9 @@ from .writer import datablocks, time_ticks
 WGS84_A = 6_378_137.0
 WGS84_E2 = 6.694_379_990_14e-3
 LSB_DEG_105 = 180.0 / 2**25
+EMS = {"general": 1, "medical": 2, "minimum_fuel": 3, "no_communications": 4,
+       "unlawful_interference": 5, "downed_aircraft": 6}  # fmt: skip
+"""I062/080 EMS code of each :class:`schemas.Emergency`."""
 
 
 def metres_per_degree(lat_deg: float) -> tuple[float, float]:
@@ -142,20 +152,31 @@ class Cat062Writer:
             _clip_raw(track.vel_east, 0.25, -32768, 32767) & 0xFFFF,
             _clip_raw(track.vel_north, 0.25, -32768, 32767) & 0xFFFF,
         )
+        identity, clipped = identity_items(track)
+        if clipped:
+            self.stats["identity_value_clipped"] += clipped
+        raw.update((k, identity[k]) for k in ("060", "245", "380") if k in identity)
         raw["040"] = number
         raw["080"] = (
             int(len(track.radars) <= 1),  # MON: multisensor only with two radars or more
+            int(bool(track.spi)),  # SPI
             int(track.status == TrackStatus.TENTATIVE),  # CNF
             int(self.simulated),  # SIM
             int(last),  # TSE
             int(first),  # TSB
+            EMS.get(track.emergency or "", 0),  # EMS
         )
-        if track.alt is not None:
+        raw.update((k, identity[k]) for k in ("290", "295") if k in identity)
+        fl = track.flight_level
+        if fl is None and track.alt is not None:
             fl = altitude_to_flight_level(track.alt)
+        if fl is not None:
             raw["136"] = _clip_raw(fl, 0.25, -32768, 32767) & 0xFFFF
         acc = self._accuracies(track, frame, idx)
         if acc:
             raw["500"] = acc
+        if "340" in identity:
+            raw["340"] = identity["340"]
         return raw
 
     def _accuracies(self, track: Track, frame: FrameKind, idx: dict[str, int]) -> dict[str, Any]:
@@ -183,40 +204,59 @@ class Cat062Writer:
         return out
 
 
+def _pack_080(mon: int, spi: int, cnf: int, sim: int, tse: int, tsb: int, ems: int) -> bytes:
+    """I080: two octets, or five (FX through octets 3 and 4) to carry EMS."""
+    out = bytearray((mon << 7 | spi << 6 | cnf << 1 | 1, sim << 7 | tse << 6 | tsb << 5))
+    if ems:
+        out[1] |= 1
+        out += bytes((1, 1, ems << 3))
+    return bytes(out)
+
+
+def _pack_500(acc: dict[str, Any]) -> bytes:
+    subs = [k for k in ("APC", "COV", "APW", "ATV") if k in acc]
+    body = bytearray(build_fspec(_I500_LAYOUT, subs))
+    if "APC" in acc:
+        body += acc["APC"][0].to_bytes(2, "big") + acc["APC"][1].to_bytes(2, "big")
+    if "COV" in acc:
+        body += acc["COV"].to_bytes(2, "big")
+    if "APW" in acc:
+        body += acc["APW"][0].to_bytes(2, "big") + acc["APW"][1].to_bytes(2, "big")
+    if "ATV" in acc:
+        body += bytes(acc["ATV"])
+    return bytes(body)
+
+
+_PACK = {
+    "010": bytes,
+    "015": lambda v: bytes((v,)),
+    "070": lambda v: v.to_bytes(3, "big"),
+    "105": lambda v: v[0].to_bytes(4, "big") + v[1].to_bytes(4, "big"),
+    "100": lambda v: v[0].to_bytes(3, "big") + v[1].to_bytes(3, "big"),
+    "185": lambda v: v[0].to_bytes(2, "big") + v[1].to_bytes(2, "big"),
+    "040": lambda v: v.to_bytes(2, "big"),
+    "080": lambda v: _pack_080(*v),
+    "136": lambda v: v.to_bytes(2, "big"),
+    "500": _pack_500,
+}
+_UAP_INDEX = {name: i for i, (name, _) in enumerate(cat062.LAYOUT.slots) if name}
+
+
 def pack_record(raw: dict[str, Any]) -> bytes:
     """Bytes of a CAT062 record from :meth:`Cat062Writer.raw_items` values, packed
-    directly (identical to :func:`build_record`'s libasterix encoding, differential
-    test; ~20× faster)."""
-    body = bytearray(raw["010"])
-    body.append(raw["015"])
-    body += raw["070"].to_bytes(3, "big")
-    body += raw["105"][0].to_bytes(4, "big") + raw["105"][1].to_bytes(4, "big")
-    if "100" in raw:
-        body += raw["100"][0].to_bytes(3, "big") + raw["100"][1].to_bytes(3, "big")
-    body += raw["185"][0].to_bytes(2, "big") + raw["185"][1].to_bytes(2, "big")
-    body += raw["040"].to_bytes(2, "big")
-    mon, cnf, sim, tse, tsb = raw["080"]
-    body += bytes((mon << 7 | cnf << 1 | 1, sim << 7 | tse << 6 | tsb << 5))
-    if "136" in raw:
-        body += raw["136"].to_bytes(2, "big")
-    if "500" in raw:
-        acc = raw["500"]
-        subs = [k for k in ("APC", "COV", "APW", "ATV") if k in acc]
-        body += build_fspec(_I500_LAYOUT, subs)
-        if "APC" in acc:
-            body += acc["APC"][0].to_bytes(2, "big") + acc["APC"][1].to_bytes(2, "big")
-        if "COV" in acc:
-            body += acc["COV"].to_bytes(2, "big")
-        if "APW" in acc:
-            body += acc["APW"][0].to_bytes(2, "big") + acc["APW"][1].to_bytes(2, "big")
-        if "ATV" in acc:
-            body += bytes(acc["ATV"])
-    return build_fspec(cat062.LAYOUT, list(raw)) + bytes(body)
+    directly in UAP order (identical to :func:`build_record`'s libasterix encoding,
+    differential test; ~20× faster)."""
+    names = sorted(raw, key=_UAP_INDEX.__getitem__)
+    body = b"".join(_PACK[n](raw[n]) if n in _PACK else pack_identity(n, raw[n]) for n in names)
+    return build_fspec(cat062.LAYOUT, names) + body
 
 
 def build_record(raw: dict[str, Any]) -> Any:
     """The same record built with libasterix (the reference encoder)."""
-    mon, cnf, sim, tse, tsb = raw["080"]
+    mon, spi, cnf, sim, tse, tsb, ems = raw["080"]
+    i080 = [(mon, spi, 0, 0, cnf, None), (sim, tse, tsb, 0, 0, 0, 0, None)]
+    if ems:
+        i080 += [(0, 0, 0, 0, 0, None), (0, 0, 0, 0, 0, 0, 0, None), (0, ems, 0, 0, None)]
     items: dict[str, Any] = {
         "010": (("SAC", raw["010"][0]), ("SIC", raw["010"][1])),
         "015": raw["015"],
@@ -224,7 +264,7 @@ def build_record(raw: dict[str, Any]) -> Any:
         "105": (("LAT", raw["105"][0]), ("LON", raw["105"][1])),
         "185": (("VX", raw["185"][0]), ("VY", raw["185"][1])),
         "040": raw["040"],
-        "080": ((mon, 0, 0, 0, cnf, None), (sim, tse, tsb, 0, 0, 0, 0, None)),
+        "080": tuple(i080),
     }
     if "100" in raw:
         items["100"] = (("X", raw["100"][0]), ("Y", raw["100"][1]))
@@ -242,6 +282,9 @@ def build_record(raw: dict[str, Any]) -> Any:
         if "ATV" in acc:
             i500["ATV"] = (("X", acc["ATV"][0]), ("Y", acc["ATV"][1]))
         items["500"] = i500
+    for name in ("060", "245", "380", "290", "295", "340"):
+        if name in raw:
+            items[name] = build_identity(name, raw[name])
     return cat062.SPEC.cv_record.create(items)
 
 

@@ -22,9 +22,18 @@ Conversions (CAT048 item → PlotBatch column):
   which is off by the QNH deviation (≈ 8 m/hPa, typically < 300 m) and the geoid
   undulation (< 100 m). Only validated, ungarbled codes (V = 0, G = 0) are kept;
   otherwise ``null`` (the converter then assigns an assumed altitude).
-* ``mode_s``: I220 24-bit address; ``mode_3a``: I070 code (V = 0, G = 0 only), as the
-  integer of its 12 bits (octal 7777 → 4095). Attributes for evaluation and display;
-  never used by the tracker to associate.
+* ``mode_s``: I220 24-bit address; ``mode_3a``: I070 code as the integer of its 12 bits
+  (octal 7777 → 4095), with its V, G and L bits as ``mode_3a_not_validated``,
+  ``mode_3a_garbled`` and ``mode_3a_smoothed``; ``flight_level``: I090 as replied (FL),
+  with V and G as ``flight_level_not_validated`` and ``flight_level_garbled``; ``spi``:
+  I020 SPI; ``flight_status``: I230 STAT; ``callsign``: I240 (else a BDS 2,0 register
+  of I250), padding removed, a value with characters outside the ICAO set dropped and
+  counted (``cat048_bad_callsign``); the downlinked parameters: I250 registers BDS 4,0,
+  5,0 and 6,0 decoded with pyModeS (:mod:`.bds`; counts ``cat048_bds_*``; without
+  pyModeS ``cat048_bds_not_decoded_no_pymodes``). Every batch with plots carries all of
+  these columns (null where a plot has no value), so consecutive batches of a radar
+  have the same columns. Attributes for evaluation and display; never used by the
+  tracker to associate.
 * ``amplitude``: I130 PAM (primary plot amplitude, dBm), else SAM (SSR), when present.
 * plot type: I020 TYP is returned beside each batch (``AsterixReadResult.plot_types``;
   ``PlotBatch`` has no plot-type column). TYP 0 ("no detection") and test targets
@@ -76,8 +85,9 @@ from pathlib import Path
 
 import numpy as np
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas.identity import CALLSIGN_RE, DOWNLINKED
 
-from . import cat034, cat048, surveillance
+from . import bds, cat034, cat048, surveillance
 from .pcap import Datagram, iter_file_datagrams, split_datablocks
 from .records import RecordError, iter_records
 from .scan_period import estimate_scan_period
@@ -94,6 +104,17 @@ DEDUP_WINDOW = 4096
 MAX_PERIOD_SAMPLES = 20_000
 IGNORED_CATEGORIES = frozenset({62, 63, 65})
 MAX_PENDING_REPORTS = 100_000
+ALTITUDE_FL = (-30.0, 3000.0)
+"""Flight levels used as altitudes (within PlotBatch ``altitude`` bounds, -1000 m to
+100 km; I048/090's own range is -12 to 1270 FL)."""
+SECONDARY_COLUMNS = (
+    "mode_3a_not_validated", "mode_3a_garbled", "mode_3a_smoothed", "callsign",
+    "flight_level", "flight_level_not_validated", "flight_level_garbled", "spi",
+    "flight_status", *(q.name for q in DOWNLINKED),
+)  # fmt: skip
+"""The PlotBatch columns a CAT048 plot fills besides geometry, amplitude and codes."""
+_DOWNLINKED = tuple(q.name for q in DOWNLINKED)
+_NO_DOWNLINK = (None,) * len(DOWNLINKED)
 
 
 def flight_level_to_altitude(fl: float) -> float:
@@ -166,7 +187,7 @@ class _Radar:
     last_az: float = 0.0
     # plots not yet emitted, sorted by time (ties in arrival order): ptimes[i] is the
     # time of pending[i] = (time ns, range m, azimuth rad, altitude, amplitude, mode_s,
-    # mode_3a, typ)
+    # mode_3a, typ, values of SECONDARY_COLUMNS)
     ptimes: list[int] = field(default_factory=list)
     pending: list[tuple] = field(default_factory=list)
     periods_041: list[float] = field(default_factory=list)
@@ -486,7 +507,7 @@ class AsterixStreamDecoder:
                 radar.cur_idx = None
         if radar.mode == "fixed":
             self._fixed_sector_advance(radar, t, az)
-        alt = None if plot.flight_level is None else flight_level_to_altitude(plot.flight_level)
+        alt = self._altitude(plot)
         row = (
             t,
             plot.rho_nm * NM,
@@ -496,6 +517,7 @@ class AsterixStreamDecoder:
             plot.mode_s,
             plot.mode_3a,
             plot.typ,
+            self._secondary(plot),
         )
         if not radar.ptimes or t >= radar.ptimes[-1]:
             radar.ptimes.append(t)
@@ -512,6 +534,39 @@ class AsterixStreamDecoder:
         if len(radar.est_t) < MAX_PERIOD_SAMPLES:
             radar.est_t.append(t * 1e-9)
             radar.est_az.append(az)
+
+    def _altitude(self, plot: cat048.Cat048Plot) -> float | None:
+        """The altitude (m) of a validated, ungarbled flight level within
+        :data:`ALTITUDE_FL` (others: counted ``cat048_flight_level_out_of_range``)."""
+        level = plot.flight_level
+        if level is None or plot.flight_level_not_validated or plot.flight_level_garbled:
+            return None
+        if not ALTITUDE_FL[0] <= level <= ALTITUDE_FL[1]:
+            self.stats["cat048_flight_level_out_of_range"] += 1
+            return None
+        return flight_level_to_altitude(level)
+
+    def _secondary(self, plot: cat048.Cat048Plot) -> tuple:
+        """The values of :data:`SECONDARY_COLUMNS` of one plot (its I250 registers
+        decoded, counted by what happened to each)."""
+        values: dict = {}
+        if plot.registers:
+            values, counts = bds.decode_registers(plot.registers, plot.mode_s)
+            for key in counts:
+                self.stats[f"cat048_{key}"] += 1
+            if counts and self.stats["cat048_bds_not_decoded_no_pymodes"] == len(counts):
+                self._note("CAT048 I250 (Mode S BDS registers) not decoded: pyModeS is not "
+                           "installed (pip install 'skyfuse[modes]')")  # fmt: skip
+        callsign = plot.callsign if plot.callsign is not None else values.get("callsign")
+        if callsign is not None and not CALLSIGN_RE.match(callsign):
+            self.stats["cat048_bad_callsign"] += 1
+            callsign = None
+        downlinked = _NO_DOWNLINK if not values else tuple(values.get(n) for n in _DOWNLINKED)
+        return (
+            plot.mode_3a_not_validated, plot.mode_3a_garbled, plot.mode_3a_smoothed, callsign,
+            plot.flight_level, plot.flight_level_not_validated, plot.flight_level_garbled,
+            plot.spi, plot.flight_status, *downlinked,
+        )  # fmt: skip
 
     def _fixed_sector_advance(self, radar: _Radar, t: int, az: float) -> None:
         """Queue the fixed-sector boundaries the beam crossed before a plot at (t, az)."""
@@ -668,7 +723,7 @@ class AsterixStreamDecoder:
                 width = TWO_PI
         width = min(max(width, 1e-9), TWO_PI)
         start_t = radar.e_t if radar.e_t is not None else end_t
-        cols = list(zip(*take)) if take else [[]] * 8
+        cols = list(zip(*take)) if take else [[]] * 9
         times = list(cols[0])
         if times:
             late = bisect.bisect_left(times, start_t)
@@ -693,6 +748,7 @@ class AsterixStreamDecoder:
             amplitude=list(cols[4]) if polar else None,
             mode_s=list(cols[5]) if polar else None,
             mode_3a=list(cols[6]) if polar else None,
+            **(dict(zip(SECONDARY_COLUMNS, map(list, zip(*cols[8])))) if polar else {}),
         )
         out.append((batch, list(cols[7])))
         self.stats["batches"] += 1

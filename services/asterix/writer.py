@@ -19,6 +19,13 @@ Resolution (LSB): time 1/128 s, range 1/256 NM (7.23 m), azimuth 360/2^16 deg
 sectors per turn). Plots have I020 TYP 5 (Mode S roll-call) with a Mode-S address, 2
 (SSR) with a Mode-3/A code or an altitude, else 1 (PSR); SIM = 1 when ``simulated``.
 
+Secondary-surveillance columns: ``mode_3a`` with its flags → I070 (V, G, L),
+``flight_level`` with its flags → I090 (the ``altitude`` column is written as I090 only
+for plots without a ``flight_level``), ``spi`` → I020 SPI, ``mode_s`` → I220,
+``callsign`` → I240, ``flight_status`` → I230 STAT, the downlinked parameters → I250 as
+the registers BDS 4,0, 5,0 and 6,0 that carry them (:func:`.bds.encode_register`; a
+register is written when one of its parameters is known).
+
 Not carried: ``elevation`` (CAT048 has no elevation item), ``doppler``, ``target_id``
 (simulation truth): they are dropped and counted in ``stats``. Cartesian batches
 (x/y) cannot be written (``ValueError``). Plots outside I040 (range > 256 NM) are
@@ -31,9 +38,10 @@ import math
 from collections import Counter
 
 from skyfuse.schemas import PlotBatch, RadarSite
+from skyfuse.schemas.identity import DOWNLINK_REGISTERS
 
-from . import cat034, cat048
-from .reader import NM, altitude_to_flight_level
+from . import bds, cat034, cat048
+from .reader import NM, SECONDARY_COLUMNS, altitude_to_flight_level
 from .sites import sac_sic_of
 
 TWO_PI = 2.0 * math.pi
@@ -174,6 +182,8 @@ class AsterixPlotWriter:
         amp = batch.amplitude or [None] * n
         ms = batch.mode_s or [None] * n
         m3a = batch.mode_3a or [None] * n
+        present = [c for c in SECONDARY_COLUMNS if getattr(batch, c) is not None]
+        secondary = [getattr(batch, c) for c in present]
         records = []
         assert batch.range is not None and batch.azimuth is not None
         # Plot times are kept inside (start, end] of the sector in ticks, so that the
@@ -184,7 +194,10 @@ class AsterixPlotWriter:
             if rho_nm * 256.0 > 0xFFFF + 0.5:
                 self.stats["plot_beyond_256_nm"] += 1
                 continue
-            fl = None if alt[i] is None else altitude_to_flight_level(alt[i])
+            extra = {c: col[i] for c, col in zip(present, secondary) if col[i] is not None}
+            fl = extra.pop("flight_level", None)
+            if fl is None and alt[i] is not None:
+                fl = altitude_to_flight_level(alt[i])
             if fl is not None and not -2048.0 <= fl < 2047.75:
                 self.stats["altitude_out_of_range"] += 1
                 fl = None
@@ -207,10 +220,25 @@ class AsterixPlotWriter:
                     mode_3a=m3a[i],
                     mode_s=ms[i],
                     amplitude_dbm=amp[i] if amp[i] is None or math.isfinite(amp[i]) else None,
+                    **_mode_s_values(extra),
                 )
             )
             self.stats["plots"] += 1
         return records
+
+
+def _mode_s_values(extra: dict) -> dict:
+    """The encode_record keywords of a plot's secondary values: the flags as they are,
+    the downlinked parameters as I250 registers."""
+    registers = []
+    for name, params in DOWNLINK_REGISTERS.items():
+        if any(p in extra for p in params):
+            registers.append((bds.encode_register(name, extra), int(name[0]) << 4))
+            for p in params:
+                extra.pop(p, None)
+    if registers:
+        extra["registers"] = registers
+    return extra
 
 
 def _same_az(a: float, b: float) -> bool:

@@ -28,6 +28,7 @@ from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
     Child,
     DemoConfig,
+    identity_lines,
     plot_tracks_vs_truth,
     report_recording,
 )
@@ -454,6 +455,7 @@ def print_summary(s: dict) -> None:
         f"p99 {_num(lat.get('p99'))} ms",
         f"  messages recorded        : {s['messages_recorded']} in {s['recording']}",
         f"  plot                     : {s['png']}",
+        *identity_lines(s),
     ]
     print("\n".join(lines))
 

@@ -2,8 +2,10 @@
 
 Without ``--json``: a live table (rich) of the confirmed tracks of the picture rebuilt
 from the feed (the snapshot, then the deltas and full messages: ``schemas.TrackPicture``),
-with the last track events; when the output is not a terminal, plain tab-separated text
-(the picture at each full message, every second by default). With ``--json``: one
+with callsign, squawk (Mode-3/A, ``!`` for an emergency) and measured flight level
+columns when the tracks have an identity, and the last track events; when the output
+is not a terminal, plain tab-separated text (the picture at each full message, every
+second by default). With ``--json``: one
 JSON object per line, ``{"topic": KEY, "message": PAYLOAD}``, for every TrackBatch and TrackEvent
 (to FILE with ``--json FILE``, the same spelling as every command); the fusion's
 payload text is copied, not re-encoded (5× less CPU for a 1,000-track delta), and on
@@ -24,6 +26,7 @@ import time
 from pydantic import BaseModel, Field, ValidationError
 from pydantic_core import from_json
 from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPictures, TrackStatus, keys
+from skyfuse.schemas.identity import mode_3a_text
 from skyfuse.services.cli.config import (
     ConfigError,
     add_json_argument,
@@ -67,10 +70,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _row(t) -> list[str]:
+def _row(t, identity: bool = False) -> list[str]:
     return [
         str(t.track_id),
         t.status.value,
+        *(_identity_cells(t) if identity else ()),
         f"{t.lat:.5f}",
         f"{t.lon:.5f}",
         "-" if t.alt is None else f"{t.alt:.0f}",
@@ -83,6 +87,36 @@ def _row(t) -> list[str]:
 
 
 _COLUMNS = ["id", "status", "lat °", "lon °", "alt m", "speed m/s", "hdg °", "P(exist)", "upd"]
+_IDENTITY_COLUMNS = ["callsign", "squawk", "FL"]
+"""Shown after ``status`` when a track of the picture has an identity (a picture without
+any keeps the columns it always had)."""
+
+
+def _identity_cells(t) -> list[str]:
+    """Callsign, Mode-3/A code (octal; ``!`` after it for an emergency) and the measured
+    flight level, ``-`` for what the track does not have."""
+    squawk = mode_3a_text(t.mode_3a) or "-"
+    if t.emergency is not None:
+        squawk += "!"
+    level = "-" if t.flight_level is None else f"{t.flight_level:.0f}"
+    return [t.callsign or "-", squawk, level]
+
+
+def _has_identity(tracks) -> bool:
+    return any(
+        t.callsign is not None or t.mode_3a is not None or t.flight_level is not None
+        for t in tracks
+    )
+
+
+def _shown(batch: TrackBatch, all_tracks: bool) -> list:
+    tracks = sorted(batch.tracks, key=lambda t: t.track_id)
+    return [t for t in tracks if all_tracks or t.status == TrackStatus.CONFIRMED]
+
+
+def _header(identity: bool) -> list[str]:
+    extra = _IDENTITY_COLUMNS if identity else []
+    return [*_COLUMNS[:2], *extra, *_COLUMNS[2:], "radars"]
 
 
 def render_table(batch: TrackBatch | None, events: list[TrackEvent], all_tracks: bool):
@@ -90,12 +124,14 @@ def render_table(batch: TrackBatch | None, events: list[TrackEvent], all_tracks:
     from rich.table import Table
 
     table = Table(title="skyfuse tracks", expand=False)
-    for c in [*_COLUMNS, "radars"]:
-        table.add_column(c, justify="right" if c not in ("status", "radars") else "left")
+    shown = _shown(batch, all_tracks) if batch is not None else []
+    identity = _has_identity(shown)
+    for c in _header(identity):
+        left = c in ("status", "radars", "callsign")
+        table.add_column(c, justify="left" if left else "right")
     if batch is not None:
-        for t in sorted(batch.tracks, key=lambda t: t.track_id):
-            if all_tracks or t.status == TrackStatus.CONFIRMED:
-                table.add_row(*_row(t))
+        for t in shown:
+            table.add_row(*_row(t, identity))
         table.caption = (
             f"fusion {batch.fusion_id} cycle {batch.cycle}, source {batch.source_radar}, "
             f"{sum(t.status == TrackStatus.CONFIRMED for t in batch.tracks)} confirmed / "
@@ -109,10 +145,10 @@ def plain_table(batch: TrackBatch | None, all_tracks: bool) -> str:
     """The picture as tab-separated lines (for files and pipes: nothing truncated)."""
     if batch is None:
         return ""
-    lines = ["\t".join([*_COLUMNS, "radars"])]
-    for t in sorted(batch.tracks, key=lambda t: t.track_id):
-        if all_tracks or t.status == TrackStatus.CONFIRMED:
-            lines.append("\t".join(_row(t)))
+    shown = _shown(batch, all_tracks)
+    identity = _has_identity(shown)
+    lines = ["\t".join(_header(identity))]
+    lines.extend("\t".join(_row(t, identity)) for t in shown)
     lines.append(f"# fusion {batch.fusion_id} cycle {batch.cycle}: {len(lines) - 1} tracks")
     return "\n".join(lines) + "\n"
 

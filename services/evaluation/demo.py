@@ -11,7 +11,9 @@ sensors with a common ``--start-at`` (so all radars run in step) → live view f
 Status messages → when the sensors have finished, let the fusion service drain its
 reorder buffer, then SIGTERM fusion and recorder → report on the recording
 (:func:`report_recording`): plots, confirmed tracks, GOSPA against the recorded truth,
-latency, messages recorded; write the JSON summary and a PNG of tracks against truth.
+latency, messages recorded, and the confirmed tracks by callsign when they carry
+identities (:func:`identity_lines`); write the JSON summary and a PNG of tracks
+against truth.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, Field
 from skyfuse.schemas import PlotBatch, RadarSite, Status, TrackBatch, TrackStatus, Truth
+from skyfuse.schemas.identity import mode_3a_text
 from skyfuse.services.evaluation.observers import Coverage, TruthObserver
 from skyfuse.services.evaluation.offline import Observer, OfflineConfig, run_offline
 from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
@@ -210,6 +213,20 @@ class _DemoObserver(Observer):
             ),
         }  # fmt: skip
 
+    def tracks_by_callsign(self) -> dict[str, list[int]]:
+        """The confirmed tracks of the run by the identity they showed: callsign, else
+        ``squawk NNNN`` (octal) → sorted track ids (several ids: the aircraft's track
+        changed id). Empty when no track had an identity."""
+        ids: dict[str, set[int]] = defaultdict(set)
+        for b in self.batches:
+            for t in b.tracks:
+                if t.status != TrackStatus.CONFIRMED:
+                    continue
+                name = t.callsign or (f"squawk {mode_3a_text(t.mode_3a)}" if t.mode_3a else "")
+                if name:
+                    ids[name].add(t.track_id)
+        return {name: sorted(v) for name, v in sorted(ids.items())}
+
     def track_points(self, n: int = 400) -> list[tuple[float, float]]:
         """Confirmed track positions of about ``n`` TrackBatches (lon, lat)."""
         pts = []
@@ -273,9 +290,23 @@ def report_recording(
         "gospa_final_false": gospa.get("final_false"),
         "truth": scores,
     }
+    by_callsign = demo.tracks_by_callsign()
+    if by_callsign:  # only when the tracks carry identities (the report is unchanged else)
+        summary["tracks_by_callsign"] = by_callsign
     return DemoReport(
         summary, dict(demo.truth_tracks), demo.track_points(), list(result.sites.values())
     )
+
+
+def identity_lines(summary: dict, limit: int = 20) -> list[str]:
+    """The report's lines listing tracks by callsign (none without identities)."""
+    by_callsign = summary.get("tracks_by_callsign") or {}
+    if not by_callsign:
+        return []
+    items = list(by_callsign.items())
+    text = ", ".join(f"{name} {'/'.join(map(str, ids))}" for name, ids in items[:limit])
+    more = f" … (+{len(items) - limit})" if len(items) > limit else ""
+    return [f"  tracks by callsign       : {text}{more}"]
 
 
 def plot_tracks_vs_truth(ev: DemoReport, path: Path, title: str = "skyfuse demo") -> None:

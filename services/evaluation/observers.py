@@ -278,7 +278,9 @@ class PlotTrackRows:
             col = batch.column(name)
             if col is not None:
                 self.kind = self.kind or name
-                return mode_3a_fallback(col, batch.column("mode_3a")) if name == "mode_s" else col
+                if name != "mode_s":
+                    return col
+                return mode_3a_fallback(col, batch.validated_column("mode_3a"))
         return np.full(len(batch), NO_LABEL, np.int64)
 
     def add(self, batch: PlotBatch, out) -> None:

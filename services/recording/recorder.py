@@ -4,8 +4,9 @@ plus Foxglove channels (protobuf, from foxglove-sdk) that the Foxglove Map panel
 ``foxglove.LocationFixes`` on ``/foxglove/tracks`` (confirmed tracks of the picture
 rebuilt from the delta/full feed, ``schemas.TrackPicture``), ``/foxglove/plots`` (one
 per radar revolution), ``/foxglove/truth`` and ``/foxglove/sites``, and
-``foxglove.GeoJSON`` on ``/foxglove/tracks_geojson`` (each track named ``T{id}`` with its
-heading, speed, altitude, existence and radars, and a heading line). Every Foxglove
+``foxglove.GeoJSON`` on ``/foxglove/tracks_geojson`` (each track named by its callsign, or
+squawk, and flight level — ``T{id}`` without identity — with its heading, speed,
+altitude, existence, radars and identity, and a heading line). Every Foxglove
 message is stamped with data time (plot, track, truth times; sites with the time of
 the latest data), the MCAP log time is the receive time.
 
@@ -59,6 +60,7 @@ from skyfuse.schemas import (
     Truth,
     keys,
 )
+from skyfuse.schemas.identity import mode_3a_text
 from skyfuse.schemas.rejection import decode, rejection_detail
 from skyfuse.services.recording.mcap_io import SCHEMA_PREFIX, RecordingWriter, json_schema_bytes
 from skyfuse.services.runtime.ratelimit import RateLimitedLog
@@ -191,11 +193,42 @@ def location_fixes(
     return fg.LocationFixes(fixes=fixes)
 
 
+def track_label(t) -> str:
+    """The map label of a track: its callsign, else its Mode-3/A code (octal), with the
+    measured flight level (``"ROT415 FL370"``, ``"4004 FL370"``, ``"7700!"`` for an
+    emergency); ``T{id}`` for a track without identity."""
+    name = t.callsign or mode_3a_text(t.mode_3a)
+    if t.emergency is not None:
+        name = f"{name or f'T{t.track_id}'}!"
+    if t.flight_level is not None:
+        name = f"{name or f'T{t.track_id}'} FL{t.flight_level:03.0f}"
+    return name or f"T{t.track_id}"
+
+
+def _identity_properties(t) -> dict:
+    """The identity a track has, as GeoJSON properties (none for a track without)."""
+    out: dict = {}
+    if t.callsign is not None:
+        out["callsign"] = t.callsign
+    if t.mode_3a is not None:
+        out["squawk"] = mode_3a_text(t.mode_3a)
+    if t.mode_s is not None:
+        out["mode_s"] = f"{t.mode_s:06X}"
+    if t.flight_level is not None:
+        out["flight_level"] = round(t.flight_level, 2)
+    if t.emergency is not None:
+        out["emergency"] = str(t.emergency)
+    if t.spi:
+        out["spi"] = True
+    return out
+
+
 def track_features(tracks) -> fg.GeoJson:
     """The tracks as a GeoJSON FeatureCollection for Foxglove's Map panel: per track a
-    Point (properties: id, heading in degrees clockwise from north, speed m/s, altitude
-    m, existence, radars) and a LineString from it to where it will be in
-    ``HEADING_LINE_S`` s at its velocity (local east/north offsets, pymap3d)."""
+    Point (properties: name (:func:`track_label`), id, heading in degrees clockwise from
+    north, speed m/s, altitude m, existence, radars, and the callsign, squawk, Mode-S
+    address, flight level, emergency and SPI it has) and a LineString from it to where it
+    will be in ``HEADING_LINE_S`` s at its velocity (local east/north offsets, pymap3d)."""
     feats = []
     if tracks:
         lat = np.array([t.lat for t in tracks])
@@ -205,7 +238,7 @@ def track_features(tracks) -> fg.GeoJson:
         lat2, lon2, _ = pymap3d.enu2geodetic(ve, vn, 0 * ve, lat, lon, 0 * ve)
         for t, la2, lo2 in zip(tracks, lat2.tolist(), lon2.tolist()):
             props = {
-                "name": f"T{t.track_id}",
+                "name": track_label(t),
                 "track_id": t.track_id,
                 "heading_deg": round(math.degrees(t.heading), 1),
                 "speed_mps": round(t.speed, 1),
@@ -213,6 +246,7 @@ def track_features(tracks) -> fg.GeoJson:
                 "existence": round(t.existence, 3),
                 "radars": ",".join(t.radars),
             }
+            props.update(_identity_properties(t))
             point = {"type": "Point", "coordinates": [t.lon, t.lat]}
             line = {"type": "LineString", "coordinates": [[t.lon, t.lat], [lo2, la2]]}
             for geom in (point, line):

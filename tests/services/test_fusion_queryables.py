@@ -9,7 +9,7 @@ import time
 
 import pytest
 import zenoh
-from skyfuse.schemas import Status, keys
+from skyfuse.schemas import SCHEMA_VERSION, Status, keys
 from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.runtime.transport import (
@@ -27,9 +27,12 @@ pytestmark = pytest.mark.service
 
 def test_payload_encoding_names_the_schema():
     assert str(payload_encoding(keys.fusion_tracks("main"))) == (
-        "application/json;skyfuse.TrackBatch/1"
+        f"application/json;skyfuse.TrackBatch/{SCHEMA_VERSION}"
     )
-    assert str(payload_encoding(keys.radar_plots("R1"))) == "application/json;skyfuse.PlotBatch/1"
+    assert (
+        str(payload_encoding(keys.radar_plots("R1")))
+        == f"application/json;skyfuse.PlotBatch/{SCHEMA_VERSION}"
+    )
     assert payload_encoding(keys.radar_alive("R1")) == zenoh.Encoding.ZENOH_BYTES
 
 
@@ -57,11 +60,14 @@ def test_status_queryable_and_encodings():
             assert len(ok) == 1 and str(ok[0].key_expr) == keys.fusion_status("q1")
             st = Status.from_json_bytes(ok[0].payload.to_bytes())
             assert st.service_id == "q1" and st.backlog is not None
-            assert str(ok[0].encoding) == "application/json;skyfuse.Status/1"
+            assert str(ok[0].encoding) == f"application/json;skyfuse.Status/{SCHEMA_VERSION}"
             deadline = time.monotonic() + 5
             while not seen and time.monotonic() < deadline:
                 time.sleep(0.05)
-            assert seen and str(seen[0].encoding) == "application/json;skyfuse.Status/1"
+            assert (
+                seen
+                and str(seen[0].encoding) == f"application/json;skyfuse.Status/{SCHEMA_VERSION}"
+            )
             snap = [r for r in s_client.get(keys.fusion_snapshot("q1"), timeout=3.0)]
             assert len(snap) == 1 and snap[0].err is not None  # no tracks yet: an error reply
         finally:

@@ -55,7 +55,8 @@ def cat048_records(draw) -> bytes:
         "140": draw(st.integers(0, 2**24 - 1)),
     }
     if draw(st.booleans()):
-        groups = [(draw(st.integers(0, 7)), draw(st.integers(0, 1)), 0, 0, 0, None)]
+        groups = [(draw(st.integers(0, 7)), draw(st.integers(0, 1)), 0,
+                   draw(st.integers(0, 1)), 0, None)]  # TYP, SIM, RDP, SPI, RAB  # fmt: skip
         if draw(st.booleans()):
             groups.append((draw(st.integers(0, 1)), 0, 0, 0, 0, 0, None))
         items["020"] = tuple(groups)
@@ -68,7 +69,7 @@ def cat048_records(draw) -> bytes:
         items["070"] = (
             draw(st.integers(0, 1)),
             draw(st.integers(0, 1)),
-            0,
+            draw(st.integers(0, 1)),
             0,
             ("MODE3A", draw(st.integers(0, 4095))),
         )
@@ -84,7 +85,11 @@ def cat048_records(draw) -> bytes:
     if draw(st.booleans()):
         items["220"] = draw(st.integers(0, 2**24 - 1))
     if draw(st.booleans()):
+        items["240"] = draw(st.integers(0, 2**48 - 1))
+    if draw(st.booleans()):
         items["250"] = [draw(st.integers(0, 2**64 - 1)) for _ in range(draw(st.integers(0, 3)))]
+    if draw(st.booleans()):
+        items["230"] = draw(st.integers(0, 2**16 - 1))
     if draw(st.booleans()):
         items["161"] = (0, ("TRN", draw(st.integers(0, 4095))))
     if draw(st.booleans()):
@@ -118,14 +123,38 @@ cat048_values = st.fixed_dictionaries(
         "mode_3a": st.none() | st.integers(0, 4095),
         "mode_s": st.none() | st.integers(0, 2**24 - 1),
         "amplitude_dbm": st.none() | st.floats(-150, 150),
-    }
+    },
+    optional={
+        "spi": st.booleans(),
+        "mode_3a_not_validated": st.booleans(),
+        "mode_3a_garbled": st.booleans(),
+        "mode_3a_smoothed": st.booleans(),
+        "flight_level_not_validated": st.booleans(),
+        "flight_level_garbled": st.booleans(),
+        "flight_status": st.integers(0, 7),
+        "callsign": st.from_regex(r"[A-Z0-9 ]{0,8}", fullmatch=True),
+        "registers": st.lists(
+            st.tuples(st.integers(0, 2**56 - 1), st.integers(0, 255)), max_size=4
+        ),
+    },
 )
 
 
 @settings(max_examples=200, deadline=None)
 @given(cat048_values)
 def test_cat048_encoder_matches_libasterix(values):
-    assert cat048.encode_record(**values) == cat048.build_record(**values).unparse().to_bytes()
+    data = cat048.encode_record(**values)
+    assert data == cat048.build_record(**values).unparse().to_bytes()
+    plot, end = cat048.decode_fast(data, 0)  # and decodes to what was encoded
+    assert end == len(data)
+    for key in ("spi", "mode_3a_not_validated", "mode_3a_garbled", "mode_3a_smoothed",
+                "flight_level_not_validated", "flight_level_garbled"):  # fmt: skip
+        code = "flight_level" if key.startswith("flight") else "mode_3a"
+        carried = key == "spi" or values.get(code) is not None
+        assert getattr(plot, key) == (carried and values.get(key, False)), key
+    assert plot.flight_status == values.get("flight_status")
+    assert plot.callsign == (values.get("callsign", "").rstrip() or None)
+    assert plot.registers == tuple(values.get("registers", ()))
 
 
 cat034_values = st.fixed_dictionaries(

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import asterix.generated as gen
 import pytest
-from service_support import SHARED_DATA, independent_asterix_decode
+from service_support import SHARED_DATA
 from skyfuse.services.asterix import cat010, cat020, cat021
 from skyfuse.services.asterix.pcap import iter_file_datagrams, split_datablocks
 
@@ -153,13 +153,13 @@ def split_items(data: bytes) -> dict:
 
 
 @pytest.mark.parametrize("name", CAT010_FILES)
-def test_cat010_records_match_the_independent_decoder(name: str):
+def test_cat010_records_match_the_independent_decoder(name: str, independent_decoder):
     path = SHARED_DATA / name
     if not path.exists():
         pytest.skip(f"{path} absent")
     blocks = blocks_of(path)
     chosen = pick(blocks, split_items)
-    refs = independent_asterix_decode(b"".join(blocks[i] for i in chosen))
+    refs = independent_decoder(b"".join(blocks[i] for i in chosen))
     assert len(refs) == len(chosen)
     kinds: Counter = Counter()
     for i, ref in zip(chosen, refs, strict=True):
@@ -246,13 +246,13 @@ def check_cat021(ours: cat021.Cat021Report, ref: dict, v2: bool) -> None:
             assert close(ours.track_angle_deg, val(ref, "I160", "TA"))
 
 
-def test_cat021_edition_2_6_matches_the_independent_decoder():
+def test_cat021_edition_2_6_matches_the_independent_decoder(independent_decoder):
     blocks = [
         cat021_26_record(),
         cat021_26_record(**{"131": None, "090": ((4, 0, None),), "157": None}),
         cat021_26_record(**{"040": ((0, 1, 0, 0, None),), "210": (0, 0, 0, 2), "071": None}),
     ]
-    refs = independent_asterix_decode(b"".join(blocks))
+    refs = independent_decoder(b"".join(blocks))
     assert len(refs) == len(blocks)
     for blk, ref in zip(blocks, refs, strict=True):
         ours, _ = cat021.decode_fast(blk[3:], 0, "2.6")
@@ -271,7 +271,7 @@ def test_cat021_edition_2_6_matches_the_independent_decoder():
     assert third.mops_version == 0 and third.nucp == 7 and third.sigma_source == "nacp"
 
 
-def test_cat021_edition_0_23_matches_the_independent_decoder():
+def test_cat021_edition_0_23_matches_the_independent_decoder(independent_decoder):
     """The LEBL ADS-B file against asterix-decoder with CroatiaControl's edition 0.23
     definition (``asterix_cat021_0_23.xml`` from its repository; the PyPI package ships
     only 2.6): set ``SKYFUSE_ASTERIX_DECODER_DEFINITIONS`` to a folder holding it."""
@@ -282,14 +282,14 @@ def test_cat021_edition_0_23_matches_the_independent_decoder():
         pytest.skip("needs the LEBL ADS-B file and $SKYFUSE_ASTERIX_DECODER_DEFINITIONS")
     blocks = blocks_of(path)
     chosen = sorted({0, len(blocks) // 2, len(blocks) - 1, *range(1, len(blocks), 97)})
-    refs = independent_asterix_decode(b"".join(blocks[i] for i in chosen), (definition,))
+    refs = independent_decoder(b"".join(blocks[i] for i in chosen), (definition,))
     assert len(refs) == len(chosen)
     for i, ref in zip(chosen, refs, strict=True):
         ours, _ = cat021.decode_fast(blocks[i][3:], 0, "0.23")
         check_cat021(ours, ref, v2=False)
 
 
-def test_cat020_matches_the_independent_decoder():
+def test_cat020_matches_the_independent_decoder(independent_decoder):
     spec = gen.Cat_020_1_10
     rec = spec.cv_record.create(
         {
@@ -310,7 +310,7 @@ def test_cat020_matches_the_independent_decoder():
         }
     )
     blk = spec.create([rec]).unparse().to_bytes()
-    (ref,) = independent_asterix_decode(blk)
+    (ref,) = independent_decoder(blk)
     ours, end = cat020.decode_fast(blk[3:], 0)
     assert end == len(blk) - 3
     assert (ours.sac, ours.sic, ours.tod) == (1, 2, val(ref, "I140", "ToD"))
