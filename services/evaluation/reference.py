@@ -13,8 +13,9 @@ record from ``date``) and keeps one kind of report (``kind``: ``adsb``, ``mlat``
 * **Multilateration**: CAT010 target reports of a multilateration type (I020 TYP SSR,
   Mode S or HF multilateration) with a position and a Mode-S address (I220; others are
   counted ``no_address``: nothing identifies their aircraft). σ per axis from I500
-  (√((σx² + σy²)/2)), else ``sigma_m`` (default 5 m: the survey's field monitors
-  scatter 2–8 m per axis).
+  (√((σx² + σy²)/2)), else 5 m (the survey's field monitors scatter 2–8 m per axis).
+* ``sigma_m``, when given, is the σ of every report instead (e.g. an empirical figure:
+  NUCp 7's 37.8 m is a 95 % bound far above the LEBL ADS-B's actual error).
 * Dropped and counted: **field monitors** (CAT010 I020 RAB = 1: fixed transponders of
   the system itself, not traffic; the LEBL MLAT has six), simulated reports (SIM = 1),
   test targets (TST = 1, already dropped by the decoder: ``cat0NN_test_target``),
@@ -102,7 +103,7 @@ def _adsb(reports: list, counts: Counter) -> tuple[list, dict]:
     return kept, cols
 
 
-def _mlat(reports: list, counts: Counter, sigma_m: float) -> tuple[list, dict, list[str]]:
+def _mlat(reports: list, counts: Counter) -> tuple[list, dict, list[str]]:
     kept, monitors = [], set()
     for r in reports:
         if r.typ not in MLAT_TYPES:
@@ -123,7 +124,7 @@ def _mlat(reports: list, counts: Counter, sigma_m: float) -> tuple[list, dict, l
         [
             np.sqrt((r.sigma_x_m**2 + r.sigma_y_m**2) / 2.0)
             if r.sigma_x_m is not None and r.sigma_y_m is not None
-            else sigma_m
+            else MLAT_SIGMA_M
             for r in kept
         ],
         dtype=float,
@@ -136,7 +137,7 @@ def read_reference(
     *,
     date: dt.date | str | None = None,
     kind: str = "auto",
-    sigma_m: float = MLAT_SIGMA_M,
+    sigma_m: float | None = None,
 ) -> ReferenceRecording:
     """Read an ADS-B or multilateration recording as a reference (module docstring);
     raises :class:`~skyfuse.services.evaluation.inputs.InputError`."""
@@ -159,12 +160,14 @@ def read_reference(
         kept, cols = _adsb(adsb, counts)
         pos = cat021_positions(kept)
     else:
-        kept, cols, monitors = _mlat(tgt, counts, sigma_m)
+        kept, cols, monitors = _mlat(tgt, counts)
         pos = cat010_positions(kept)
     if not kept:
         what = "ADS-B (CAT021)" if kind == "adsb" else "multilateration (CAT010, Mode-S)"
         read = ", ".join(f"{k} {v}" for k, v in stats.items()) or "nothing decoded"
         raise InputError(f"{path}: no usable {what} reports (reader: {read})")
+    if sigma_m is not None:
+        cols["sigma"] = np.full(len(kept), float(sigma_m))
     ok = pos.placeable
     counts["no_position"] += int((~ok).sum())
     rows = np.flatnonzero(ok)

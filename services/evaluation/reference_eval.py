@@ -62,8 +62,11 @@ class ReferenceEvalOptions(BaseModel):
     reference_time_offset: float | Literal["auto"] = Field(
         0.0, description="Seconds added to the reference's times, or auto (estimated)"
     )
-    reference_sigma_m: float = Field(
-        5.0, gt=0, description="σ per axis of MLAT reference reports without I500, m"
+    reference_sigma_m: float | None = Field(
+        None,
+        gt=0,
+        description="σ per axis of every reference report, m (default: ADS-B NACp/NUCp, "
+        "MLAT I500, else 5 m)",
     )
     tracks: Path | None = Field(
         None, description="Score the TrackBatch messages of this MCAP instead of tracking"
