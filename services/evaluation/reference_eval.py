@@ -269,7 +269,7 @@ def print_table(summary: dict, title: str) -> None:
 
     console = Console()
     if not console.is_terminal:
-        console = Console(width=100)
+        console = Console(width=120)
     console.print(reference_table(summary, title))
 
 

@@ -11,7 +11,9 @@ itself: every target report carries the sensor's track number (I161) and track s
   reports without a position) or after ``new_track_gap_s`` (30 s) without a report —
   both sensors report every track every second, and reuse numbers;
 * only reports of confirmed tracks (I170 CNF) with a position count, as only confirmed
-  tracks of our tracker are published; field monitors (I020 RAB = 1: the system's own
+  tracks of our tracker are published, and only measured ones: a coasted report (I170
+  CST ≠ 0, the position extrapolated) is not an update, as a track of ours coasting
+  without a plot is not; field monitors (I020 RAB = 1: the system's own
   fixed transponders) and simulated reports are left out; test targets are dropped by
   the decoder;
 * the identity the sensor shows (Mode-S address I220, callsign I245, Mode-3/A I060) and
@@ -152,6 +154,7 @@ def _kept(reps: list, pos: ReportPositions, counts: Counter) -> np.ndarray:
             else "simulated" if r.sim
             else "no_position" if not placeable[i]
             else "not_confirmed" if r.confirmed is False
+            else "coasted" if r.coasted
             else None
         )  # fmt: skip
         if reason is not None:

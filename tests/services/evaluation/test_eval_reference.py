@@ -51,6 +51,25 @@ def test_ground_flags_follow_the_documented_rule():
     assert ground_flags(r).tolist() == [True, False, True, False, False, True, True, False]
 
 
+def test_sensor_reports_that_are_no_updates_are_left_out():
+    from collections import Counter
+
+    from skyfuse.services.evaluation.sensor_tracks import _kept
+    from skyfuse.services.evaluation.surveillance_positions import cat010_positions
+
+    reps = [
+        Cat010Report(0, 7, 0.0, typ=3, x_m=1.0, y_m=2.0, track_number=1),
+        Cat010Report(0, 7, 0.0, typ=3, x_m=1.0, y_m=2.0, track_number=1, coasted=3),
+        Cat010Report(0, 7, 0.0, typ=3, x_m=1.0, y_m=2.0, track_number=1, confirmed=False),
+        Cat010Report(0, 107, 0.0, typ=1, x_m=1.0, y_m=2.0, track_number=1, rab=True),
+        Cat010Report(0, 7, 0.0, typ=3, track_number=1, last=True),  # a track end
+    ]
+    counts = Counter()
+    keep = _kept(reps, cat010_positions(reps), counts)
+    assert keep.tolist() == [True, False, False, False, False]
+    assert counts == {"coasted": 1, "not_confirmed": 1, "field_monitor": 1, "no_position": 1}
+
+
 def test_track_numbers_start_a_new_life_after_an_end_or_a_long_silence():
     s = 10**9
     number = np.array([5, 5, 5, 7, 5, 5, 7])
