@@ -12,4 +12,8 @@ positions, covariances and labels per scan.
 * ``label_metrics``: measures for recordings whose truth is only plot labels (Mode-S).
 * ``turn_phase``: truth samples in a turn or in straight flight (turn rate from velocities),
   RMSE per phase.
+* ``reference_association``: which reference aircraft (ADS-B / multilateration, with an
+  address) each track update belongs to: nearest within a gate, majority along the track.
+* ``reference_scores``: tracks against that reference (ED-116/ED-117, ESASSP style):
+  probability of update, position error, continuity, duplicates, false tracks, identity.
 """

@@ -24,6 +24,18 @@ Every filter sees the same simulated plots in a run (seed + run index).
     skyfuse eval thesis-mtt-5 --trackers its,lmits --depths 1,7 --runs 50 --seed 1 \
         [--calibrate] [--workers 2] --out DIR [--json FILE] [--q 0.75 ...]
 
+* ``--reference REF`` — the tracks scored against an independent reference, an ADS-B
+  (CAT021) or multilateration (CAT010) recording not given to the tracker
+  (:mod:`skyfuse.services.evaluation.reference_eval`): probability of update, horizontal
+  position error, track ids per aircraft, duplicates, false tracks and correct
+  identification, surface and airborne. The tracks: those of FILE (below), the
+  TrackBatch messages of a recording (``--tracks T.mcap``) or a CAT010 sensor's own
+  tracks (``--sensor-tracks S.ast``: the sensor alone).
+
+    skyfuse eval --sensor-tracks mlat.ast --reference adsb.ast --sites lebl.toml \
+        --date 2016-05-10 [--reference-time-offset auto] [--json FILE]
+    skyfuse eval --tracks t.mcap --reference adsb.ast --reference-date 2016-05-10
+
 * ``FILE.mcap`` / ``FILE.pcap`` / ``FILE.ast`` — a recording (simulated: Truth messages
   and plot ``target_id``; real: Mode-S addresses on plots; ASTERIX with ``--sites``)
   through one tracker by the offline runner (:mod:`skyfuse.services.evaluation.recording`):
@@ -66,11 +78,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser(
         "eval",
-        help="Monte Carlo evaluation on a named scenario, or of a recording (FILE.mcap)",
+        help="Monte Carlo evaluation on a named scenario, of a recording (FILE.mcap), or of "
+        "tracks against a reference (--reference)",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    add_model_arguments(p, CrossingEvalConfig, positional=("scenario",))
+    add_model_arguments(p, CrossingEvalConfig, skip=("scenario",))
+    p.add_argument(
+        "scenario", nargs="?", default=argparse.SUPPRESS,
+        help="Scenario to evaluate (crossing-4g, thesis-*, lm-ipf-*) or a recording FILE "
+        "(omit it with --tracks or --sensor-tracks)",
+    )  # fmt: skip
     g = p.add_argument_group("tracker evaluation (thesis-*, lm-ipf-* scenarios)")
     add_model_arguments(g, TrackerEvalConfig, skip=SHARED_FIELDS)
     t = p.add_argument_group(
@@ -86,6 +104,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="UTC date of the first record, YYYY-MM-DD (default: pcap capture time, else today)",
     )
+    from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
+    from skyfuse.services.evaluation.reference_eval import ReferenceEvalOptions
+
+    ref = p.add_argument_group(
+        "scoring against a reference (ADS-B or multilateration: --reference REF; "
+        "tracks of FILE, of --tracks T.mcap or of --sensor-tracks S.ast)"
+    )
+    add_model_arguments(ref, ReferenceEvalOptions)
+    add_model_arguments(ref, ReferenceScoreConfig)
     from skyfuse.services.fusion.registration_link import add_registration_arguments
 
     add_registration_arguments(p)
@@ -107,6 +134,20 @@ def run(args: argparse.Namespace) -> int:
     from skyfuse.fusion.evaluation import PLANAR_SCENARIOS
 
     name = getattr(args, "scenario", None)
+    if getattr(args, "tracks", None) is not None or getattr(args, "sensor_tracks", None):
+        if name is not None:
+            raise ConfigError(
+                f"scenario = {name!r}: --tracks / --sensor-tracks score existing tracks; "
+                "give no scenario or recording with them"
+            )
+        from skyfuse.services.evaluation.reference_eval import run_reference
+
+        return run_reference(args)
+    if name is None:
+        raise ConfigError(
+            "give a scenario (crossing-4g, thesis-*, lm-ipf-*), a recording FILE, or "
+            "--tracks T.mcap / --sensor-tracks S.ast with --reference REF"
+        )
     if name is not None and (name.endswith(".mcap") or Path(name).is_file()):
         from skyfuse.services.evaluation.recording import run_recording
 

@@ -80,14 +80,20 @@ def scan_recording(path: Path) -> tuple[dict[str, RadarSite], int]:
     return sites, n_batches
 
 
+def parse_date(date: dt.date | str | None) -> dt.date | None:
+    """A UTC date given as ``datetime.date`` or ``"YYYY-MM-DD"`` (InputError otherwise)."""
+    if isinstance(date, str):
+        try:
+            return dt.date.fromisoformat(date)
+        except ValueError:
+            raise InputError(f"date {date!r} is not YYYY-MM-DD", usage=True) from None
+    return date
+
+
 def _open_asterix(path: Path, sites_file, date, sector_count: int) -> RecordingInput:
     from skyfuse.services.asterix import SitesError, load_sites, read_asterix
 
-    if isinstance(date, str):
-        try:
-            date = dt.date.fromisoformat(date)
-        except ValueError:
-            raise InputError(f"date {date!r} is not YYYY-MM-DD", usage=True) from None
+    date = parse_date(date)
     sites = None
     if isinstance(sites_file, dict):
         sites_file, sites = None, sites_file

@@ -21,6 +21,11 @@
   labels score tracks, they never drive association. With reported altitudes the same
   measures are given per traffic class (``labels_by_traffic``: airborne, surface,
   overhead, all; :mod:`skyfuse.fusion.metrics.traffic_split`).
+* :class:`ReferenceObserver` — the confirmed tracks' updates (a plot updated them) scored
+  against an independent reference (ADS-B or multilateration positions with addresses):
+  probability of update, position error, continuity, duplicates, false tracks, correct
+  identification, surface and airborne (:mod:`skyfuse.services.evaluation.reference_eval`,
+  :mod:`skyfuse.fusion.metrics.reference_scores`).
 * :class:`TrackWriter` — writes each step's TrackBatch and TrackEvents to MCAP on
   ``skyfuse/@v1/fusion/{id}/tracks`` and ``…/events``.
 * :class:`Timing` — wall and CPU time up to the last step, ms per tracker step (mean,
@@ -385,6 +390,45 @@ class LabelObserver(Observer):
         if split is not None:
             out["labels_by_traffic"] = split
         return out
+
+
+class ReferenceObserver(Observer):
+    """Reference scoring of the run's tracks (module docstring); summary key
+    ``reference``. ``reference``: a :class:`~skyfuse.services.evaluation.reference
+    .ReferenceRecording`; ``sites``: radar id → RadarSite for references given relative
+    to a site (CAT010 I042); ``config``: a ``ReferenceScoreConfig``; ``time_offset``:
+    seconds added to the reference's times, or ``"auto"``."""
+
+    def __init__(self, reference, sites=None, config=None, time_offset=0.0) -> None:
+        from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
+        from skyfuse.services.evaluation.reference_eval import UpdateCollector
+
+        self.reference = reference
+        self.sites = dict(sites or {})
+        self.config = config or ReferenceScoreConfig()
+        self.time_offset = time_offset
+        self.collector = UpdateCollector()
+        self.frame = None
+
+    def start(self, frame) -> None:
+        self.frame = frame
+
+    def on_step(self, step: Step) -> None:
+        self.collector.add_output(step.out)
+
+    def on_tracks(self, tracks: TrackBatch) -> None:
+        self.collector.add_batch(tracks)
+
+    def summary(self) -> dict:
+        from skyfuse.services.evaluation.reference_eval import score_reference
+
+        out = {"reference_file": self.reference.summary()}
+        if self.frame is None:
+            return {"reference": {**out, "note": "no tracks: nothing was scored"}}
+        samples = self.reference.samples(self.frame, self.sites)
+        scores = score_reference(self.collector.updates(), samples, self.config, self.time_offset)
+        out["reference_file"] = self.reference.summary()  # with the no_site count
+        return {"reference": {**out, **scores}}
 
 
 class TrackWriter(Observer):

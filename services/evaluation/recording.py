@@ -22,6 +22,9 @@ observers of :mod:`~skyfuse.services.evaluation.observers`:
   again with registration off (``registration_off``: RMSE, coverage, GOSPA, duplicates).
 * **traffic classes** (``labels_by_traffic``): the label measures separately for
   airborne (FL ≥ 10, ≥ 2 NM), surface (FL < 10) and overhead traffic, and for all.
+* **an independent reference** (``reference``, with ``--reference REF``: ADS-B or
+  multilateration): the tracks scored against it
+  (:mod:`~skyfuse.services.evaluation.reference_eval`).
 """
 
 from __future__ import annotations
@@ -87,20 +90,24 @@ def evaluate_recording(
     sites=None,
     date=None,
     registration=None,
+    reference=None,
 ) -> dict:
     """Run ``tcfg`` (a ``TrackerConfig``, default its defaults) over the recording at
     ``path``; return the summary dict (``labels``, ``labels_by_traffic``, ``truth`` when
     the recording has Truth messages, ``registration_vs_truth``, ``timing``, counts).
     ``registration``: a RegistrationConfig (default on). ``sites``, ``date``: ASTERIX
-    input only (see :func:`~skyfuse.services.evaluation.inputs.open_input`). Raises
-    ``InputError``."""
+    input only (see :func:`~skyfuse.services.evaluation.inputs.open_input`).
+    ``reference``: a :class:`~skyfuse.services.evaluation.observers.ReferenceObserver`
+    (it also gets the recording's sites). Raises ``InputError``."""
     from skyfuse.fusion.tracker import TrackerConfig
     from skyfuse.services.evaluation import observers as obs
-    from skyfuse.services.evaluation.inputs import open_input
+    from skyfuse.services.evaluation.inputs import is_mcap, open_input
     from skyfuse.services.evaluation.offline import OfflineConfig, run_offline
 
     opts = opts or RecordingEvalOptions()
     tcfg = tcfg if tcfg is not None else TrackerConfig()
+    if reference is not None and Path(path).is_file() and is_mcap(Path(path)):
+        sites = date = None  # given for the reference (its sites, its date) only
     src = open_input(Path(path), sites_file=sites, date=date, sector_count=opts.sector_count)
     asterix = src.asterix is not None
     warmup = opts.warmup_s if opts.warmup_s is not None else (60.0 if asterix else 0.0)
@@ -111,6 +118,9 @@ def evaluate_recording(
         reg_obs,
         obs.Timing(),
     ]
+    if reference is not None:
+        reference.sites = {**src.sites_in_file, **reference.sites}
+        observers.append(reference)
     ocfg = OfflineConfig(
         tracker=tcfg,
         frame_kind=opts.frame_kind,
@@ -156,7 +166,8 @@ def run_recording(args) -> int:
     from skyfuse.fusion.tracker import TrackerConfig
     from skyfuse.services.cli.config import ConfigError, build_config
     from skyfuse.services.evaluation.inputs import InputError
-    from skyfuse.services.evaluation.report import write_summary
+    from skyfuse.services.evaluation.reference_eval import print_table
+    from skyfuse.services.evaluation.report import STDOUT, write_summary
     from skyfuse.services.fusion.registration_link import registration_config
 
     tcfg = build_config(
@@ -167,17 +178,44 @@ def run_recording(args) -> int:
         env_prefix="SKYFUSE_TRACKER_",
     )
     try:
+        reference = _reference_observer(args)
         summary = evaluate_recording(
             args.scenario,
             tcfg,
             sites=getattr(args, "sites", None),
             date=getattr(args, "date", None),
             registration=registration_config(args, toml_path=getattr(args, "config", None)),
+            reference=reference,
         )
     except InputError as e:
         if e.usage:
             raise ConfigError(str(e)) from None
         log.error("%s", e)
         return 1
-    write_summary(summary, getattr(args, "json_out", None))
+    json_out = getattr(args, "json_out", None)
+    if reference is not None and (json_out is None or str(json_out) != STDOUT):
+        name = Path(args.scenario).name
+        print_table(summary["reference"], f"{name} ({tcfg.tracker}) against "
+                    f"{reference.reference.path.name}")  # fmt: skip
+    write_summary(summary, json_out)
     return 0
+
+
+def _reference_observer(args):
+    """The ReferenceObserver of ``--reference`` (None without it); InputError."""
+    from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
+    from skyfuse.services.cli.config import build_config
+    from skyfuse.services.evaluation.observers import ReferenceObserver
+    from skyfuse.services.evaluation.reference_eval import (
+        ReferenceEvalOptions,
+        load_site_map,
+        open_reference,
+    )
+
+    opts = build_config(ReferenceEvalOptions, args)
+    if opts.reference is None:
+        return None
+    ref = open_reference(opts, getattr(args, "date", None))
+    sites = load_site_map(getattr(args, "sites", None))
+    cfg = build_config(ReferenceScoreConfig, args)
+    return ReferenceObserver(ref, sites, cfg, opts.reference_time_offset)

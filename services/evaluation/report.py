@@ -36,6 +36,12 @@ _HEADLINE = (
     ("registration_off_rmse_m", ("registration_off", "position_rmse_m")),
     ("registration_off_duplicates_per_aircraft",
      ("registration_off", "duplicates", "duplicates_per_aircraft")),
+    ("reference_surface_pou", ("reference", "surface", "probability_of_update")),
+    ("reference_surface_rms_m", ("reference", "surface", "position", "rms_m")),
+    ("reference_airborne_pou", ("reference", "airborne", "probability_of_update")),
+    ("reference_airborne_rms_m", ("reference", "airborne", "position", "rms_m")),
+    ("reference_track_ids_per_aircraft", ("reference", "all", "track_ids_per_aircraft")),
+    ("reference_false_tracks", ("reference", "all", "false_tracks")),
     ("wall_s", ("timing", "wall_s")),
 )  # fmt: skip
 
