@@ -23,6 +23,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 from skyfuse.schemas import Status, TrackBatch, TrackPicture, TrackStatus, keys
+from skyfuse.services.cli.cmd_warmup import timed_load
 from skyfuse.services.cli.config import ConfigError, add_json_argument, build_config
 from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
@@ -80,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
     listen = cfg.listen or loopback_endpoint()
     stop = StopFlag(grace=30.0).install()
     live = sys.stderr.isatty() if cfg.live is None else cfg.live
+    # the tracker kernels into their cache here, with progress, before the fusion
+    # process starts (it then loads them in a fraction of a second)
+    timed_load(log)
     try:
         with open_session(TransportConfig(mode="peer", listen=[listen])) as session:
             interrupted, failed, children = orchestrate(
