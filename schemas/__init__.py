@@ -12,7 +12,7 @@ from .base import SCHEMA_VERSION, WireModel
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
-from .status import Backlog, LatencyStats, LateStats, RadarHealth, Status
+from .status import Backlog, LatencyStats, LateStats, OverloadStatus, RadarHealth, Status
 from .tracks import (
     FeedKind,
     FrameKind,
@@ -59,6 +59,7 @@ __all__ = [
     "FrameSpec",
     "LateStats",
     "LatencyStats",
+    "OverloadStatus",
     "PlotBatch",
     "RadarBias",
     "RadarBiasEstimate",
