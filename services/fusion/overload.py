@@ -44,6 +44,11 @@ FORGETTING = 0.995
 """RLS forgetting factor λ per step: the estimate follows a cost that drifts over a few
 hundred steps (more tracks, another load on the machine)."""
 
+PRIOR = (1e3, 1e-1)
+"""Π₀ = diag(PRIOR): the inverse information of the prior (a, b), about a thousandth of one
+step's (xxᵀ with x = (1, m), m ≈ 100 plots): the measurements take over at once. Π is
+also capped at it (forgetting does not wind up the directions no step excites)."""
+
 SCALE_GAIN = 0.2
 """Weight of the newest group in the exponential average of the scale s."""
 
@@ -56,7 +61,7 @@ class StepCost:
 
     def __init__(self, a: float = 3e-3, b: float = 2e-5, *, learn: bool = True) -> None:
         self.theta = np.array([a, b], dtype=np.float64)
-        self.cov = np.diag([a**2, b**2]).astype(np.float64)
+        self.cov = np.diag(PRIOR).astype(np.float64)
         self.learn = learn
         self.scale = 1.0
         self.steps = 0
@@ -87,7 +92,7 @@ class StepCost:
         self.theta = self.theta + gain * (y - pred)
         self.cov = (self.cov - np.outer(gain, px)) / FORGETTING
         self.cov = 0.5 * (self.cov + self.cov.T)
-        np.fill_diagonal(self.cov, np.minimum(np.diag(self.cov), [1e-2, 1e-6]))  # no wind-up
+        np.fill_diagonal(self.cov, np.minimum(np.diag(self.cov), PRIOR))  # no wind-up
 
     def add_group(self, predicted_steps_s: float, seconds: float) -> None:
         """A group's measured wall time against the sum of its steps' predictions."""

@@ -112,7 +112,7 @@ class FusionConfig(BaseModel):
         1.0, gt=0, description="Period of the full-picture TrackBatch on the feed, s"
     )
     bulk_max: int = Field(
-        500,
+        200,
         ge=1,
         le=100_000,
         description="Batches applied in one pass at most, when behind (the overload policy "
@@ -754,7 +754,7 @@ class FusionCore:
             epoch=self.epoch,
             role=self.role,
             time=time.time_ns(),
-            uptime_s=now - self.started,
+            uptime_s=time.monotonic() - self.started,
             counters={
                 **self.counters,
                 "queued": len(self.buffer),
