@@ -152,7 +152,7 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     the children)."""
     run = _DemoRun(session, cfg, sc, listen, out, workdir, stop, live)
     try:
-        if run.start_services() and run.start_sensors():
+        if run.start_services() and run.sensors_up():
             run.watch()
             run.drain()
     finally:
@@ -205,14 +205,19 @@ class _DemoRun:
         return True
 
     def start_services(self) -> bool:
+        """Recorder, fusion and the sensors start together (a sensor publishes nothing
+        before the demo's "go" token, declared once everything is up: its start-up runs
+        while the services start); True once the services are up."""
         for c in self.children:
             c.start(None, self.state)  # children inherit the working directory
         log.info("demo network on %s; logs in %s", self.listen, self.workdir)
-        return self._came_up(["recorder", "fusion"], self.children, "services")
+        self.start_sensors()
+        return self._came_up(["recorder", "fusion"], [self.recorder, self.fusion], "services")
 
-    def start_sensors(self) -> bool:
+    def start_sensors(self) -> None:
         """Sensors load the scenario, declare their ready tokens and wait for the demo's
-        "go" token; then they all start within a poll interval (~0.1 s) of each other."""
+        "go" token (:meth:`sensors_up`); then they all start within a poll interval
+        (~0.1 s) of each other."""
         cfg = self.cfg
         scen = [
             "--scenario", cfg.scenario, "--seed", str(cfg.seed), "--duration", str(cfg.duration),
@@ -232,6 +237,9 @@ class _DemoRun:
             s.start(None, self.state)
             self.sensors.append(s)
         self.children += self.sensors
+
+    def sensors_up(self) -> bool:
+        """Wait for the sensors' ready tokens, then declare "go"."""
         names = [f"sensor-{r}" for r in self.radars]
         if not self._came_up(names, self.sensors, "sensors"):
             return False
