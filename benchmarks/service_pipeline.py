@@ -368,10 +368,14 @@ def add_overload_arguments(ap: argparse.ArgumentParser) -> None:
     """The fusion's overload settings a level passes on (:func:`overload_flags`)."""
     ap.add_argument(
         "--coalesce-max-deg",
-        type=float,
         default=None,
-        help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
-        "as one tracker step, at most this wide; default off)",
+        help="the fusion's --coalesce-max-deg (the overload policy's widest step, deg; 'off': "
+        "batch by batch always; default: the fusion's default)",
+    )
+    ap.add_argument(
+        "--group-budget-s",
+        default=None,
+        help="the fusion's --group-budget-s (the overload policy's time per pass, s)",
     )
     ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
     ap.add_argument(
@@ -387,6 +391,8 @@ def overload_flags(a) -> tuple[str, ...]:
     extra: tuple[str, ...] = ()
     if a.coalesce_max_deg is not None:
         extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
+    if getattr(a, "group_budget_s", None) is not None:
+        extra += ("--group-budget-s", str(a.group_budget_s))
     if a.bulk_max is not None:
         extra += ("--bulk-max", str(a.bulk_max))
     if a.delta_split_s is not None:
