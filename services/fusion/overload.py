@@ -24,7 +24,9 @@ the previous one ran, B ≈ λ_b·T, so the k that fits is k ≈ λ_b·a / (1 �
 (λ_b batches per second, m̄ plots per batch): independent of the budget, the least
 widening that keeps up; a larger backlog (a bigger group) widens more and is worked off
 in a few groups, after which the steps narrow again. The budget sets how long a group
-runs, so the lag (and the latency beyond the reorder wait) stays near one budget.
+runs, so the lag (and the latency beyond the reorder wait) stays near one budget; a group
+whose oldest batch is already overdue by more than a budget (after a burst, or while the
+cost model learns) gets less time, T²/lag (:meth:`OverloadPolicy.budget`).
 """
 
 from __future__ import annotations
@@ -49,6 +51,10 @@ PRIOR = (1e3, 1e-1)
 step's (xxᵀ with x = (1, m), m ≈ 100 plots): the measurements take over at once. Π is
 also capped at it (forgetting does not wind up the directions no step excites)."""
 
+INITIAL_SCALE = 2.0
+"""The scale s before any group was measured: a group's wall time was about twice its
+steps' on the development machine at 20,000 plots/s (conversion, feed messages)."""
+
 SCALE_GAIN = 0.2
 """Weight of the newest group in the exponential average of the scale s."""
 
@@ -59,11 +65,13 @@ class StepCost:
     K = Π x / (λ + xᵀ Π x), θ ← θ + K (y − xᵀθ), Π ← (Π − K xᵀ Π) / λ, x = (1, m).
     ``learn=False`` keeps the prior (tests, a replay with a simulated clock)."""
 
-    def __init__(self, a: float = 3e-3, b: float = 2e-5, *, learn: bool = True) -> None:
+    def __init__(
+        self, a: float = 3e-3, b: float = 2e-5, *, learn: bool = True, scale: float = 1.0
+    ) -> None:
         self.theta = np.array([a, b], dtype=np.float64)
         self.cov = np.diag(PRIOR).astype(np.float64)
         self.learn = learn
-        self.scale = 1.0
+        self.scale = scale
         self.steps = 0
 
     @property
@@ -129,7 +137,7 @@ class OverloadPolicy:
         self.max_width = max_width
         self.budget_s = budget_s
         self.window_s = window_s
-        self.cost = cost or StepCost()
+        self.cost = cost or StepCost(scale=INITIAL_SCALE)
         self.groups: deque[_Group] = deque(maxlen=10_000)
         self.active_from: float | None = None
         self.groups_widened = 0
@@ -141,23 +149,40 @@ class OverloadPolicy:
     def enabled(self) -> bool:
         return self.max_width is not None
 
-    def members(self, batches: Sequence[PlotBatch], mergeable: Sequence[bool], sources=None) -> int:
+    def members(
+        self,
+        batches: Sequence[PlotBatch],
+        mergeable: Sequence[bool],
+        sources=None,
+        lag: float = 0.0,
+    ) -> int:
         """The most batches per step for this group: 1 (batch by batch) unless applying
-        them one by one is predicted to exceed the budget."""
+        them one by one is predicted to exceed the budget. ``lag``: how long the oldest of
+        them is overdue (past its reorder hold), s; beyond one budget the group gets
+        less time (:meth:`budget`), so a lag left by a burst is worked off quickly."""
         n = len(batches)
         if not self.enabled or n < 2:
             return 1
         plots = sum(len(b.time) for b in batches)
-        if self.cost.predict(n, plots) <= self.budget_s:
+        budget = self.budget(lag)
+        if self.cost.predict(n, plots) <= budget:
             return 1
         runs = coalesce.plan(batches, mergeable, self.max_width, sources)
         lengths = [len(r) for r in runs]
         longest = max(lengths)
         for k in range(2, longest + 1):
             steps = sum(-(-m // k) for m in lengths)
-            if self.cost.predict(steps, plots) <= self.budget_s:
+            if self.cost.predict(steps, plots) <= budget:
                 return k
         return longest
+
+    def budget(self, lag: float) -> float:
+        """The time for a group whose oldest batch is ``lag`` s overdue: the configured
+        budget T while lag ≤ T, else T²/lag (at least T/4): the service that keeps up has
+        a lag below one budget, a burst leaves more, and the steps then widen more until
+        the lag is back under T."""
+        t = self.budget_s
+        return t if lag <= t else max(t * t / lag, 0.25 * t)
 
     def start_group(self) -> None:
         """A group starts: its steps are reported to :meth:`on_step`."""

@@ -567,7 +567,9 @@ class FusionCore:
         policy = self.overload
         kw = {"part_s": self.cfg.delta_split_s, "on_step": policy.on_step}
         mergeable = [not p.late for p in ready]  # late batches are never coalesced
-        k = policy.members([b for _, b in items], mergeable, [site for site, _ in items])
+        t = time.monotonic() if now is None else now
+        lag = max(0.0, t - min(p.arrival for p in ready) - self.cfg.reorder_wait)
+        k = policy.members([b for _, b in items], mergeable, [site for site, _ in items], lag)
         if k > 1:
             kw |= {"coalesce_max": policy.max_width, "mergeable": mergeable, "max_members": k}
         pending = {id(p.batch): p for p in ready}
@@ -576,7 +578,7 @@ class FusionCore:
         try:
             yield from self._parts_output(parts, pending, now, len(ready))
         finally:
-            policy.end_group(time.monotonic() if now is None else now, len(ready))
+            policy.end_group(t, len(ready))
 
     def _parts_output(self, parts, pending, now, n: int) -> Iterator[CycleOutput]:
         """The output of each part of a group that applied a batch (see cycle_group)."""

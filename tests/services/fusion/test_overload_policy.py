@@ -81,9 +81,9 @@ def test_a_backlog_widens_the_steps_just_enough_and_they_narrow_after(scenario):
     # 10 ms per step, nothing per plot: a group must be at most 10 steps (budget 0.1 s)
     core = make_core(sites, StepCost(0.01, 0.0, learn=False), group_budget_s=0.1)
     times = arrivals(batches)
-    half = int(np.searchsorted(times, 6.0))  # stalled for 6 s: all that is ready at once
-    for b, t in zip(batches[:half], times[:half]):
-        assert core.on_plots(b, arrival=t)
+    half = int(np.searchsorted(times, 6.0))  # 6 s of input delivered at once (a burst)
+    for b in batches[:half]:
+        assert core.on_plots(b, arrival=times[half] - WAIT)  # due, none overdue yet
     ready = [b for b in batches[:half]]
     k = core.overload.members(ready, [True] * half, [sites[b.radar_id] for b in ready])
     runs = coalesce.plan(ready, [True] * half, 2 * math.pi)
@@ -147,6 +147,10 @@ def test_the_policy_widens_only_past_the_budget():
     over = OverloadPolicy(2 * math.pi, 0.1, cost=StepCost(0.007, 0.0, learn=False))
     assert over.members(seq, ok) == 2  # 16 × 7 ms = 112 ms; 8 steps of 2 = 56 ms
     assert over.members(seq[:1], ok[:1]) == 1
+    # overdue by two budgets: half the time (T²/lag), so wider steps: 6 steps of 3 = 42 ms
+    assert over.budget(0.05) == 0.1 and over.budget(0.2) == pytest.approx(0.05)
+    assert over.budget(10.0) == pytest.approx(0.025)  # at least a quarter
+    assert over.members(seq, ok, lag=0.2) == 3
     off = OverloadPolicy(None, 0.1, cost=StepCost(1.0, 0.0, learn=False))
     assert off.members(seq, ok) == 1
     quarter = OverloadPolicy(math.pi / 2, 0.001, cost=StepCost(1.0, 0.0, learn=False))
