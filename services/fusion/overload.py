@@ -205,6 +205,8 @@ class OverloadPolicy:
         self.cost.add_group(predicted, seconds)
         widened = 0 < steps < batches
         self.groups.append(_Group(now, batches, steps, widest, widened, seconds))
+        while now - self.groups[0].t > self.window_s:  # only the window is reported
+            self.groups.popleft()
         if widened:
             self.groups_widened += 1
             self.widened_s += seconds
