@@ -13,11 +13,12 @@ COPY fusion ./fusion
 COPY services ./services
 COPY recordings ./recordings
 # The tracker's compiled (numba) kernels are compiled here, once, into a cache the
-# runtime user owns: site-packages is not writable by that user, and numba would
-# otherwise compile them again (about 20 s) at every start of a fresh container.
+# runtime user owns (`skyfuse warmup`): site-packages is not writable by that user, and
+# numba never reads a cache it cannot write, so it would otherwise compile them again
+# (about 20 s) at every start of a fresh container.
 ENV NUMBA_CACHE_DIR=/opt/skyfuse/numba-cache
 RUN pip install . \
-    && python -c "from skyfuse.fusion.tracker.kernel_warmup import warm_up; warm_up()" \
+    && skyfuse warmup \
     && useradd --system --create-home --uid 10001 skyfuse \
     && mkdir -p /data /state /etc/skyfuse \
     && chown skyfuse /data /state \

@@ -66,14 +66,78 @@ from skyfuse.services.runtime.transport import (  # noqa: E402
 )
 
 
-def sim_plot_rate(a, duration: float = 30.0) -> float:
-    """Plots per simulated second of the scenario (all radars)."""
+def level_scenario(a, duration: float):
+    """The scenario of a level: ``regional`` with ``--radars`` radars, ``--sectors``
+    sectors per revolution and ``--targets`` aircraft (``--traffic mixed|steady``: its
+    own routes); with ``--scan-period T`` every radar turns in T s (phases kept as
+    fractions of the revolution); ``--traffic straight``: the aircraft fly straight and
+    level for the whole run from uniform positions in the traffic area (170 km around the
+    centre), uniform headings, 150–240 m/s, 3,000–12,000 m, 80 % with a Mode-S address.
+    The plots always come from the simulator's WGS-84 geometry (pymap3d)."""
+    import dataclasses
+
+    traffic = getattr(a, "traffic", "mixed")
     sc = build_scenario(
         "regional", seed=a.seed, duration=duration, targets=a.targets, radars=a.radars,
-        traffic=getattr(a, "traffic", "mixed"), n_sectors=getattr(a, "sectors", 16),
+        traffic="steady" if traffic == "steady" else "mixed",
+        n_sectors=getattr(a, "sectors", 16),
     )  # fmt: skip
+    period = getattr(a, "scan_period", None)
+    if period is not None:
+        sensors = [
+            dataclasses.replace(
+                c, site=c.site.model_copy(update={"scan_period": period}),
+                phase=period * c.phase / c.site.scan_period,
+            )
+            for c in sc.sensors
+        ]  # fmt: skip
+        sc = dataclasses.replace(sc, sensors=sensors, sites=[c.site for c in sensors])
+        sc = dataclasses.replace(sc, truth_period=period)
+    if traffic == "straight":
+        sc = dataclasses.replace(sc, targets=straight_targets(a.targets, a.seed, duration))
+    return sc
+
+
+def straight_targets(n: int, seed: int, duration: float):
+    """n aircraft in straight and level flight for ``duration`` s (see level_scenario)."""
+    from skyfuse.fusion.sim.trajectories import TargetSet, TrajectoryBuilder
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(77,)))
+    r = 170_000.0 * np.sqrt(rng.random(n))
+    phi, heading = rng.uniform(0, 2 * np.pi, n), rng.uniform(0, 2 * np.pi, n)
+    speed, alt = rng.uniform(150.0, 240.0, n), rng.uniform(3000.0, 12000.0, n)
+    builders = [
+        TrajectoryBuilder(0.0, (r[i] * np.cos(phi[i]), r[i] * np.sin(phi[i]), alt[i]),
+                          (speed[i] * np.sin(heading[i]), speed[i] * np.cos(heading[i]), 0.0))
+        .straight(duration)
+        for i in range(n)
+    ]  # fmt: skip
+    mode_s = np.where(rng.random(n) < 0.8, 1 + rng.choice((1 << 24) - 1, n, replace=False), -1)
+    return TargetSet.from_builders(
+        builders, t_birth=np.zeros(n), t_death=np.full(n, np.inf), mode_s=mode_s,
+        mode_3a=np.where(mode_s > 0, rng.integers(0o1000, 0o7000, n), -1),
+    )  # fmt: skip
+
+
+def custom_load(a) -> bool:
+    """Whether the level's scenario differs from ``skyfuse simulate --scenario regional``."""
+    return getattr(a, "scan_period", None) is not None or getattr(a, "traffic", "") == "straight"
+
+
+def sim_plot_rate(a, duration: float = 30.0) -> float:
+    """Plots per simulated second of the scenario (all radars)."""
+    sc = level_scenario(a, duration)
     n = sum(len(ev.message.time) for ev in Simulator(sc, seed=a.seed).run() if ev.kind == "plots")
     return n / duration
+
+
+def write_recording(sc, seed: int, path: Path) -> None:
+    """The scenario's messages (sites, plot batches, truth) into an MCAP recording."""
+    from skyfuse.services.recording.mcap_io import RecordingWriter
+
+    with RecordingWriter(path, metadata={"scenario": sc.name, "seed": str(seed)}) as writer:
+        for ev in Simulator(sc, seed=seed).run():
+            writer.write(ev.topic, ev.message, ev.time)
 
 
 def skyfuse_cli(*args: str) -> None:
@@ -84,12 +148,16 @@ def skyfuse_cli(*args: str) -> None:
 def make_level_files(rate: float, speed: float, a, work: Path) -> tuple[Path, dict]:
     """The level's recording, and ``skyfuse track`` on it (its JSON summary)."""
     rec, js = work / f"level-{rate:.0f}.mcap", work / f"track-{rate:.0f}.json"
-    skyfuse_cli(
-        "simulate", "--scenario", "regional", "--seed", str(a.seed), "--duration",
-        f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
-        f"radars={a.radars}", "--param", f"traffic={getattr(a, 'traffic', 'mixed')}",
-        "--param", f"n_sectors={getattr(a, 'sectors', 16)}", "--out", str(rec), "--no-progress",
-    )  # fmt: skip
+    if custom_load(a):
+        write_recording(level_scenario(a, round(a.seconds * speed, 1)), a.seed, rec)
+    else:
+        skyfuse_cli(
+            "simulate", "--scenario", "regional", "--seed", str(a.seed), "--duration",
+            f"{a.seconds * speed:.1f}", "--targets", str(a.targets), "--param",
+            f"radars={a.radars}", "--param", f"traffic={getattr(a, 'traffic', 'mixed')}",
+            "--param", f"n_sectors={getattr(a, 'sectors', 16)}", "--out", str(rec),
+            "--no-progress",
+        )  # fmt: skip
     if a.no_offline:
         return rec, recording_facts(rec)
     skyfuse_cli("track", str(rec), "--out", str(work / "offline.mcap"), "--json", str(js),
@@ -300,10 +368,14 @@ def add_overload_arguments(ap: argparse.ArgumentParser) -> None:
     """The fusion's overload settings a level passes on (:func:`overload_flags`)."""
     ap.add_argument(
         "--coalesce-max-deg",
-        type=float,
         default=None,
-        help="the fusion's --coalesce-max-deg (contiguous sectors of one radar ready together "
-        "as one tracker step, at most this wide; default off)",
+        help="the fusion's --coalesce-max-deg (the overload policy's widest step, deg; 'off': "
+        "batch by batch always; default: the fusion's default)",
+    )
+    ap.add_argument(
+        "--group-budget-s",
+        default=None,
+        help="the fusion's --group-budget-s (the overload policy's time per pass, s)",
     )
     ap.add_argument("--bulk-max", type=int, default=None, help="the fusion's --bulk-max")
     ap.add_argument(
@@ -319,6 +391,8 @@ def overload_flags(a) -> tuple[str, ...]:
     extra: tuple[str, ...] = ()
     if a.coalesce_max_deg is not None:
         extra += ("--coalesce-max-deg", str(a.coalesce_max_deg))
+    if getattr(a, "group_budget_s", None) is not None:
+        extra += ("--group-budget-s", str(a.group_budget_s))
     if a.bulk_max is not None:
         extra += ("--bulk-max", str(a.bulk_max))
     if a.delta_split_s is not None:
@@ -402,6 +476,7 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "group_parts": c.get("group_parts", 0),
         "coalesced_steps": c.get("coalesced_steps"),
         "batches_coalesced": c.get("batches_coalesced"),
+        "overload": overload_summary(f.series),
         "feed_messages": dict(f.feed),
         "max_backlog_batches": f.max_backlog,
         "behind_seen": f.behind_seen,
@@ -414,6 +489,31 @@ def level_result(rate, speed, offline, f: Follower, t_sent, t_done, rss0, load0)
         "rejected": fs.rejected,
         "loadavg_start": [round(x, 2) for x in load0],
         "loadavg_end": [round(x, 2) for x in os.getloadavg()],
+    }
+
+
+def overload_summary(series) -> dict | None:
+    """The fusion's overload policy over the level (Status ``overload``, when it has one):
+    the share of Status reports with widened steps, the largest batches per step and the
+    widest step seen, and the final figures."""
+    ov = [st.overload for _, _, st in series if getattr(st, "overload", None) is not None]
+    if not ov:
+        return None
+    return {
+        "active_share": round(sum(o.active for o in ov) / len(ov), 3),
+        "max_batches_per_step": round(max(o.batches_per_step for o in ov), 2),
+        "widest_deg": round(max(o.widest_deg for o in ov), 1),
+        "last": ov[-1].model_dump(mode="json"),
+        "series_t_wait_bps_deg": [
+            (
+                round(t - series[0][0], 2),
+                round(st.backlog.oldest_wait_s, 3),
+                round(st.overload.batches_per_step, 2),
+                round(st.overload.widest_deg),
+            )
+            for t, _, st in series
+            if st.overload is not None and st.backlog is not None
+        ],
     }
 
 
@@ -435,6 +535,16 @@ def main() -> None:
     ap.add_argument("--radars", type=int, default=6, help="regional scenario: 3 to 6 radars")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sectors", type=int, default=16, help="regional n_sectors: batches/scan")
+    ap.add_argument(
+        "--traffic",
+        choices=("mixed", "steady", "straight"),
+        default="mixed",
+        help="regional routes (mixed, steady) or straight and level flights",
+    )
+    ap.add_argument(
+        "--scan-period", type=float, default=None,
+        help="every radar's revolution, s (default: the regional radars' own, 4-12 s)",
+    )  # fmt: skip
     ap.add_argument("--reorder-wait", type=float, default=0.2)
     ap.add_argument(
         "--max-backlog",
@@ -456,7 +566,8 @@ def main() -> None:
     )
     a = ap.parse_args()
     base = sim_plot_rate(a)
-    print(f"regional, {a.radars} radars, {a.targets} aircraft, {a.sectors} sectors: "
+    print(f"regional ({a.traffic}, period {a.scan_period or 'own'}), {a.radars} radars, "
+          f"{a.targets} aircraft, {a.sectors} sectors: "
           f"{base:.0f} plots per simulated s;"
           f" {os.cpu_count()} cores, load {os.getloadavg()}", flush=True)  # fmt: skip
     results = []

@@ -13,7 +13,7 @@ from .identity import Emergency
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
-from .status import Backlog, LatencyStats, LateStats, RadarHealth, Status
+from .status import Backlog, LatencyStats, LateStats, OverloadStatus, RadarHealth, Status
 from .tracks import (
     FeedKind,
     FrameKind,
@@ -63,6 +63,7 @@ __all__ = [
     "LateStats",
     "LatencyStats",
     "MeasuredPlot",
+    "OverloadStatus",
     "PlotBatch",
     "RadarBias",
     "RadarBiasEstimate",

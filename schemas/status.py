@@ -52,6 +52,41 @@ class Backlog(WireModel):
     )
 
 
+class OverloadStatus(WireModel):
+    """The fusion service's overload policy (services/fusion/overload.py): while it keeps
+    up every plot batch is one tracker step; when it falls behind, contiguous sector
+    batches of one radar are applied as one wider step, just wide enough for a group of
+    ready batches to take about ``budget_s``. Figures over the last rate window."""
+
+    enabled: bool = Field(True, description="Steps may be widened (coalesce_max_deg not off)")
+    active: bool = Field(False, description="Some steps were widened in the last window")
+    active_for_s: float = Field(
+        0.0, ge=0.0, description="How long the policy has been active without a pause, s"
+    )
+    batches_per_step: float = Field(
+        1.0,
+        ge=0.0,
+        description="Plot batches per tracker step in the last window (1: none widened)",
+    )
+    widest_deg: float = Field(
+        0.0, ge=0.0, description="Azimuth width of the widest step in the last window, deg"
+    )
+    busy_share: float = Field(
+        0.0, ge=0.0, le=1.0, description="Share of the last window spent applying batches"
+    )
+    max_deg: float | None = Field(None, description="Widest step allowed, deg (None: off)")
+    budget_s: float = Field(0.0, ge=0.0, description="Time a group of ready batches should take, s")
+    step_cost_ms: float = Field(
+        0.0, ge=0.0, description="Estimated fixed cost of one tracker step, ms"
+    )
+    plot_cost_us: float = Field(0.0, ge=0.0, description="Estimated cost per plot in a step, µs")
+    cost_scale: float = Field(
+        1.0, ge=0.0, description="Measured group time over the sum of its steps' estimates"
+    )
+    groups_widened: int = Field(0, ge=0, description="Groups applied with widened steps")
+    widened_s: float = Field(0.0, ge=0.0, description="Time spent in groups with widened steps, s")
+
+
 class LateStats(WireModel):
     """Batches behind the service time (a lagging radar, a slow link), fusion only: those
     within ``max_lateness`` are applied, their plots through the tracker's out-of-sequence
@@ -102,6 +137,9 @@ class Status(WireModel):
     )
     state_age_s: float | None = Field(
         None, ge=0.0, description="Standby: age of the newest valid state snapshot it holds, s"
+    )
+    overload: OverloadStatus | None = Field(
+        None, description="Fusion: the overload policy, when and how much it widens the steps"
     )
     registration: RegistrationStatus | None = Field(
         None, description="Fusion: online sensor-registration estimates (issue 17)"

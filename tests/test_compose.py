@@ -149,7 +149,26 @@ def test_dockerfile_compiles_the_kernels_into_a_cache_the_runtime_user_owns():
     assert cache, "the image sets no NUMBA_CACHE_DIR"
     run = text[text.index("RUN pip install .") :]
     run = run[: run.index("\n\n")]
-    assert run.index("pip install .") < run.index("warm_up()")
+    assert run.index("pip install .") < run.index("skyfuse warmup")
     user = re.search(r"^USER (\S+)$", text, flags=re.M).group(1)
     assert re.search(rf"chown -R {user} .*\"\$NUMBA_CACHE_DIR\"", run), run
     assert text.index("ENV NUMBA_CACHE_DIR") < text.index("RUN pip install .")
+
+
+def test_the_image_and_the_install_command_run_the_kernel_warmup():
+    """The image builds with ``skyfuse warmup`` (a valid invocation of the real parser, run
+    by the build's root user, before the cache is handed to the runtime user), and the
+    README's install command runs it before the first ``skyfuse demo``, so neither a
+    container start nor a user's first run compiles the kernels."""
+    text = (ROOT / "Dockerfile").read_text()
+    steps = re.findall(r"&& (skyfuse [^\\\n]+?)\s*(?:\\|$)", text, flags=re.M)
+    assert steps == ["skyfuse warmup"], steps
+    args = build_parser().parse_args(steps[0].split()[1:])
+    assert args.func.__module__.endswith("cmd_warmup")
+    assert text.index("skyfuse warmup") < text.index("chown -R")
+    assert text.index("skyfuse warmup") < text.index("\nUSER ")
+    readme = (ROOT / "README.md").read_text()
+    first = next(line for line in readme.splitlines() if "pip install -e" in line)
+    assert first.startswith("python3 -m pip install -e")
+    cmds = [c.strip() for c in first.split("&&")]
+    assert cmds[1:] == ["skyfuse warmup", "skyfuse demo"], first

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 from skyfuse.schemas import Status, TrackBatch, TrackPicture, TrackStatus, keys
+from skyfuse.services.cli.cmd_warmup import timed_load
 from skyfuse.services.cli.config import ConfigError, add_json_argument, build_config
 from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
@@ -81,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
     listen = cfg.listen or loopback_endpoint()
     stop = StopFlag(grace=30.0).install()
     live = sys.stderr.isatty() if cfg.live is None else cfg.live
+    # the tracker kernels into their cache here, with progress, before the fusion
+    # process starts (it then loads them in a fraction of a second)
+    timed_load(log)
     try:
         with open_session(TransportConfig(mode="peer", listen=[listen])) as session:
             interrupted, failed, children = orchestrate(
@@ -149,7 +153,7 @@ def orchestrate(session, cfg: DemoConfig, sc, listen, out, workdir, stop, live):
     the children)."""
     run = _DemoRun(session, cfg, sc, listen, out, workdir, stop, live)
     try:
-        if run.start_services() and run.start_sensors():
+        if run.start_services() and run.sensors_up():
             run.watch()
             run.drain()
     finally:
@@ -202,14 +206,19 @@ class _DemoRun:
         return True
 
     def start_services(self) -> bool:
+        """Recorder, fusion and the sensors start together (a sensor publishes nothing
+        before the demo's "go" token, declared once everything is up: its start-up runs
+        while the services start); True once the services are up."""
         for c in self.children:
             c.start(None, self.state)  # children inherit the working directory
         log.info("demo network on %s; logs in %s", self.listen, self.workdir)
-        return self._came_up(["recorder", "fusion"], self.children, "services")
+        self.start_sensors()
+        return self._came_up(["recorder", "fusion"], [self.recorder, self.fusion], "services")
 
-    def start_sensors(self) -> bool:
+    def start_sensors(self) -> None:
         """Sensors load the scenario, declare their ready tokens and wait for the demo's
-        "go" token; then they all start within a poll interval (~0.1 s) of each other."""
+        "go" token (:meth:`sensors_up`); then they all start within a poll interval
+        (~0.1 s) of each other."""
         cfg = self.cfg
         scen = [
             "--scenario", cfg.scenario, "--seed", str(cfg.seed), "--duration", str(cfg.duration),
@@ -229,6 +238,9 @@ class _DemoRun:
             s.start(None, self.state)
             self.sensors.append(s)
         self.children += self.sensors
+
+    def sensors_up(self) -> bool:
+        """Wait for the sensors' ready tokens, then declare "go"."""
         names = [f"sensor-{r}" for r in self.radars]
         if not self._came_up(names, self.sensors, "sensors"):
             return False

@@ -24,8 +24,8 @@ import argparse
 import logging
 import time
 
-from skyfuse.fusion.tracker.kernel_warmup import warm_up
 from skyfuse.schemas import keys
+from skyfuse.services.cli.cmd_warmup import timed_load
 from skyfuse.services.cli.config import (
     ConfigError,
     add_model_arguments,
@@ -163,8 +163,9 @@ def serve(
     ``persist``: a :class:`services.fusion.state_store.Persistence` (resume, snapshots).
     Publishes only as the active instance of its fusion id (``services.fusion.standby``);
     returns the exit status (1: another instance holds the id)."""
-    # the compiled kernels load now, not on the first batches (their latency)
-    log.info("tracker kernels loaded in %.2f s", warm_up())
+    # the compiled kernels load now, not on the first batches (their latency); compiled
+    # first if the cache is cold (skyfuse warmup), with a line that says so
+    timed_load(log)
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
     inbox.subscribe(session, keys.ALL_PLOTS, "plots")

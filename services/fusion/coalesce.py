@@ -2,12 +2,13 @@
 
 A rotating radar reports its revolution in sector batches (``PlotBatch.sector_start``,
 ``sector_width``, swept from ``time_start`` to ``time_end``). When the fusion service is
-behind, several contiguous sectors of one radar are ready at once; with
-``coalesce_max_deg`` set (opt-in, ``--coalesce-max-deg``) they are concatenated into one
-batch covering their union (at most that many degrees of azimuth) and go through the
-tracker as one step. The tracker's work per step is mostly fixed (the tracks of the
-swept coverage are predicted, gated and managed once), so the work per plot falls with
-the batch size: this is how the service's throughput rises with its load.
+behind, several contiguous sectors of one radar are ready at once; the overload policy
+(:mod:`~skyfuse.services.fusion.overload`) decides how many of them may be concatenated
+into one batch covering their union (at most ``coalesce_max_deg`` degrees of azimuth),
+which goes through the tracker as one step. The tracker's work per step is mostly fixed
+(the tracks of the swept coverage are predicted, gated and managed once), so the work
+per plot falls with the batch size: this is how the service's throughput rises with its
+load.
 
 What the tracker sees is what a radar reporting fewer, wider sectors would send: the
 same plots, the swept sector the union of the members' sectors, swept from the first
@@ -24,8 +25,8 @@ batch's sweep durations after it ended (no missing sector), it carries the same 
 columns and the same numbering epoch, and the run stays within the width limit (never a
 whole revolution twice: one plot per target and radar per step). Late batches (behind
 the service time) are never coalesced. A run takes the place of its *last* member in the
-time order, so the steps stay in order of their ``time_end``; the other radars' batches that fell
-between its members are applied before it (their tracks take the coalesced plots older
+time order, so the steps stay in order of their ``time_end``; the other radars' batches
+that fell between its members are applied before it (their tracks take the coalesced plots older
 than their state through the out-of-sequence update, as for any overlapping sweep).
 """
 
@@ -69,11 +70,14 @@ def plan(
     mergeable: Sequence[bool],
     max_width: float,
     sources: Sequence[object] | None = None,
+    max_members: int | None = None,
 ) -> list[list[int]]:
     """The runs (lists of indexes into ``batches``, in order) to apply as one step each,
     in the order to apply them: each run at the place of its last member. ``batches`` are
     in application order; ``mergeable[i]`` False keeps batch i on its own; ``sources[i]``
-    (optional): what batch i is converted with (its radar site), the same in a run."""
+    (optional): what batch i is converted with (its radar site), the same in a run;
+    ``max_members``: at most this many batches in a run (the overload policy's choice,
+    :mod:`~skyfuse.services.fusion.overload`; default: only the width bounds a run)."""
     runs: list[list[int]] = []
     open_run: dict[str, tuple[list[int], float]] = {}
     for i, b in enumerate(batches):
@@ -85,7 +89,8 @@ def plan(
             run, width = cur
             j = run[-1]
             same = sources is None or sources[j] is sources[i]
-            if same and continues(batches[j], b, width, max_width):
+            room = max_members is None or len(run) < max_members
+            if same and room and continues(batches[j], b, width, max_width):
                 run.append(i)
                 open_run[b.radar_id] = (run, width + b.sector_width)
                 continue

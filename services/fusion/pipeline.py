@@ -3,8 +3,8 @@ system frame (:func:`fusion.frames.convert_plots`) → :class:`Tracker` step →
 the delta of the track feed (:mod:`services.fusion.feed`: lat/lon/alt, velocity
 east/north/up, speed, heading, built from arrays) + ``TrackEvent``. Several batches can go
 through in one pass (:meth:`TrackPipeline.process_parts`, the bulk path), the contiguous
-sectors of one radar among them optionally as one tracker step
-(:mod:`~skyfuse.services.fusion.coalesce`).
+sectors of one radar among them as one tracker step when the service is behind
+(:mod:`~skyfuse.services.fusion.coalesce`, :mod:`~skyfuse.services.fusion.overload`).
 
 The same code path serves the live fusion service and the offline ``skyfuse track``.
 """
@@ -159,6 +159,8 @@ class TrackPipeline:
         coalesce_max: float | None = None,
         mergeable: list[bool] | None = None,
         part_s: float | None = None,
+        max_members: int | None = None,
+        on_step=None,
     ) -> Iterator[GroupPart]:
         """Several batches, in the given (time) order, in one pass: the plots of each
         radar converted at once, one tracker step per batch, one delta message per part
@@ -172,8 +174,12 @@ class TrackPipeline:
         them (those where ``mergeable``, default all) are applied as one step of at most
         that azimuth width each (:mod:`~skyfuse.services.fusion.coalesce`); a coalesced
         step refused as input (ValueError: conversion, validation) is applied batch by
-        batch, so a bad batch costs only itself."""
-        steps = self._steps(items, coalesce_max, mergeable)
+        batch, so a bad batch costs only itself; ``max_members``: at most this many batches
+        in one step (the overload policy's choice).
+
+        on_step (optional): called after each step with (plots, seconds, azimuth width
+        rad) of the step, the measurements of the overload policy's cost model."""
+        steps = self._steps(items, coalesce_max, mergeable, max_members)
         # registration on: each batch's correction depends on the steps before it, so it
         # is converted just before its step (the same tracks as batch by batch, live or
         # offline); otherwise the plots of each radar are converted at once
@@ -182,7 +188,10 @@ class TrackPipeline:
         conversions = [None] * len(steps) if learning else self._convert_all(merged)
         part, t0 = GroupPart(), time.perf_counter()
         for k, ((site, batch, members), converted) in enumerate(zip(steps, conversions)):
+            t_step = time.perf_counter()
             self._apply_step(site, batch, members, converted, part)
+            if on_step is not None:
+                on_step(len(batch.time), time.perf_counter() - t_step, batch.sector_width)
             more = k + 1 < len(steps)
             if more and part_s is not None and part.applied:
                 if time.perf_counter() - t0 >= part_s:
@@ -215,14 +224,15 @@ class TrackPipeline:
             part.message = self.feed.delta(last.radar_id, last.seq)
         return part
 
-    def _steps(self, items, coalesce_max, mergeable) -> list:
+    def _steps(self, items, coalesce_max, mergeable, max_members=None) -> list:
         """(site, batch to apply, its member batches) per tracker step, in order."""
-        if coalesce_max is None or len(items) < 2:
+        if coalesce_max is None or len(items) < 2 or max_members == 1:
             return [(site, b, [b]) for site, b in items]
         batches = [b for _, b in items]
         ok = [True] * len(items) if mergeable is None else mergeable
         steps = []
-        for run in coalesce.plan(batches, ok, coalesce_max, [site for site, _ in items]):
+        sources = [site for site, _ in items]
+        for run in coalesce.plan(batches, ok, coalesce_max, sources, max_members):
             members = [batches[i] for i in run]
             if len(run) > 1:
                 self.coalesced["steps"] += 1

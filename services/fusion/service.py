@@ -66,6 +66,7 @@ from skyfuse.schemas import (
 )
 from skyfuse.schemas.rejection import decode, rejection_detail, rejection_reason
 from skyfuse.services.fusion.feed import FeedMessage
+from skyfuse.services.fusion.overload import OverloadPolicy
 from skyfuse.services.fusion.reorder import ReorderBuffer, _Pending
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.runtime.lifecycle import RateWindow
@@ -111,18 +112,30 @@ class FusionConfig(BaseModel):
         1.0, gt=0, description="Period of the full-picture TrackBatch on the feed, s"
     )
     bulk_max: int = Field(
-        50, ge=1, le=100_000, description="Batches applied in one pass at most, when behind"
+        200,
+        ge=1,
+        le=100_000,
+        description="Batches applied in one pass at most, when behind (the overload policy "
+        "widens the steps within a pass)",
     )
     coalesce_max_deg: float | None = Field(
-        None,
+        360.0,
         gt=0,
         le=360,
-        description="Opt-in overload policy: the contiguous sector batches of one radar "
-        "that are ready together (the service is behind) go through the tracker as one "
-        "step covering at most this azimuth width, deg: fewer, larger steps, so the "
-        "throughput rises with the backlog; the tracks are those of the radar reporting "
-        "wider sectors, not bitwise those of batch-by-batch processing (Status counters "
-        "coalesced_steps, batches_coalesced). Default: off",
+        description="Overload policy (services/fusion/overload.py): when applying the "
+        "batches ready together one by one would take longer than group_budget_s (the "
+        "service is behind), contiguous sector batches of one radar go through the "
+        "tracker as one step, just as wide as needed and at most this azimuth width, deg; "
+        "while the service keeps up every batch is one step (the tracks of batch-by-batch "
+        "processing). Status 'overload' says when and how much. off = never widen",
+    )
+    group_budget_s: float = Field(
+        0.1,
+        gt=0,
+        le=60.0,
+        description="Overload policy: the time one pass over the ready batches should "
+        "take, s; steps are widened only when batch by batch would exceed it (the lag "
+        "behind the input stays near it while the service is overloaded)",
     )
     delta_split_s: float | None = Field(
         0.05,
@@ -234,7 +247,12 @@ class FusionConfig(BaseModel):
     )
 
     @field_validator(
-        "future_tolerance", "site_tolerance", "snapshot_interval", "delta_split_s", mode="before"
+        "future_tolerance",
+        "site_tolerance",
+        "snapshot_interval",
+        "delta_split_s",
+        "coalesce_max_deg",
+        mode="before",
     )
     @classmethod
     def _off(cls, v):
@@ -264,10 +282,13 @@ class CyclePipeline(Protocol):
         part_s: float | None = None,
         coalesce_max: float | None = None,
         mergeable: list[bool] | None = None,
+        max_members: int | None = None,
+        on_step=None,
     ) -> Iterator:
         """The group's parts (``services.fusion.pipeline.GroupPart``: message, events,
-        applied and failed batches), each yielded before the next part's steps run.
-        (Only asked to coalesce when ``coalesce_max_deg`` is set.)"""
+        applied and failed batches), each yielded before the next part's steps run; each
+        tracker step reported to ``on_step(plots, seconds, width)``. (Only asked to
+        coalesce when the overload policy widens the steps.)"""
 
     def full(self) -> FeedMessage | None: ...
 
@@ -320,6 +341,13 @@ class FusionCore:
         self.counters: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
         self.latencies: deque[float] = deque(maxlen=cfg.latency_window)
+        deg = cfg.coalesce_max_deg
+        self.overload = OverloadPolicy(
+            None if deg is None else math.radians(deg),
+            cfg.group_budget_s,
+            window_s=cfg.rate_window,
+        )
+        """How wide the tracker steps are (:mod:`~skyfuse.services.fusion.overload`)."""
         self.started = time.monotonic()
         self.rate_in = RateWindow(cfg.rate_window)
         self.rate_out = RateWindow(cfg.rate_window)
@@ -536,21 +564,31 @@ class FusionCore:
         if self.pipeline is None:
             self._start_pipeline()
         items = [(self.radars[p.batch.radar_id].site, p.batch) for p in ready]
-        kw = {"part_s": self.cfg.delta_split_s}
-        if self.cfg.coalesce_max_deg is not None:  # late batches are never coalesced
-            kw |= {
-                "coalesce_max": math.radians(self.cfg.coalesce_max_deg),
-                "mergeable": [not p.late for p in ready],
-            }
+        policy = self.overload
+        kw = {"part_s": self.cfg.delta_split_s, "on_step": policy.on_step}
+        mergeable = [not p.late for p in ready]  # late batches are never coalesced
+        t = time.monotonic() if now is None else now
+        lag = max(0.0, t - min(p.arrival for p in ready) - self.cfg.reorder_wait)
+        k = policy.members([b for _, b in items], mergeable, [site for site, _ in items], lag)
+        if k > 1:
+            kw |= {"coalesce_max": policy.max_width, "mergeable": mergeable, "max_members": k}
         pending = {id(p.batch): p for p in ready}
         parts = self.pipeline.process_parts(items, **kw)
+        policy.start_group()
+        try:
+            yield from self._parts_output(parts, pending, now, len(ready))
+        finally:
+            policy.end_group(t, len(ready))
+
+    def _parts_output(self, parts, pending, now, n: int) -> Iterator[CycleOutput]:
+        """The output of each part of a group that applied a batch (see cycle_group)."""
         first = True
         while True:
             try:
                 part = next(parts, None)
             except Exception as e:  # a tracker bug must not kill the service
                 self.reject("tracker error", f"{type(e).__name__}: {e}", len(pending))
-                log.exception("tracker error on a group of %d batches", len(ready))
+                log.exception("tracker error on a group of %d batches", n)
                 return
             if part is None:
                 return
@@ -702,8 +740,10 @@ class FusionCore:
             out["plot: " + _NUMBER.sub("#", reason)] += n
         return dict(out)
 
-    def status(self) -> Status:
-        now = time.monotonic()
+    def status(self, now: float | None = None) -> Status:
+        """The Status now (``now``: the monotonic clock of the backlog, rates and the
+        overload policy's window; default: now)."""
+        now = time.monotonic() if now is None else now
         confirmed = total = None
         if self.pipeline is not None and self.counters["groups"]:
             picture = self.pipeline.picture()
@@ -716,7 +756,7 @@ class FusionCore:
             epoch=self.epoch,
             role=self.role,
             time=time.time_ns(),
-            uptime_s=now - self.started,
+            uptime_s=time.monotonic() - self.started,
             counters={
                 **self.counters,
                 "queued": len(self.buffer),
@@ -742,6 +782,7 @@ class FusionCore:
             latency_ms=self.latency_stats(),
             backlog=self.backlog(now),
             late=self.late_stats(),
+            overload=self.overload.status(now),
             tracks_confirmed=confirmed,
             tracks_total=total,
             message=self._status_message(),

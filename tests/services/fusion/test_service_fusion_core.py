@@ -20,7 +20,7 @@ class RecordingPipeline:
         self.seen: list[tuple[str, int]] = []
         self.rejected: dict[str, int] = {}
 
-    def process_parts(self, items, part_s=None):
+    def process_parts(self, items, part_s=None, **kw):
         self.seen += [(batch.radar_id, batch.time_end) for _, batch in items]
         last = items[-1][1]
         tb = TrackBatch(

@@ -48,9 +48,11 @@ def _live(rec: Path, tmp_path: Path, n_batches: int) -> tuple[list, list, int, F
     proc = skyfuse(
         # a reorder wait well above the inbox delays of a loaded CI machine: the replay is
         # as fast as it goes, and a batch applied out of order (OOSM) would differ from
-        # the offline run, which the equality below assumes in time order
+        # the offline run, which the equality below assumes in time order; a replay as
+        # fast as it goes overloads the service: batch by batch (no widened steps) here
         "fusion", "--listen", ep, "--reorder-wait", "3.0", "--status-interval", "0.5",
-        "--registration-reference", "LYBE", log_path=tmp_path / "fusion.log",
+        "--registration-reference", "LYBE", "--coalesce-max-deg", "off",
+        log_path=tmp_path / "fusion.log",
     )  # fmt: skip
     got: list = []
     try:

@@ -75,9 +75,11 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulat
     sites = [r.message for r in iter_recording(rec) if isinstance(r.message, RadarSite)]
     expected = frame_for_sites(sites)
     ep = loopback_endpoint(free_port())
-    # (the fusion process starts up while the offline tracker runs)
+    # (the fusion process starts up while the offline tracker runs; the replay, as fast
+    # as it goes, overloads it: batch by batch here, no widened steps)
     proc = skyfuse(
-        "fusion", "--listen", ep, "--reorder-wait", "0.3", log_path=tmp_path / "fusion.log",
+        "fusion", "--listen", ep, "--reorder-wait", "0.3", "--coalesce-max-deg", "off",
+        log_path=tmp_path / "fusion.log",
     )  # fmt: skip
     offline = tmp_path / "offline.mcap"
     assert skyfuse_main(["track", str(rec), "--out", str(offline), "--no-progress"]) == 0
