@@ -50,9 +50,10 @@ from skyfuse.fusion.association.gating import gate, gate_probability  # noqa: E4
 from skyfuse.fusion.filters import kalman  # noqa: E402
 from skyfuse.fusion.models import ConstantVelocity  # noqa: E402
 from skyfuse.fusion.particles.association import lm_ipf_association  # noqa: E402
-from skyfuse.fusion.particles.density import ParticleDensity, ParticleGatedTable  # noqa: E402
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig  # noqa: E402
 from skyfuse.fusion.tracker.components import moment_match  # noqa: E402
+from skyfuse.fusion.tracker.density.particles import ParticleDensity, ParticleGatedTable  # noqa: E402
+from skyfuse.fusion.tracker.store import NewTracks, store_for  # noqa: E402
 
 SIGMA, PD, P11, Q_ACC, SPEED, NS = 5.0, 0.8, 0.98, 0.75, 22.5, 10**9
 RHO_NOMINAL = 1e-6
@@ -80,7 +81,8 @@ class ParticleLoop:
 
     def __init__(self, x0: np.ndarray, n_particles: int, g: float) -> None:
         self.density = ParticleDensity(ConstantVelocity(q=Q_ACC), n_particles, seed=0)
-        self.density.add(x0, np.tile(P0, (len(x0), 1, 1)))
+        store_for(self.density)
+        self.density.tracks.append(NewTracks(x0, np.tile(P0, (len(x0), 1, 1))))
         self.psi = np.full(len(x0), 0.99)
         self.g, self.pdpg = g, np.full(len(x0), PD * gate_probability(g, 2))
 

@@ -1,5 +1,5 @@
-"""Particle-filter library (spec 04 Part B.2) and the particle track density for IPF/LM-IPF
-(spec 04 Part A, spec 02 §6).
+"""Particle-filter library and the particle primitives of the IPF / LM-IPF trackers
+([LM-IPF]; the track density itself is :mod:`fusion.tracker.density.particles`).
 
 All functions work on many clouds at once: particles ``(n_clouds, n_particles, dim)`` and
 weights ``(n_clouds, n_particles)``, one row per track (or per Monte Carlo run).
@@ -15,6 +15,5 @@ Modules, one concept each:
 * :mod:`.pcrlb` — Tichavský posterior Cramér–Rao lower bound (3.74–3.81), with P_D.
 * :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark of spec 04 B.3.
 * :mod:`.likelihood` — per-particle Gaussian plot likelihoods (A6) for gated pairs.
-* :mod:`.density` — :class:`ParticleDensity`, the particle track density (A4–A8, A14–A16).
 * :mod:`.association` — the IPF association (A11–A13) and the LM step (A9–A10).
 """

@@ -26,10 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 from skyfuse.fusion.tracker.associators import AssociationProblem, associate_lm, associate_single
+from skyfuse.fusion.tracker.density.particles import ParticleGatedTable
 from skyfuse.fusion.tracker.ipda import AssociationResult
 from skyfuse.fusion.tracker.lm_its import modified_clutter_density
-
-from .density import ParticleGatedTable
 
 
 def _problem(table, n_plots, psi_pred, pdpg, rho) -> AssociationProblem:

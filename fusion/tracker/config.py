@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from .registry import (
     MOTIONS,
@@ -21,7 +21,8 @@ from .registry import (
     tracker_help,
 )
 
-#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry`.
+#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry` (the
+#: parts shipped; a part registered later is accepted too, see ``_registered``).
 TrackerKind = Literal[tuple(TRACKERS)]  # type: ignore[valid-type]
 MotionKind = Literal[tuple(MOTIONS)]  # type: ignore[valid-type]
 
@@ -249,6 +250,16 @@ class TrackerConfig(BaseModel):
     )
     particle_seed: int = Field(0, ge=0, description="ipf/lmipf: seed of the particle noise")
 
+    @field_validator("tracker", "motion", mode="wrap")
+    @classmethod
+    def _registered(cls, value, handler, info):
+        """A name registered after this module was imported (a density or tracker kind
+        of another module, e.g. a test's) is accepted as well as the shipped ones."""
+        names = TRACKERS if info.field_name == "tracker" else MOTIONS
+        if isinstance(value, str) and value in names:
+            return value
+        return handler(value)
+
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
         if self.tracker in own_density_kinds() and self.motion != "cv":
@@ -283,7 +294,7 @@ class TrackerConfig(BaseModel):
     @property
     def memory_depth(self) -> int:
         """Effective Singer depth: 0 for the single-Gaussian trackers."""
-        return 0 if self.tracker in SINGLE_GAUSSIAN_KINDS else self.depth
+        return self.depth if TRACKERS[self.tracker].memory else 0
 
     @property
     def association(self) -> str:

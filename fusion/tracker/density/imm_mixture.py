@@ -59,73 +59,19 @@ from skyfuse.fusion.filters.moment_matching import (
     moment_match_rows,
     moment_match_rows_each,
 )
-from skyfuse.fusion.filters.small_spd import largest_eigenvalue
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
+from skyfuse.schemas.snapshot import entry, mapping
 
 from ..component_slots import ComponentSlots
 from ..components import history_groups, prune_indices
+from ..its import shift_history
+from ..oosm import oosm_update, retrodict
+from ..store import Column, ColumnGroup
 from .base import GatedTable, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 from .imm_likelihood_kernel import mode_pair_likelihoods
-
-
-class ReachGate:
-    """Reachability gate from the last plot [IMPL] (issue 17, eq. C1): a plot z_i can be
-    the track's aircraft only if
-
-        ‖z_i − p_f‖ ≤ v_max Δt + √g (σ_f + σ_i),
-
-    p_f the track's position estimate after its last plot of weight > 0.5 (the fix), Δt
-    the time since (the sum of the predictions' dt), σ_f and σ_i the largest standard
-    deviations (√λ_max) of the fix's position and of the plot's R, g the gate. An
-    aircraft moves at most v_max; the fix and the plot are each off by at most √g σ
-    with probability P_G per axis of largest spread. Pairs outside are dropped before
-    the likelihoods: they hold only after a long, loose coast, where the mixture's
-    prediction (its covariance from the linearised turn mode) has outgrown the distance
-    an aircraft can fly. ``speed`` None: no gate. The out-of-sequence update (a plot older
-    than the fix, :mod:`fusion.tracker.oosm_density`) is not gated."""
-
-    def __init__(self, speed: float | None, ndim: int) -> None:
-        self.speed = speed
-        self.pos = [2 * a for a in range(ndim)]  # CV layout [x, vx, y, vy(, z, vz)]
-        self.p = np.zeros((0, ndim))
-        self.sigma = np.zeros(0)
-        self.since = np.zeros(0)
-
-    def _sigma(self, P: np.ndarray) -> np.ndarray:
-        return largest_sigma(P[:, self.pos][:, :, self.pos])
-
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
-        self.p = np.concatenate([self.p, x[:, self.pos]])
-        self.sigma = np.concatenate([self.sigma, self._sigma(P)])
-        self.since = np.concatenate([self.since, np.zeros(len(x))])
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.p, self.sigma, self.since = self.p[mask], self.sigma[mask], self.since[mask]
-
-    def predict(self, rows: np.ndarray, dt: np.ndarray) -> None:
-        self.since[rows] += np.maximum(dt, 0.0)
-
-    def fix(self, rows: np.ndarray, x: np.ndarray, P: np.ndarray) -> None:
-        if len(rows):
-            self.p[rows], self.sigma[rows], self.since[rows] = x[:, self.pos], self._sigma(P), 0.0
-
-    def reachable(
-        self, rows: np.ndarray, since: np.ndarray, z: np.ndarray, sigma_z: np.ndarray, g: float
-    ) -> np.ndarray:
-        """(P,) True where plot z (P, k), of largest σ ``sigma_z`` (P,), is reachable
-        ``since`` (P,) s after the fix of ``rows``."""
-        if self.speed is None or len(rows) == 0:
-            return np.ones(len(rows), bool)
-        k = z.shape[1]
-        dist = np.linalg.norm(z - self.p[rows][:, :k], axis=1)
-        return dist <= self.speed * since + np.sqrt(g) * (self.sigma[rows] + sigma_z)
-
-
-def largest_sigma(C: np.ndarray) -> np.ndarray:
-    """√λ_max (n,) of covariances C (n, k, k): the standard deviation along the widest axis."""
-    return np.sqrt(np.maximum(largest_eigenvalue(C), 0.0))
+from .reach_gate import ReachGate, largest_sigma
 
 
 class ModeTransition:
@@ -239,6 +185,16 @@ class IMMPrediction(MixturePrediction):
         return self._moments
 
 
+class IMMRetrodiction(IMMPrediction):
+    """Retrodicted IMM components of late tracks (what ``likelihoods`` gates, without the
+    reachability gate) and what the out-of-sequence update needs: the current components
+    ``current`` and the cross terms ``cross[j]`` of each mode (O1-O4)."""
+
+    def __init__(self, rows, comp, loc, y, HPH, *, current, cross) -> None:
+        super().__init__(rows, comp, loc, y, HPH)
+        self.current, self.cross = current, cross
+
+
 @dataclass
 class IMMTable(GatedTable):
     """Track × plot table plus the (component, plot) pairs behind it: pair_comp, pair_plot
@@ -262,7 +218,11 @@ class IMMMixtureDensity:
     models: the r mode models (CV, CoordinatedTurn, Singer; position-measured);
     transition: :class:`ModeTransition`; mu0 (r,): mode probabilities of new tracks;
     init_acceleration: σ (m/s²) of the zero acceleration of new tracks in the common
-    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture."""
+    layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture;
+    coast_after, coast_step: the long coasts of step 2; reach_speed: v_max of the
+    reachability gate (:mod:`.reach_gate`), None: off."""
+
+    late_plots = "retrodict"
 
     def __init__(
         self,
@@ -294,6 +254,7 @@ class IMMMixtureDensity:
         self.reach = ReachGate(reach_speed, ndim)
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
+        self.mode_dims = tuple(m.dim for m in self.models)
         self.same_layout = len({tuple(m.labels) for m in self.models}) == 1
         r = len(self.models)
         self.slots = ComponentSlots(
@@ -306,8 +267,7 @@ class IMMMixtureDensity:
                 [np.zeros((0, m.dim, m.dim)) for m in self.models],
             )
         )
-        self.x = np.zeros((0, self.dim))
-        self.P = np.zeros((0, self.dim, self.dim))
+        self.tracks = None
         self.stats: dict[str, int] = {}
         self._next_uid = 1
 
@@ -316,7 +276,7 @@ class IMMMixtureDensity:
         return len(self.models)
 
     def __len__(self) -> int:
-        return len(self.x)
+        return len(self.tracks)
 
     @property
     def comp(self) -> IMMComponents:
@@ -336,12 +296,31 @@ class IMMMixtureDensity:
         return np.stack([a for a, _ in pairs], axis=1), np.stack([b for _, b in pairs], axis=1)
 
     # ------------------------------------------------------------------ tracks
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
+    def attach(self, tracks) -> None:
+        """Columns ``x`` (n, d), ``P`` (n, d, d): the track estimates (eq. 20-21, CV
+        layout); the reachability gate's columns when it is on; new tracks get one IMM
+        component (:meth:`_appended`)."""
+        d = self.dim
+        tracks.declare(
+            ColumnGroup(
+                "density",
+                (Column("x", np.float64, (d,), doc="track estimate (eq. 20-21), CV layout"),
+                 Column("P", np.float64, (d, d), doc="its covariance")),
+                init=lambda new: {"x": new.x, "P": new.P},
+                appended=self._appended,
+                kept=self._kept,
+            )
+        )  # fmt: skip
+        self.reach.attach(tracks)
+        self.tracks = tracks
+
+    def _kept(self, mask: np.ndarray) -> None:
+        self.slots.keep(mask)
+
+    def _appended(self, rows: np.ndarray, new) -> None:
         """New tracks from CV-layout Gaussians: each mode gets the state converted from the
         common layout (accelerations 0 ± init_acceleration)."""
-        nn, n = len(x), len(self)
-        if nn == 0:
-            return
+        x, P, nn = new.x, new.P, len(rows)
         if self.same_layout and isinstance(self.models[0], ConstantVelocity):
             xs, Ps = [x.copy()] * self.r, [P.copy()] * self.r
         else:
@@ -356,7 +335,7 @@ class IMMMixtureDensity:
             ]
             xs, Ps = [a for a, _ in conv], [b for _, b in conv]
         new = IMMComponents(
-            n + np.arange(nn),
+            rows,
             np.ones(nn),
             np.zeros((nn, self.depth), np.int64),
             np.broadcast_to(self.mu0, (nn, self.r)).copy(),
@@ -364,14 +343,6 @@ class IMMMixtureDensity:
             Ps,
         )
         self.slots.append(new)
-        self.x = np.concatenate([self.x, x])
-        self.P = np.concatenate([self.P, P])
-        self.reach.add(x, P)
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.slots.keep(mask)
-        self.x, self.P = self.x[mask], self.P[mask]
-        self.reach.keep(mask)
 
     # ------------------------------------------------------------------ predict
     def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
@@ -422,11 +393,8 @@ class IMMMixtureDensity:
         return x, P
 
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
         # every component (one sensor seeing all tracks): views, no copy
-        comp = self.slots.tracks(inside)
-        loc = np.searchsorted(rows, comp.track)
+        comp, loc = self.slots.rows(rows, len(self))
         dt = np.asarray(dt, dtype=np.float64)
         self.reach.predict(rows, dt)
         pred = self._interact(comp, dt[loc])
@@ -434,7 +402,7 @@ class IMMMixtureDensity:
         HPH = np.stack(
             [pred.P[j][:, p[:, None], p[None, :]] for j, p in enumerate(self.pos)], axis=1
         )
-        return IMMPrediction(rows, pred, loc, y, HPH, self.reach.since[rows].copy())
+        return IMMPrediction(rows, pred, loc, y, HPH, self.reach.since(rows))
 
     # ------------------------------------------------------------------ likelihoods
     def likelihoods(self, pred: IMMPrediction, z: np.ndarray, R: np.ndarray, g: float) -> IMMTable:
@@ -468,7 +436,7 @@ class IMMMixtureDensity:
         """Null child (μ = c) and one child per gated plot with every mode updated."""
         comp = pred.comp
         null = IMMComponents(
-            comp.track, comp.w * beta0[pred.loc], _shift(comp.hist, 0), comp.mu, comp.x, comp.P
+            comp.track, comp.w * beta0[pred.loc], _no_plot(comp.hist), comp.mu, comp.x, comp.P
         )
         if not (null.w > 0.0).all():  # children of weight 0 are dropped
             null = null.take(np.flatnonzero(null.w > 0.0))
@@ -492,7 +460,7 @@ class IMMMixtureDensity:
             )
             xs.append(xj)
             Ps.append(Pj)
-        upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
+        upd = IMMComponents(comp.track[c], w, shift_history(comp.hist[c], t.uid[p]), mu, xs, Ps)
         return IMMComponents.concat([null, upd])
 
     def _merge(self, comp: IMMComponents) -> IMMComponents:
@@ -534,13 +502,13 @@ class IMMMixtureDensity:
         children = self._children(pred, table, beta0, beta)  # all of weight > 0
         self.store_children(pred.rows, children, len(table.pair_comp))
         hit = pred.rows[beta0 < 0.5]
-        self.reach.fix(hit, self.x[hit], self.P[hit])
+        self.reach.fix(hit, self.tracks.x[hit], self.tracks.P[hit])
 
     def store_children(self, rows: np.ndarray, children: IMMComponents, pairs: int) -> None:
         """Merge and prune the updated components ``children`` of the tracks ``rows``
         (sorted), which replace their components; track estimates (eq. 20-21). Also the
-        out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`), whose
-        children may carry weight 0 (dropped here)."""
+        out-of-sequence update's last step (:meth:`update_late`), whose children may
+        carry weight 0 (dropped here)."""
         positive = children.w > 0.0
         if not positive.all():
             children = children.take(np.flatnonzero(positive))
@@ -559,8 +527,8 @@ class IMMMixtureDensity:
             "components": len(self.slots),
         }
         x, P = self._track_estimates(kept, np.searchsorted(rows, kept.track), len(rows))
-        self.x[rows] = x
-        self.P[rows] = P
+        self.tracks.x[rows] = x
+        self.tracks.P[rows] = P
 
     def _track_estimates(
         self, comp: IMMComponents, loc: np.ndarray, ngroups: int
@@ -585,11 +553,11 @@ class IMMMixtureDensity:
         return x, P
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.x[rows].copy(), self.P[rows].copy()
+        return self.tracks.x[rows].copy(), self.tracks.P[rows].copy()
 
     def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
         """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
-        return self.x, self.P
+        return self.tracks.x, self.tracks.P
 
     def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
         """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
@@ -601,13 +569,110 @@ class IMMMixtureDensity:
     def component_counts(self) -> np.ndarray:
         return np.bincount(self.slots.live().track, minlength=len(self))
 
+    # ------------------------------------------------------------------ late plots
+    def track_priors(self, pred: IMMPrediction) -> tuple[list, list]:
+        """The track-level prior per mode j: the moment match of the predicted components'
+        mode j with weights ξ^c c_j."""
+        comp, n = pred.comp, len(pred.rows)
+        out = [
+            moment_match(comp.w * comp.mu[:, j], comp.x[j], comp.P[j], pred.loc, n)[1:]
+            for j in range(self.r)
+        ]
+        return [a for a, _ in out], [b for _, b in out]
 
-def _shift(hist: np.ndarray, new_ids) -> np.ndarray:
-    """h' = (new id, h[0], …, h[N−2]) (spec 02 §7 step 11); N = 0 stays empty."""
-    if hist.shape[1] == 0:
-        return hist
-    ids = np.broadcast_to(np.asarray(new_ids, dtype=np.int64), (len(hist),))
-    return np.column_stack([ids, hist[:, :-1]])
+    def retrodict(self, rows: np.ndarray, lag: np.ndarray, priors) -> IMMRetrodiction:
+        """Every mode of the components of ``rows`` retrodicted with its own model (the
+        coordinated turn with its backward flow and Jacobian) and the track's last prior
+        of that mode (O1-O4). **Approximation**: no mode interaction over the lag (Π(−Δ)
+        is not defined; Π(Δ) over Δ ≤ max_lateness is close to I for the configured
+        chains); exact for one CV mode."""
+        cur, loc = self.slots.rows(rows, len(self))
+        known, xp, Pp = priors
+        xs, Ps, Cs = [], [], []
+        for j, model in enumerate(self.models):
+            x, P, C = retrodict(
+                model, cur.x[j], cur.P[j], lag[loc], xp[j][loc], Pp[j][loc], known[loc]
+            )
+            xs.append(x)
+            Ps.append(P)
+            Cs.append(C)
+        retro = IMMComponents(cur.track, cur.w, cur.hist, cur.mu, xs, Ps)
+        y = np.stack([xs[j][:, self.pos[j]] for j in range(self.r)], axis=1)
+        HPH = np.stack([Ps[j][:, self.pos[j]][:, :, self.pos[j]] for j in range(self.r)], axis=1)
+        return IMMRetrodiction(rows, retro, loc, y, HPH, current=cur, cross=Cs)
+
+    def update_late(
+        self, pred: IMMRetrodiction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
+    ) -> None:
+        """The "no plot" child keeps the current components with weight β₀ ξ^c and their
+        μ; the child of plot i has every mode OOSM-updated ((O5) of
+        :mod:`fusion.tracker.oosm`), weight β_i ξ^c p^c_i / p^τ_i and μ^c_j ∝ μ^c_j
+        N_j(z(τ)) (eq. 19 with μ in place of c); then the merge and pruning."""
+        cur, t = pred.current, table
+        children = IMMComponents(
+            cur.track, cur.w * beta0[pred.loc], _no_plot(cur.hist), cur.mu, cur.x, cur.P
+        )
+        if len(t.pair_comp):
+            c, p = t.pair_comp, t.pair_plot
+            w = cur.w[c] * beta[t.pair_row] * t.p_pair / t.p[t.pair_row]
+            lw = t.log_n + np.log(np.maximum(cur.mu[c], 1e-300))
+            mu = np.exp(lw - lw.max(axis=1, keepdims=True))
+            mu /= mu.sum(axis=1, keepdims=True)
+            xs, Ps = [], []
+            for j in range(self.r):
+                x, P = oosm_update(
+                    cur.x[j][c], cur.P[j][c], pred.cross[j][c], self.H[j], t.nu[:, j], t.S[:, j]
+                )
+                xs.append(x)
+                Ps.append(P)
+            hist = shift_history(cur.hist[c], t.uid[p])
+            upd = IMMComponents(cur.track[c], w, hist, mu, xs, Ps)
+            children = IMMComponents.concat([children, upd])
+        self.store_children(pred.rows, children, len(t.tp_track))
+
+    # ------------------------------------------------------------------ snapshots
+    def to_snapshot(self) -> dict:
+        """The IMM components (the estimates and the gate's fixes are track-store columns)
+        and the next plot history id."""
+        return {"components": self.slots.to_snapshot(), "next_uid": self._next_uid}
+
+    def from_snapshot(self, snap) -> None:
+        snap = mapping(snap, "density")
+        empty = self.slots.data.take(np.zeros(0, np.int64))
+        slots = ComponentSlots.from_snapshot(snap.get("components"), empty, len(self))
+        self.slots, self._next_uid = slots, entry(snap, "next_uid", int)
+
+    @staticmethod
+    def warm_up() -> None:
+        """Load the compiled kernels of this density on tiny inputs: the pair likelihoods
+        (k = 2 closed form, k = 3 Cholesky), the mode transition, the mixing's moment
+        matching, the coordinated turn's prediction and layout conversions, the Kalman
+        update of the gated pairs (k = 2 and another k)."""
+        one = np.zeros(1, np.int64)
+        for k in (2, 3):
+            Sk = np.eye(k)[None]
+            mode_pair_likelihoods(one, one, np.zeros((1, 1, k)), Sk[None].copy(),
+                                  np.zeros((1, k)), Sk.copy(), np.ones((1, 1)))  # fmt: skip
+        P = np.stack([np.eye(2), 2.0 * np.eye(2)])
+        x = np.arange(4.0).reshape(2, 2)
+        moment_match_rows_each(np.full((1, 2, 2), 0.5), x[None], P[None])
+        ModeTransition(np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0)(np.array([1.0, 2.0]))
+        ct = CoordinatedTurn()
+        xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
+        ct.transition(xt, 4.0)
+        ct.predict(xt, Pt, 4.0)
+        ct.Q(4.0, xt)
+        to_cv_layout(ct, xt, Pt)
+        from_common(ct, *to_common(ct, xt, Pt))
+        H2 = np.eye(2)
+        update_with_innovation(np.zeros((2, 2)), P, H2, P + P, np.ones((2, 2)), P)  # k = 2
+        update_with_innovation(np.zeros((2, 2)), P, H2[:1], P[:, :1, :1] + 1.0,
+                               np.ones((2, 1)), P[:, :1, :1])  # k = 1 (any k != 2)  # fmt: skip
+
+
+def _no_plot(hist: np.ndarray) -> np.ndarray:
+    """The plot history of a "no plot" child: id 0 first (:func:`~..its.shift_history`)."""
+    return shift_history(hist, np.zeros(len(hist), np.int64))
 
 
 def imm_density(cfg, second: str) -> IMMMixtureDensity:

@@ -48,7 +48,7 @@ from skyfuse.fusion.particles.likelihood import pair_likelihoods
 from skyfuse.fusion.particles.resampling import SCHEMES, resample, take
 from skyfuse.fusion.particles.roughening import roughen
 from skyfuse.fusion.particles.weights import effective_sample_size, normalise, weighted_moments
-from skyfuse.fusion.snapshot import SnapshotError, entry, mapping
+from skyfuse.schemas.snapshot import SnapshotError, entry, mapping
 
 from ..store import Column, ColumnGroup
 from .base import GatedTable, Prediction, gate_probability_of
