@@ -42,6 +42,9 @@ from skyfuse.fusion.metrics.history import TrackHistory, TruthHistory
 from skyfuse.fusion.metrics.mtt_measures import rmse_confirmed_true
 from skyfuse.fusion.models import ConstantVelocity
 from skyfuse.fusion.particles import pcrlb
+from skyfuse.fusion.sim import build_scenario
+
+from .experiment import run_seed
 
 #: Diffuse prior variance of every state component (m², m²/s²) [IMPL].
 PRIOR_VARIANCE = 1e8
@@ -114,10 +117,6 @@ def scenario_bound_model(exp) -> dict[str, float]:
     """The bound's model of an :class:`~fusion.evaluation.Experiment`'s scenario: truth
     process noise q (m²/s⁴; 0 when the scenario has none), σ² (m²), P_D, scan period T (s),
     and the prior variance (module docstring)."""
-    from skyfuse.fusion.sim import build_scenario
-
-    from .experiment import run_seed
-
     sc = build_scenario(exp.scenario, seed=run_seed(exp.seed, 0), **exp.scenario_params)
     site = sc.sites[0]
     return {
