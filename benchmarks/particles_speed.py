@@ -1,17 +1,17 @@
 """Particle track density (fusion.particles) speed, side by side with a Gaussian density.
 
-Scenario (spec 04 A.4 geometry, generated here): n targets start on a circle of r = 450 m
-around (500, 500) m, 10° apart on an arc, and fly straight through the centre at
-22.5 m/s; T = 1 s, R = (5 m)² I, P_D = 0.8, optional uniform Poisson clutter over the
+Scenario (the [LM-IPF] scenario's geometry, generated here): n targets start on a circle
+of r = 450 m around (500, 500) m, 10° apart on an arc, and fly straight through the
+centre at 22.5 m/s; T = 1 s, R = (5 m)² I, P_D = 0.8, optional uniform Poisson clutter over the
 [0, 1000]² m area (the source has none; a nominal ρ = 1e-6 m⁻² is used then). Every
 target has an established track from scan 0, so the figures are steady-state per-scan
 costs over the scans that follow (the converging targets share plots near the centre).
 
 Three trackers see the same plots, timed one after another on every scan:
 
-* **particle**: ``ParticleDensity`` with N particles per track — predict (A4), gate +
-  per-particle likelihood table (A5–A7), LM step and association (A9–A13), weight update
-  + MMSE + systematic resampling of all tracks (A14–A16), existence from (A13);
+* **particle**: ``ParticleDensity`` with N particles per track — predict ([LM-IPF] eq. 6),
+  gate + per-particle likelihood table (eq. 7-9), LM step and association (eq. 14-17),
+  weight update + MMSE + systematic resampling of all tracks (eq. 11), existence (eq. 12);
 * **gaussian**: the same tracks as Kalman (Gaussian) densities through the same gate and
   the same LM step (LM-IPDA): kalman predict, per-pair Kalman updates and a PDA moment
   match — the Gaussian density cost of the same work;

@@ -30,7 +30,9 @@ at most ``--tol`` relative: a vector or matrix relative to its largest entry, a 
 to itself, or ``--atol`` absolute) with the largest relative difference of the track
 states and covariances and of any number, or ``DIFFERENT`` with the first message that
 differs beyond the tolerance (its index, topic, time and the path of the field). Exit
-status 0 when every configuration is identical or within tolerance, 1 otherwise.
+status 0 when every configuration is identical or within tolerance, 1 otherwise. A run
+that fails is dumped too (exit status and last error line): two versions that fail the
+same way on a configuration are reported as an ``identical failure``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -203,20 +206,23 @@ def run_one(cfg: Config, out_dir: Path, python: str, prepared) -> str:
         t0 = time.monotonic()
         r = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.monotonic() - t0
-        if r.returncode != 0:
+        dump = {
+            "name": cfg.name,
+            "command": " ".join(["skyfuse track", Path(path).name, *extra[:1], *cfg.args()]),
+            "input": {"name": cfg.input.name, "sha256": _sha256(Path(path))},
+            "python": python,
+        }
+        if r.returncode != 0:  # kept: two versions failing the same way are equal
             (out_dir / f"{cfg.name}.err").write_text(r.stderr + r.stdout)
-            return f"{cfg.name}: FAILED (exit {r.returncode}, see {cfg.name}.err)"
+            lines = r.stderr.strip().splitlines() or [""]
+            errors = [ln for ln in lines if re.match(r"[\w.]*(Error|Exception)\b", ln)]
+            last = (errors or lines)[-1]  # the exception's line, not its detail
+            dump["failed"] = {"exit": r.returncode, "error": last}
+            with gzip.open(out_dir / f"{cfg.name}.json.gz", "wt") as f:
+                json.dump(dump, f)
+            return f"{cfg.name}: FAILED (exit {r.returncode}: {last[:80]}; see {cfg.name}.err)"
         topics, messages = read_messages(mcap)
-    summary = _summary(r.stdout)
-    dump = {
-        "name": cfg.name,
-        "command": " ".join(["skyfuse track", Path(path).name, *extra[:1], *cfg.args()]),
-        "input": {"name": cfg.input.name, "sha256": _sha256(Path(path))},
-        "python": python,
-        "summary": summary,
-        "topics": topics,
-        "messages": messages,
-    }
+    dump.update(summary=_summary(r.stdout), topics=topics, messages=messages)
     with gzip.open(out_dir / f"{cfg.name}.json.gz", "wt") as f:
         json.dump(dump, f, separators=(",", ":"))
     return f"{cfg.name}: {len(messages)} messages ({wall:.1f} s)"
@@ -374,6 +380,11 @@ def compare_dumps(da: dict, db: dict, tol: float, atol: float) -> str:
     """One line: identical / within tolerance / DIFFERENT (see the module docstring)."""
     if da["input"]["sha256"] != db["input"]["sha256"]:
         return "DIFFERENT inputs (SHA-256 differs): not comparable"
+    fa, fb = da.get("failed"), db.get("failed")
+    if fa is not None or fb is not None:
+        if fa == fb:
+            return f"identical failure (both exit {fa['exit']}: {fa['error'][:90]})"
+        return f"DIFFERENT: failed {fa} vs {fb}"
     ma, mb = da["messages"], db["messages"]
     ta, tb = da["topics"], db["topics"]
     if ma == mb and ta == tb:

@@ -1,5 +1,6 @@
 """Posterior Cramér–Rao floor under the RMSE curves of the Monte Carlo evaluation
-(spec 04 B.2, thesis 3.74–3.81; issue 15 "used in the evaluation as the floor under RMSE").
+(Tichavský's bound, [thesis] 3.74–3.81; docs/particles.md, used in the evaluation as the
+floor under RMSE).
 
 For every target of every run the bound is computed along its own life (its *age*: the
 number of scans since it first appears in the truth, 1 at its first scan) with the

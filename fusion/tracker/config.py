@@ -1,7 +1,9 @@
 """``TrackerConfig``: every tunable of the existence-based trackers, with working defaults.
 
-The thesis leaves g, P_G, v_max, ψ_init, τ_t and the pruning threshold open (spec 02 §10,
-spec 03 §2); the defaults here are the **[IMPL]** choices documented next to each field.
+The thesis leaves g, P_G, v_max, ψ_init, τ_t and the pruning threshold open ([thesis]
+ch. 7); the defaults here are the **[IMPL]** choices documented next to each field.
+The tracker kinds and motions are the registry's (:mod:`.registry`), shipped or
+registered later.
 The model is plain pydantic so the fusion service and ``skyfuse track`` can load it from
 TOML (``services.config.build_config(TrackerConfig, toml_path=...)``).
 """
@@ -76,7 +78,7 @@ class TrackerConfig(BaseModel):
         2,
         ge=0,
         description="Scans with a plot (weight > 0.5) after initiation before confirmation "
-        "(spec 02 §8: above τ_c 'long enough')",
+        "([thesis] §7.1: above τ_c 'long enough')",
     )
     initiation: Literal["two_point", "one_point", "none"] = Field(
         "two_point", description="Track initiation: two_point (3.25-3.27), one_point, none"
@@ -193,7 +195,7 @@ class TrackerConfig(BaseModel):
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )
 
-    # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
+    # IMM densities (motion = imm-cv-ct | imm-cv-singer; [Dikić], [MZD]) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
     # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.
     imm_q_cv: float = Field(4.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
@@ -235,7 +237,7 @@ class TrackerConfig(BaseModel):
         "ReachGate)",
     )
 
-    # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
+    # particle trackers ipf / lmipf ([LM-IPF]; fusion/tracker/density/particles.py)
     particles: int = Field(
         1000, ge=1, le=1_000_000, description="ipf/lmipf: particles per track N (source 1000)"
     )

@@ -1,4 +1,5 @@
-"""The existence-based multi-target tracker: a short sequence of swappable parts.
+"""The existence-based multi-target tracker: a short sequence of swappable parts
+([thesis] ch. 5-7; docs/tracker.md).
 
 ``Tracker(config).step(batch) -> TrackerOutput`` applies one :class:`MeasurementBatch`
 (one radar sector or scan, system frame) to all tracks. Per batch:
@@ -7,17 +8,27 @@
    are predicted to their illumination time and updated; the others keep their state
    and existence (a radar that does not see a region does not erode its tracks).
 2. **Prediction** of the track density (:mod:`.density`: Gaussian mixture with Singer
-   memory, or an IMM per component, 5.4-5.5, spec 01 §5; particle clouds for ipf/lmipf,
-   :mod:`fusion.particles`, spec 04 A4) and of existence (Markov chain,
-   :mod:`.existence`, 5.3) over per-track dt arrays.
+   memory, [thesis] 5.4-5.5, or an IMM per component; particle clouds for ipf/lmipf,
+   [LM-IPF] eq. 6) and of existence (Markov chain, :mod:`.existence`, [thesis] 5.3) over
+   per-track dt arrays.
 3. **Likelihoods**: the density gates the plots and returns the track × plot table
-   p^τ_i = likelihood / P_G (5.7-5.10, 4.17).
+   p^τ_i = likelihood / P_G ([thesis] 5.7-5.10, 4.17).
 4. **Clutter** density per table row (:mod:`.clutter`): known or estimated (2.35).
 5. **Association** part from the registry (:mod:`.registry`, :mod:`.associators`):
    single (IPDA/ITS, 5.16-5.18), lm (6.12-6.22), joint (6.1-6.8), gnn (MAP event).
-6. **Update** of the density with β₀, β (ITS children 5.12-5.15, merge, pruning).
-7. **Management** (:mod:`.management`): duplicate removal, confirmation, termination;
-   **initiation** (:mod:`.initiation`) from the plots no track gated.
+6. **Update** of the density with β₀, β (ITS children 5.12-5.15, merge, pruning); the
+   tracks whose illumination time is older than their state take the out-of-sequence
+   update instead (:mod:`.oosm_pass`).
+7. **Management** (:mod:`.management`): duplicate removal, confirmation, termination
+   ([thesis] §7.1-7.2); **initiation** (:mod:`.initiation`) from the plots no track
+   gated.
+
+The state of every track is one row of the track store ``Tracker.tracks``
+(:mod:`.store`): columns declared by their owners (the tracker, the density, the
+out-of-sequence memory, the re-identification). The steps shared with the
+out-of-sequence pass are :class:`~.phases.Phases`. ``to_snapshot`` /
+``from_snapshot`` write and read the whole state by those declarations, with a version
+and the configuration.
 
 All arrays run over tracks, components and plots; the only Python loops are over JIPDA
 clusters with more than one track and GNN clusters.
@@ -68,7 +79,7 @@ class TrackEventRecord:
 class OutputPrediction:
     """The track estimates x (n, d), P (n, d, d) and existence-chain states (n, 2) at
     their times ``t_last`` (n,) ns after one step (copies), predicted on demand to
-    ``time_ns`` with the output model (CV, spec 02 5.4) and the existence chain (5.3):
+    ``time_ns`` with the output model (CV, [thesis] 5.4) and the existence chain (5.3):
     only the rows a consumer asks for are predicted."""
 
     time_ns: int
@@ -496,7 +507,7 @@ class Tracker:
 
     def _initiate(self, b: MeasurementBatch, used: np.ndarray) -> int:
         """New tracks from the plots not ``used`` by tracks (two-point or one-point,
-        spec 02 §5)."""
+        [thesis] §3.5)."""
         cfg = self.cfg
         m = len(b)
         uid = self._next_uid + np.arange(m, dtype=np.int64)

@@ -57,6 +57,8 @@ from typing import Literal, Protocol, runtime_checkable
 import numpy as np
 from skyfuse.fusion.association.gating import gate_probability
 
+from ..store import Column, ColumnGroup
+
 
 @lru_cache(maxsize=32)
 def gate_probability_of(g: float, k: int) -> float:
@@ -64,6 +66,17 @@ def gate_probability_of(g: float, k: int) -> float:
     dimensions, computed once per (g, k): every batch gates with the same threshold, and
     the χ² cdf costs more than the rest of a small batch's table."""
     return float(gate_probability(g, k))
+
+
+def estimate_group(dim: int, appended=None, kept=None) -> ColumnGroup:
+    """The ``density`` column group of a density whose per-track columns are its track
+    estimate: ``x`` (n, dim), ``P`` (n, dim, dim) in the output layout, a new track's being
+    its initial Gaussian; ``appended`` / ``kept``: the hooks of the density's own store
+    (mixture components)."""
+    columns = (Column("x", np.float64, (dim,), doc="track estimate, output layout"),
+               Column("P", np.float64, (dim, dim), doc="its covariance"))  # fmt: skip
+    init = lambda new: {"x": new.x, "P": new.P}  # noqa: E731
+    return ColumnGroup("density", columns, init=init, appended=appended, kept=kept)
 
 
 @dataclass

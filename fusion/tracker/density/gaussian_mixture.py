@@ -41,8 +41,7 @@ from .. import components as comp
 from ..component_slots import ComponentSlots
 from ..its import component_update, shift_history
 from ..oosm import oosm_update, retrodict
-from ..store import Column, ColumnGroup
-from .base import GatedTable, Prediction, gate_probability_of
+from .base import GatedTable, Prediction, estimate_group, gate_probability_of
 
 
 class MixturePrediction(Prediction):
@@ -146,17 +145,7 @@ class GaussianMixtureDensity:
     def attach(self, tracks) -> None:
         """Columns ``x`` (n, d), ``P`` (n, d, d): the track estimates; new tracks get one
         component (ξ = 1, their initial Gaussian, empty history)."""
-        d = self.dim
-        tracks.declare(
-            ColumnGroup(
-                "density",
-                (Column("x", np.float64, (d,), doc="track estimate (4.66-4.68)"),
-                 Column("P", np.float64, (d, d), doc="its covariance")),
-                init=lambda new: {"x": new.x, "P": new.P},
-                appended=self._appended,
-                kept=self._kept,
-            )
-        )  # fmt: skip
+        tracks.declare(estimate_group(self.dim, self._appended, self._kept))
         self.tracks = tracks
 
     def _appended(self, rows: np.ndarray, new) -> None:

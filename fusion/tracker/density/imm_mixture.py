@@ -1,5 +1,6 @@
 """IMM mixture track density: every ITS component is an IMM (IMM-IPDA, IMM-ITS,
-IMM-LM-ITS, IMM-JITS). Spec 01 §5 (004 eq. 15-21) inside spec 02 §7 / spec 03 §1.
+IMM-LM-ITS, IMM-JITS): the IMM of [Dikić] (eq. 15-21) inside the ITS components of
+[thesis] ch. 5-6 (docs/tracker.md, "IMM inside the existence trackers").
 
 Each component c of a track carries a weight ξ^c, a plot history h^c (Singer N-scan
 memory, depth 0 = one IMM per track) and, per mode j, a mode probability μ^c_j and a
@@ -12,12 +13,13 @@ Per batch, for the components of the tracks in coverage over their dt:
 1. **Interaction** (eq. 15-17): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
    Π_T per period T, fractional power by eigendecomposition); c_j = Σ_i Π_ij μ_i,
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
-   common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
+   common Singer layout (the conversions of [Dikić] eq. 22), converted back to mode j.
 2. **Mode-matched prediction** of every mode (KF or EKF, :func:`fusion.filters.ekf.predict`).
-   **Long coasts** [IMPL] (issue 17): a component predicted over dt > ``coast_after``
+   **Long coasts** [IMPL] (docs/tracker.md, "Re-identification, held existence and
+   straight coasts"): a component predicted over dt > ``coast_after``
    (a track outside every radar's coverage, in a cone of silence, or missed for several
    scans) is predicted in ⌈dt / coast_step⌉ equal steps, and afterwards every
-   manoeuvre mode takes the CV mode's prediction (converted to its layout, spec 01 §4):
+   manoeuvre mode takes the CV mode's prediction (converted to its layout, eq. 22):
    a lost aircraft is assumed to fly straight, as the output model and the
    re-identification assume. In one step the discrete models' noise lets a single
    piecewise-constant acceleration act for the whole gap (σ_pos = √q dt²/2, ≈ 10 km
@@ -27,9 +29,9 @@ Per batch, for the components of the tracks in coverage over their dt:
    P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
    track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
-   per-model gating of 003); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
-   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
-   :class:`ReachGate`, eq. C1): a pair whose plot is farther from the track's last fix
+   per-model gating of [MZD]); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G (eq. 18,
+   4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (:mod:`.reach_gate`,
+   eq. C1): a pair whose plot is farther from the track's last fix
    than v_max times the time since, plus √g times the largest σ of the fix and of the
    plot, is dropped first.
 4. **Update**: the "no plot" child keeps the predicted modes with μ = c; the child of plot
@@ -39,6 +41,14 @@ Per batch, for the components of the tracks in coverage over their dt:
    Σ ξ μ_j / Σ ξ); pruning as for the Gaussian mixture.
 5. **Estimate** (eq. 20-21, 4.66-4.68): all modes of all components of a track
    moment-matched in the common layout, returned in the CV layout (m, m/s).
+
+Late plots (:class:`~.base.Retrodiction`): every mode of every component retrodicted with
+its own model and the track's last prior of that mode (Bar-Shalom 2002, A1,
+:mod:`fusion.tracker.oosm`), without mode interaction over the lag (:meth:`retrodict`).
+
+State: the components in a slot store (:mod:`fusion.tracker.component_slots`); the
+track estimates and the reachability gate's fixes are columns of the track store
+(:mod:`fusion.tracker.store`).
 
 With one CV mode and Π = [[1]] every step reduces to the Gaussian-mixture density (IPDA /
 ITS); the tests check that equivalence and the mode probabilities of a two-model case.
@@ -67,8 +77,7 @@ from ..component_slots import ComponentSlots
 from ..components import history_groups, prune_indices
 from ..its import shift_history
 from ..oosm import oosm_update, retrodict
-from ..store import Column, ColumnGroup
-from .base import GatedTable, gate_probability_of
+from .base import GatedTable, estimate_group, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 from .imm_likelihood_kernel import mode_pair_likelihoods
 from .reach_gate import ReachGate, largest_sigma
@@ -300,17 +309,7 @@ class IMMMixtureDensity:
         """Columns ``x`` (n, d), ``P`` (n, d, d): the track estimates (eq. 20-21, CV
         layout); the reachability gate's columns when it is on; new tracks get one IMM
         component (:meth:`_appended`)."""
-        d = self.dim
-        tracks.declare(
-            ColumnGroup(
-                "density",
-                (Column("x", np.float64, (d,), doc="track estimate (eq. 20-21), CV layout"),
-                 Column("P", np.float64, (d, d), doc="its covariance")),
-                init=lambda new: {"x": new.x, "P": new.P},
-                appended=self._appended,
-                kept=self._kept,
-            )
-        )  # fmt: skip
+        tracks.declare(estimate_group(self.dim, self._appended, self._kept))
         self.reach.attach(tracks)
         self.tracks = tracks
 
