@@ -232,6 +232,11 @@ class TerminatedTracks:
         return ids
 
 
+def _first_fix(new) -> dict:
+    """A new track's fix: its initial state."""
+    return {"fix_x": new.x, "fix_P": new.P, "fix_t": new.t}
+
+
 class Reidentification:
     """The re-identification part of a tracker: the last informative fix of every live
     track (columns ``fix_x``, ``fix_P``, ``fix_t`` of the track store, (R1')) and the
@@ -251,7 +256,7 @@ class Reidentification:
                 (Column("fix_x", np.float64, (d,), doc="last informative fix, CV layout"),
                  Column("fix_P", np.float64, (d, d), doc="its covariance"),
                  Column("fix_t", np.int64, doc="its time, ns")),
-                init=lambda new: {"fix_x": new.x, "fix_P": new.P, "fix_t": new.t},
+                init=_first_fix,
             )
         )  # fmt: skip
 

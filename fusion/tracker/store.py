@@ -89,7 +89,9 @@ class ColumnGroup:
     """The columns of one owner. ``init(new) -> {column: values}`` computes the new rows'
     values of columns without a fill from what :meth:`Table.append` was given (``new``,
     e.g. :class:`NewTracks`); ``appended(rows, new)`` runs after the rows are written,
-    ``kept(mask)`` after :meth:`Table.keep` (hooks of state that is not one row each)."""
+    ``kept(mask)`` after :meth:`Table.keep` (hooks of state that is not one row each).
+    Give module-level functions or bound methods (a tracker is pickled by the Monte Carlo
+    evaluation's workers; a lambda is not picklable)."""
 
     owner: str
     columns: tuple[Column, ...]
@@ -117,6 +119,15 @@ class Table:
         if name in self._columns:
             raise AttributeError(f"column {name!r}: write into it ({name}[...] = ...)")
         object.__setattr__(self, name, value)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the column views (a copied view would no longer write into
+        its buffer); :meth:`__setstate__` makes them again."""
+        return {k: v for k, v in self.__dict__.items() if k not in self._columns}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._views()
 
     # ---------------------------------------------------------------- declaration
     def declare(self, group: ColumnGroup) -> None:

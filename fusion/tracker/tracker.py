@@ -213,15 +213,7 @@ class Tracker:
         self.totals: dict[str, int] = {}
 
     def _columns(self) -> ColumnGroup:
-        """The tracker's own columns; a new track's existence is ψ_init, its clocks its
-        initiation time."""
-        psi0 = self.cfg.psi_init
-
-        def init(new) -> dict:
-            t = new.t
-            return {"exist": np.column_stack([np.full(len(t), psi0), np.zeros(len(t))]),
-                    "t_last": t, "last_update": t, "coast_from": t, "born": t}  # fmt: skip
-
+        """The tracker's own columns (:meth:`_new_rows` fills those without a fill)."""
         i8, f8 = np.int64, np.float64
         return ColumnGroup(
             "tracker",
@@ -235,8 +227,14 @@ class Tracker:
              Column("height", f8, fill=np.nan, doc="height of the last plot, m"),
              Column("coast_from", i8, doc="max_coast counts from here, ns"),
              Column("born", i8, doc="initiation time, ns")),
-            init=init,
+            init=self._new_rows,
         )  # fmt: skip
+
+    def _new_rows(self, new: NewTracks) -> dict:
+        """A new track's existence is ψ_init, its clocks its initiation time."""
+        t, k = new.t, len(new)
+        exist = np.column_stack([np.full(k, self.cfg.psi_init), np.zeros(k)])
+        return {"exist": exist, "t_last": t, "last_update": t, "coast_from": t, "born": t}
 
     @staticmethod
     def _make_chain(cfg: TrackerConfig) -> ExistenceChain:

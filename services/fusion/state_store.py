@@ -220,7 +220,12 @@ def age_s(saved: dict) -> float:
     return (time.time_ns() - saved["written_ns"]) / 1e9
 
 
-_PARTS = {"frame": dict, "sites": dict, "reorder": dict, "pipeline": (dict, type(None))}
+_PARTS = {
+    "frame": (dict, type(None)),
+    "sites": dict,
+    "reorder": dict,
+    "pipeline": (dict, type(None)),
+}
 
 
 def _check_header(saved, fusion_id: str) -> None:

@@ -5,6 +5,8 @@ snapshots."""
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from skyfuse.fusion.tracker.store import Column, ColumnGroup, NewTracks, Table
@@ -106,3 +108,30 @@ def test_snapshots_hold_the_declared_columns_only():
             Table(*_groups([])).from_snapshot({"rows": 3, "columns": columns})
     with pytest.raises(SnapshotError, match="rows"):
         Table(*_groups([])).from_snapshot({"rows": -1, "columns": cols})
+
+
+def test_a_pickled_table_writes_into_its_columns():
+    """After pickling (the Monte Carlo workers), a column written in place keeps the value
+    through the next append: the views are made again, not copied."""
+    table = pickle.loads(pickle.dumps(_table_with_rows()))
+    table.h[:] = 5.0
+    table.append(NewTracks(np.ones((1, 2)), np.ones((1, 2, 2)), np.arange(1)), ids=[7])
+    assert table.h[:3].tolist() == [5.0] * 3 and np.isnan(table.h[3])
+
+
+def _table_with_rows() -> Table:
+    table = Table(*_groups_picklable())
+    table.append(NewTracks(np.ones((3, 2)), np.ones((3, 2, 2)), np.arange(3)), ids=np.arange(3))
+    return table
+
+
+def _init_t(new):
+    return {"t": new.t, "x": new.x, "P": new.P}
+
+
+def _groups_picklable():
+    return (
+        ColumnGroup("core", (Column("ids", np.int64), Column("t", np.int64),
+                             Column("h", np.float64, fill=np.nan)), init=_init_t),
+        ColumnGroup("density", (Column("x", np.float64, (2,)), Column("P", np.float64, (2, 2)))),
+    )  # fmt: skip

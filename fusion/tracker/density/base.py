@@ -75,8 +75,11 @@ def estimate_group(dim: int, appended=None, kept=None) -> ColumnGroup:
     (mixture components)."""
     columns = (Column("x", np.float64, (dim,), doc="track estimate, output layout"),
                Column("P", np.float64, (dim, dim), doc="its covariance"))  # fmt: skip
-    init = lambda new: {"x": new.x, "P": new.P}  # noqa: E731
-    return ColumnGroup("density", columns, init=init, appended=appended, kept=kept)
+    return ColumnGroup("density", columns, init=_initial_estimate, appended=appended, kept=kept)
+
+
+def _initial_estimate(new) -> dict:
+    return {"x": new.x, "P": new.P}
 
 
 @dataclass

@@ -54,10 +54,13 @@ class ReachGate:
                 (Column("reach_p", np.float64, (self.ndim,), doc="position of the fix, m"),
                  Column("reach_sigma", np.float64, doc="largest σ of the fix's position, m"),
                  Column("reach_since", np.float64, fill=0.0, doc="time since the fix, s")),
-                init=lambda new: {"reach_p": new.x[:, self.pos], "reach_sigma": self._sigma(new.P)},
+                init=self._initial_fix,
             )
         )  # fmt: skip
         self.tracks = tracks
+
+    def _initial_fix(self, new) -> dict:
+        return {"reach_p": new.x[:, self.pos], "reach_sigma": self._sigma(new.P)}
 
     def _sigma(self, P: np.ndarray) -> np.ndarray:
         return largest_sigma(P[:, self.pos][:, :, self.pos])

@@ -88,6 +88,18 @@ def test_every_tracker_kind_round_trips_to_the_same_feed(kind, motion, scenario,
     assert len(a) == len(b) > 5 and a == b
 
 
+def test_a_state_before_the_first_batch_is_a_valid_snapshot(scenario, tmp_path):
+    """A standby receives snapshots before the first batch (no frame, no tracker yet):
+    they pass the check, and resuming one restores the sites and no tracks."""
+    core = _core(scenario[0], TrackerConfig())
+    store = StateStore(tmp_path / "s", "main", max_age=60, id_horizon=60)
+    saved = store.check(store.serialise(capture(core), 1))
+    assert saved["frame"] is None and saved["pipeline"] is None
+    fresh = _core([], TrackerConfig())
+    assert restore(fresh, saved) == "no tracker state saved yet"
+    assert sorted(fresh.radars) == sorted(s.radar_id for s in scenario[0])
+
+
 class _Exploit:
     """Unpickling this creates a file: the proof that pickle executes code."""
 
