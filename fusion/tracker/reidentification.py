@@ -164,10 +164,6 @@ class TerminatedTracks:
     def __len__(self) -> int:
         return len(self.rows)
 
-    @property
-    def ids(self) -> np.ndarray:
-        return self.rows.ids
-
     def add(self, ids: np.ndarray, x: np.ndarray, P: np.ndarray, t: np.ndarray) -> None:
         """Store terminated tracks (their last fixes); keep the newest ``capacity``."""
         if len(ids) == 0:

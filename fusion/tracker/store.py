@@ -212,7 +212,7 @@ class Table:
         cap = max(_MIN_CAPACITY, 2 * k)
         for name, buf in self._buffers.items():
             out = np.empty((cap, *buf.shape[1:]), buf.dtype)
-            np.take(buf[: self._n], idx, axis=0, out=out[:k])
+            np.take(buf[: self._n], idx, axis=0, out=out[:k], mode="clip")  # unbuffered
             self._buffers[name] = out
         object.__setattr__(self, "_n", k)
         self._views()
