@@ -42,8 +42,10 @@ shape and no other column is: the declaration is the format (:mod:`schemas.snaps
 Storage: every column is an array with spare rows (capacity grows by doubling), of which
 the first ``len(table)`` are the rows; ``table.name`` is a view of those rows. Appending
 writes into the spare rows (amortised in the rows appended, not the rows held); keeping
-copies the kept rows into new arrays, so views taken before stay valid. Write a column in
-place (``table.height[rows] = …``, ``table.height[:] = …``); assigning a column is refused.
+gathers the kept rows to the front of the same arrays. So a view of a column is valid
+until the next :meth:`~Table.keep` (take a copy to keep rows longer: the tracker's
+outputs do). Write a column in place (``table.height[rows] = …``, ``table.height[:] =
+…``); assigning a column is refused.
 """
 
 from __future__ import annotations
@@ -138,9 +140,10 @@ class Table:
             if c.name in self._columns or hasattr(type(self), c.name) or c.name.startswith("_"):
                 raise ValueError(f"{group.owner}: column name {c.name!r} is taken")
         self._groups.append(group)
+        cap = len(next(iter(self._buffers.values()), ())) or _MIN_CAPACITY
         for c in group.columns:
             self._columns[c.name] = c
-            self._buffers[c.name] = np.zeros((_MIN_CAPACITY, *c.shape), np.dtype(c.dtype))
+            self._buffers[c.name] = np.zeros((cap, *c.shape), np.dtype(c.dtype))
         self._views()
 
     @property
@@ -158,9 +161,9 @@ class Table:
         return self._n
 
     def _views(self) -> None:
-        n = self._n
+        n, d = self._n, self.__dict__
         for name, buf in self._buffers.items():
-            object.__setattr__(self, name, buf[:n])
+            d[name] = buf[:n]
 
     # ---------------------------------------------------------------- rows
     def append(self, new=None, **values) -> np.ndarray:
@@ -171,24 +174,28 @@ class Table:
         lo = self._n
         if k == 0:
             return np.arange(lo, lo)
-        computed = {}
-        for g in self._groups:
-            if g.init is not None:
-                computed.update(g.init(new))
-        self._reserve(lo + k)
+        groups = self._groups
+        if new is not None:
+            for g in groups:
+                if g.init is not None:
+                    for name, v in g.init(new).items():
+                        values.setdefault(name, v)
+        hi = lo + k
+        self._reserve(hi)
+        buffers = self._buffers
         for name, c in self._columns.items():
-            v = values.get(name, computed.get(name))
+            v = values.get(name)
             if v is None:
                 if c.fill is None:
                     raise ValueError(f"column {name!r}: no value for the new rows")
                 v = c.fill
             elif np.shape(v) != (k, *c.shape):
                 raise ValueError(f"column {name!r}: {np.shape(v)} for {k} rows of {c.shape}")
-            self._buffers[name][lo : lo + k] = v
-        object.__setattr__(self, "_n", lo + k)
+            buffers[name][lo:hi] = v
+        object.__setattr__(self, "_n", hi)
         self._views()
-        rows = np.arange(lo, lo + k)
-        for g in self._groups:
+        rows = np.arange(lo, hi)
+        for g in groups:
             if g.appended is not None:
                 g.appended(rows, new)
         return rows
@@ -197,24 +204,22 @@ class Table:
         cap = len(next(iter(self._buffers.values()), ()))
         if n <= cap:
             return
-        cap = max(2 * cap, n)
+        cap = max(2 * cap, n, _MIN_CAPACITY)
         for name, buf in self._buffers.items():
             grown = np.empty((cap, *buf.shape[1:]), buf.dtype)
             grown[: self._n] = buf[: self._n]
             self._buffers[name] = grown
 
     def keep(self, mask: np.ndarray) -> None:
-        """Keep the rows where ``mask`` (len(self),) is True, in order (into new arrays:
-        views taken before stay valid); then the groups' ``kept`` hooks."""
+        """Keep the rows where ``mask`` (len(self),) is True, in order, gathered to the
+        front of the arrays (views taken before are stale); then the groups' ``kept``
+        hooks."""
         mask = np.asarray(mask, bool)
         idx = np.flatnonzero(mask)
-        k = len(idx)
-        cap = max(_MIN_CAPACITY, 2 * k)
-        for name, buf in self._buffers.items():
-            out = np.empty((cap, *buf.shape[1:]), buf.dtype)
-            np.take(buf[: self._n], idx, axis=0, out=out[:k], mode="clip")  # unbuffered
-            self._buffers[name] = out
-        object.__setattr__(self, "_n", k)
+        n, k = self._n, len(idx)
+        for buf in self._buffers.values():
+            buf[:k] = buf[:n].take(idx, axis=0)  # in place: the capacity stays
+        object.__setattr__(self, "_n", len(idx))
         self._views()
         for g in self._groups:
             if g.kept is not None:
