@@ -1,17 +1,17 @@
 """Particle track density (fusion.particles) speed, side by side with a Gaussian density.
 
-Scenario (spec 04 A.4 geometry, generated here): n targets start on a circle of r = 450 m
-around (500, 500) m, 10° apart on an arc, and fly straight through the centre at
-22.5 m/s; T = 1 s, R = (5 m)² I, P_D = 0.8, optional uniform Poisson clutter over the
+Scenario (the [LM-IPF] scenario's geometry, generated here): n targets start on a circle
+of r = 450 m around (500, 500) m, 10° apart on an arc, and fly straight through the
+centre at 22.5 m/s; T = 1 s, R = (5 m)² I, P_D = 0.8, optional uniform Poisson clutter over the
 [0, 1000]² m area (the source has none; a nominal ρ = 1e-6 m⁻² is used then). Every
 target has an established track from scan 0, so the figures are steady-state per-scan
 costs over the scans that follow (the converging targets share plots near the centre).
 
 Three trackers see the same plots, timed one after another on every scan:
 
-* **particle**: ``ParticleDensity`` with N particles per track — predict (A4), gate +
-  per-particle likelihood table (A5–A7), LM step and association (A9–A13), weight update
-  + MMSE + systematic resampling of all tracks (A14–A16), existence from (A13);
+* **particle**: ``ParticleDensity`` with N particles per track — predict ([LM-IPF] eq. 6),
+  gate + per-particle likelihood table (eq. 7-9), LM step and association (eq. 14-17),
+  weight update + MMSE + systematic resampling of all tracks (eq. 11), existence (eq. 12);
 * **gaussian**: the same tracks as Kalman (Gaussian) densities through the same gate and
   the same LM step (LM-IPDA): kalman predict, per-pair Kalman updates and a PDA moment
   match — the Gaussian density cost of the same work;
@@ -50,9 +50,10 @@ from skyfuse.fusion.association.gating import gate, gate_probability  # noqa: E4
 from skyfuse.fusion.filters import kalman  # noqa: E402
 from skyfuse.fusion.models import ConstantVelocity  # noqa: E402
 from skyfuse.fusion.particles.association import lm_ipf_association  # noqa: E402
-from skyfuse.fusion.particles.density import ParticleDensity, ParticleGatedTable  # noqa: E402
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig  # noqa: E402
 from skyfuse.fusion.tracker.components import moment_match  # noqa: E402
+from skyfuse.fusion.tracker.density.particles import ParticleDensity, ParticleGatedTable  # noqa: E402
+from skyfuse.fusion.tracker.store import NewTracks, store_for  # noqa: E402
 
 SIGMA, PD, P11, Q_ACC, SPEED, NS = 5.0, 0.8, 0.98, 0.75, 22.5, 10**9
 RHO_NOMINAL = 1e-6
@@ -80,7 +81,8 @@ class ParticleLoop:
 
     def __init__(self, x0: np.ndarray, n_particles: int, g: float) -> None:
         self.density = ParticleDensity(ConstantVelocity(q=Q_ACC), n_particles, seed=0)
-        self.density.add(x0, np.tile(P0, (len(x0), 1, 1)))
+        store_for(self.density)
+        self.density.tracks.append(NewTracks(x0, np.tile(P0, (len(x0), 1, 1))))
         self.psi = np.full(len(x0), 0.99)
         self.g, self.pdpg = g, np.full(len(x0), PD * gate_probability(g, 2))
 

@@ -2,52 +2,50 @@
 
 The existence trackers keep each track's kinematic state in a **track density** — a
 Gaussian mixture with Singer memory, an IMM mixture, a particle cloud — behind one small
-interface, `skyfuse.fusion.tracker.density.base.TrackDensity`. The tracker never looks
-inside: per batch it asks the density to predict the tracks the batch could have seen,
-to gate the plots and give their likelihoods, and, once association has weighed the
-hypotheses (β₀ for "no plot", β_i for plot i), to update. Existence, association,
-initiation and track management stay the tracker's.
+interface, `skyfuse.fusion.tracker.density.base.TrackDensity` ([the tracker's
+parts](../concepts/tracker-parts.md)). The tracker never looks inside: per batch it asks
+the density to predict the tracks the batch could have seen, to gate the plots and give
+their likelihoods, and, once association has weighed the hypotheses (β₀ for "no plot",
+β_i for plot i), to update. Existence, association, initiation and track management stay
+the tracker's; the per-track state lives in the tracker's track store, where the density
+declares its columns.
 
 This tutorial writes the simplest density — one Gaussian per track with the
-constant-velocity model, the density of IPDA ([thesis] (2.37)–(2.38)) — and checks it
-against the built-in one on the same plots.
-
-!!! note
-    The density interface is being reworked; this page follows the interface as it is in
-    this version.
+constant-velocity model, the density of IPDA ([thesis] (2.37)–(2.38)) — registers it
+under a name, and checks it against the built-in one on the same plots.
 """
 
 # %%
 # ## The density
 #
-# Arrays over all tracks: states `x` (n, 4) in the layout x, vx, y, vy and covariances
-# `P` (n, 4, 4). The six methods are the whole interface.
+# Its per-track state is two columns of the track store, `x` (n, 4) in the layout x, vx,
+# y, vy and `P` (n, 4, 4), declared in `attach` (`estimate_group`: a new track's columns
+# are its initial Gaussian). `late_plots = "current"`: a plot older than a track's state
+# is applied at the track's current time (a density that can retrodict says
+# `"retrodict"` and implements the out-of-sequence update as well).
 import numpy as np
 from skyfuse.fusion.association.gating import gate, gate_probability
 from skyfuse.fusion.models.cv import ConstantVelocity
-from skyfuse.fusion.tracker.density.base import GatedTable, Prediction
+from skyfuse.fusion.tracker.density.base import GatedTable, Prediction, estimate_group
 
 
 class OneGaussian:
     """IPDA's density: one Gaussian per track, CV motion, PDA update."""
 
+    late_plots = "current"
+
     def __init__(self, q: float) -> None:
         self.model = ConstantVelocity(q=q, ndim=2)
         self.H = self.model.H()
         self.dim = self.model.dim
-        self.x, self.P = np.zeros((0, 4)), np.zeros((0, 4, 4))
+        self.stats: dict[str, int] = {}
 
-    def __len__(self) -> int:
-        return len(self.x)
-
-    def add(self, x, P):  # new tracks (initiation)
-        self.x, self.P = np.concatenate([self.x, x]), np.concatenate([self.P, P])
-
-    def keep(self, mask):  # tracks that survive
-        self.x, self.P = self.x[mask], self.P[mask]
+    def attach(self, tracks) -> None:  # declare the columns x, P in the track store
+        tracks.declare(estimate_group(self.dim))
+        self.tracks = tracks
 
     def predict(self, rows, dt):
-        x, P = self.model.predict(self.x[rows], self.P[rows], dt)
+        x, P = self.model.predict(self.tracks.x[rows], self.tracks.P[rows], dt)
         pred = Prediction(rows, x @ self.H.T, self.H @ P @ self.H.T)
         pred.x, pred.P = x, P  # kept for the update
         return pred
@@ -70,24 +68,38 @@ class OneGaussian:
         P = beta0[:, None, None] * (pred.P + pred.x[:, :, None] * pred.x[:, None, :])
         np.add.at(P, pairs.state, beta[:, None, None] * (Pi + xi[:, :, None] * xi[:, None, :]))
         P -= x[:, :, None] * x[:, None, :]
-        self.x[pred.rows], self.P[pred.rows] = x, 0.5 * (P + np.swapaxes(P, 1, 2))
+        self.tracks.x[pred.rows] = x
+        self.tracks.P[pred.rows] = 0.5 * (P + np.swapaxes(P, 1, 2))
 
     def estimate(self, rows):
-        return self.x[rows].copy(), self.P[rows].copy()
+        return self.tracks.x[rows].copy(), self.tracks.P[rows].copy()
+
+    def estimates_view(self):  # all tracks, read only
+        return self.tracks.x, self.tracks.P
+
+    def component_counts(self):
+        return np.ones(len(self.tracks), np.int64)
+
+    def to_snapshot(self) -> dict:  # nothing outside the track store's columns
+        return {}
+
+    def from_snapshot(self, snap) -> None:
+        pass
 
 
 # %%
-# ## Give it to a tracker
+# ## Register it and give it to a tracker
 #
-# The registry (`skyfuse.fusion.tracker.registry`) names the built-in densities; the
-# configuration's choices are fixed when `TrackerConfig` is imported, so a density of
-# your own is given to a tracker before its first step. `oosm=False`: the out-of-sequence
-# update needs a density that stores its last step, which this one does not.
+# One registration (`skyfuse.fusion.tracker.registry`) makes it a motion like the
+# built-in ones: `TrackerConfig(motion="one-gaussian")` accepts the name, and the
+# tracker's out-of-sequence pass, snapshots and kernel warm-up work through the
+# interface with no other change.
 from skyfuse.fusion.tracker import Tracker, TrackerConfig, batch_from_positions
+from skyfuse.fusion.tracker.registry import register_motion
 
-config = TrackerConfig(tracker="ipda", motion="cv", oosm=False)
-mine, builtin = Tracker(config), Tracker(config)
-mine.density = OneGaussian(q=config.q)
+register_motion("one-gaussian", lambda cfg: OneGaussian(q=cfg.q), "one Gaussian, CV (tutorial)")
+mine = Tracker(TrackerConfig(tracker="ipda", motion="one-gaussian"))
+builtin = Tracker(TrackerConfig(tracker="ipda", motion="cv"))
 
 # %%
 # ## Same plots, same tracks

@@ -1,5 +1,6 @@
 """Posterior Cramér–Rao floor under the RMSE curves of the Monte Carlo evaluation
-(spec 04 B.2, thesis 3.74–3.81; issue 15 "used in the evaluation as the floor under RMSE").
+(Tichavský's bound, [thesis] 3.74–3.81; docs/particles.md, used in the evaluation as the
+floor under RMSE).
 
 For every target of every run the bound is computed along its own life (its *age*: the
 number of scans since it first appears in the truth, 1 at its first scan) with the
@@ -42,6 +43,9 @@ from skyfuse.fusion.metrics.history import TrackHistory, TruthHistory
 from skyfuse.fusion.metrics.mtt_measures import rmse_confirmed_true
 from skyfuse.fusion.models import ConstantVelocity
 from skyfuse.fusion.particles import pcrlb
+from skyfuse.fusion.sim import build_scenario
+
+from .experiment import run_seed
 
 #: Diffuse prior variance of every state component (m², m²/s²) [IMPL].
 PRIOR_VARIANCE = 1e8
@@ -114,10 +118,6 @@ def scenario_bound_model(exp) -> dict[str, float]:
     """The bound's model of an :class:`~fusion.evaluation.Experiment`'s scenario: truth
     process noise q (m²/s⁴; 0 when the scenario has none), σ² (m²), P_D, scan period T (s),
     and the prior variance (module docstring)."""
-    from skyfuse.fusion.sim import build_scenario
-
-    from .experiment import run_seed
-
     sc = build_scenario(exp.scenario, seed=run_seed(exp.seed, 0), **exp.scenario_params)
     site = sc.sites[0]
     return {

@@ -1,20 +1,21 @@
-"""Particle-filter library (spec 04 Part B.2) and the particle track density for IPF/LM-IPF
-(spec 04 Part A, spec 02 §6).
+"""Particle-filter library and the particle primitives of the IPF / LM-IPF trackers
+([LM-IPF]; the track density itself is :mod:`fusion.tracker.density.particles`).
 
 All functions work on many clouds at once: particles ``(n_clouds, n_particles, dim)`` and
 weights ``(n_clouds, n_particles)``, one row per track (or per Monte Carlo run).
 
 Modules, one concept each:
 
-* :mod:`.weights` — normalisation of log-weights, N_eff = 1/Σw² (3.99), MMSE moments (A16).
-* :mod:`.resampling` — systematic (A15, 3.51–3.55), stratified, multinomial by ordered
+* :mod:`.weights` — normalisation of log-weights, N_eff = 1/Σw² (3.99), MMSE moments.
+* :mod:`.resampling` — systematic (3.51–3.55), stratified, multinomial by ordered
   uniforms (Tab 3.2), residual; all return ancestor indices ``(n_clouds, n_particles)``.
 * :mod:`.roughening` — Gordon's roughening jitter after resampling.
 * :mod:`.model` — the state-space model protocol the generic filter steps use.
 * :mod:`.sir` / :mod:`.sis` / :mod:`.auxiliary` — filter steps of Tab 3.1, 3.3, 3.4.
 * :mod:`.pcrlb` — Tichavský posterior Cramér–Rao lower bound (3.74–3.81), with P_D.
-* :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark of spec 04 B.3.
-* :mod:`.likelihood` — per-particle Gaussian plot likelihoods (A6) for gated pairs.
-* :mod:`.density` — :class:`ParticleDensity`, the particle track density (A4–A8, A14–A16).
-* :mod:`.association` — the IPF association (A11–A13) and the LM step (A9–A10).
+* :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark (docs/particles.md).
+* :mod:`.likelihood` — per-particle Gaussian plot likelihoods ([LM-IPF] eq. 7-8) for
+  gated pairs.
+* :mod:`.association` — the IPF association ([LM-IPF] eq. 10-12, 16-17) and the LM step
+  (eq. 14-15).
 """

@@ -1,21 +1,23 @@
-"""IPF association and the LM-IPF step over a gated table (spec 04 A9–A13, spec 02 §6).
+"""IPF association and the LM-IPF step over a gated table ([LM-IPF] eq. 10-17; the IPF of
+[thesis] §3.4-3.6).
 
-Inputs per gated (track, plot) row: the track likelihood p^τ_j (A7, from
+Inputs per gated (track, plot) row: the track likelihood p^τ_j ([LM-IPF] eq. 9, from
 :meth:`ParticleDensity.likelihoods`, already divided by P_G), the plot's clutter density
-ρ_j, and per track the predicted existence ψ_{k|k−1} and P̃_D = P_D P_G (A8 with a
-state-independent P_D, [LIT] P_G).
+ρ_j, and per track the predicted existence ψ_{k|k−1} (eq. 5) and P̃_D = P_D P_G (a
+state-independent P_D, [thesis] 3.37, times the gate probability [LIT]).
 
-* IPF (A11–A13 with Ω = ρ): λ = 1 − P̃_D + P̃_D Σ_j p_j/ρ_j; β_0 = (1 − P̃_D)/λ,
+* IPF (eq. 10-12, 17 with Ω = ρ): λ = 1 − P̃_D + P̃_D Σ_j p_j/ρ_j; β_0 = (1 − P̃_D)/λ,
   β_j = P̃_D (p_j/ρ_j)/λ; ψ_{k|k} = λ ψ / (1 − (1 − λ) ψ).
 * LM-IPF: first, for *all* tracks from their predictions (Jacobi order, no joint events),
-  the prior probability that plot j is track θ's detection (A9)
-  P^θ_j = P̃_D ψ^θ (p^θ_j/ρ_j) / Σ_{l∈sel(θ)} p^θ_l/ρ_l, then the modified clutter density
-  (A10, Mušicki–La Scala form; [TYPO] of the paper's (15) corrected)
+  the prior probability that plot j is track θ's detection (eq. 14, with P̃_D as in
+  LM-IPDA) P^θ_j = P̃_D ψ^θ (p^θ_j/ρ_j) / Σ_{l∈sel(θ)} p^θ_l/ρ_l, then the modified
+  clutter density (eq. 15 in the Mušicki–La Scala form; the paper's (15) mixes a
+  likelihood with a probability and is corrected [TYPO])
   Ω^τ_j = ρ_j + Σ_{θ≠τ, j∈sel(θ)} p^θ_j P^θ_j / (1 − P^θ_j); then the IPF update with
-  ρ → Ω (A11–A13). A plot no other track selected gets Ω = ρ exactly, so far-apart
+  ρ → Ω (eq. 16-17, 12). A plot no other track selected gets Ω = ρ exactly, so far-apart
   tracks reduce to the IPF bit for bit.
 
-The arithmetic is that of the Gaussian IPDA and LM-IPDA/LM-ITS (5.16–5.18; spec 03 §1.2,
+The arithmetic is that of the Gaussian IPDA and LM-IPDA/LM-ITS ([thesis] 5.16–5.18,
 6.12–6.14, "canonical" prior), so these functions are the tracker's association parts
 ``single`` and ``lm`` (:mod:`fusion.tracker.associators`) applied to the particle table:
 one implementation of the existence and LM formulas, which the ``ipf`` / ``lmipf``
@@ -26,10 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 from skyfuse.fusion.tracker.associators import AssociationProblem, associate_lm, associate_single
+from skyfuse.fusion.tracker.density.particles import ParticleGatedTable
 from skyfuse.fusion.tracker.ipda import AssociationResult
 from skyfuse.fusion.tracker.lm_its import modified_clutter_density
-
-from .density import ParticleGatedTable
 
 
 def _problem(table, n_plots, psi_pred, pdpg, rho) -> AssociationProblem:

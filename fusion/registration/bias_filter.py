@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 from skyfuse.fusion.association.gating import gate_threshold
+from skyfuse.schemas.snapshot import SnapshotError, array_field, entry
 
 from .bias_filter_kernel import gate_and_update
 from .common_target import ResidualPairs
@@ -104,3 +105,24 @@ class BiasFilter:
             c(pairs.a, np.int64), c(pairs.b, np.int64), float(self.gate),
             self.pairs_used, self.pairs_rejected,
         )  # fmt: skip
+
+    def to_snapshot(self) -> dict:
+        """The estimate: the radars' reference flags, the normalised state s (4n,) and
+        covariance P (4n, 4n), the pairs used and rejected per radar (n,); the prior and
+        the gate are the configuration's."""
+        return {"reference": list(self.reference), "s": self.s, "P": self.P,
+                "pairs_used": self.pairs_used, "pairs_rejected": self.pairs_rejected}  # fmt: skip
+
+    def from_snapshot(self, snap: dict) -> None:
+        """Hold the estimate of :meth:`to_snapshot` (checked first: nothing changes on a
+        :class:`~skyfuse.schemas.snapshot.SnapshotError`)."""
+        reference = entry(snap, "reference", list)
+        if not all(type(r) is bool for r in reference):
+            raise SnapshotError("reference: not a list of booleans")
+        n = len(reference)
+        s = array_field(snap, "s", np.float64, (4 * n,))
+        P = array_field(snap, "P", np.float64, (4 * n, 4 * n))
+        used = array_field(snap, "pairs_used", np.int64, (n,))
+        rejected = array_field(snap, "pairs_rejected", np.int64, (n,))
+        self.reference, self.s, self.P = list(reference), s, P
+        self.pairs_used, self.pairs_rejected = used, rejected

@@ -15,10 +15,11 @@ With the most recent plot of another radar B on the same track, at t_B within
     W = R_A + R_B + Δt² P_vv + q |Δt|³/3 I                                          (3)
 
 (Δt = t_A − t_B; P_vv the track's velocity covariance; the last term the white-
-acceleration motion over Δt, spec 01 §4). The target position cancels, so (2) is linear
-in the biases alone: the measurement of the registration filter. Every plot enters at
-most one pair (both plots of a pair are consumed), so the residuals of different pairs
-share no plot noise. Horizontal (x, y) components only.
+acceleration motion over Δt: Bar-Shalom, Li and Kirubarajan 2001, eq. 6.2.2-12). The
+target position cancels, so (2) is linear in the biases alone: the measurement of the
+registration filter. Every plot enters at most one pair (both plots of a pair are
+consumed), so the residuals of different pairs share no plot noise. Horizontal (x, y)
+components only.
 
 The buffer of plots awaiting a partner is a set of NumPy columns bounded by
 ``capacity``; plots older than ``max_pair_dt`` are dropped.
@@ -29,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from skyfuse.schemas.snapshot import array_field, entry
 
 from .pairing_kernel import pair_residuals, partner_rows
 
@@ -153,6 +155,18 @@ class PairBuffer:
             self.dropped += n_drop
             self.store = self.store.take(np.arange(n_drop, len(self.store)))
         return pairs
+
+    def to_snapshot(self) -> dict:
+        """The plots awaiting a partner (packed: ``ints`` (k, 3), ``floats`` (k, 24), see
+        :class:`PlotColumns`) and the count of plots dropped; the bounds are the
+        configuration's."""
+        return {"ints": self.store.ints, "floats": self.store.floats, "dropped": self.dropped}
+
+    def from_snapshot(self, snap: dict) -> None:
+        ints = array_field(snap, "ints", np.int64, (None, 3))
+        floats = array_field(snap, "floats", np.float64, (len(ints), _WIDTH))
+        dropped = entry(snap, "dropped", int)
+        self.store, self.dropped = PlotColumns._packed(ints, floats), dropped
 
     def _partners(self, new: PlotColumns, s: PlotColumns) -> tuple[np.ndarray, np.ndarray]:
         """Rows (ia of ``new``, ib of ``s``) of the pairs: each new plot takes the stored

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from skyfuse.fusion.frames.sensor_bias import BIAS_COMPONENTS, SensorBias
+from skyfuse.schemas.snapshot import SnapshotError, check_version, entry, mapping, strings
 
 from .bias_filter import BiasFilter
 from .common_target import PairBuffer, PlotColumns
@@ -165,3 +166,48 @@ class RegistrationEstimator:
             "plots_dropped": self.pairs.dropped,
             "plots_not_finite": self.skipped,
         }
+
+    # --- snapshots -----------------------------------------------------------------------
+    SNAPSHOT_VERSION = 1
+
+    def to_snapshot(self) -> dict:
+        """The estimator's state by name: the version, the configuration that produced it
+        (its ``mode`` as switched at run time), the radars, the filter's estimate, the
+        plots awaiting a partner and the counters."""
+        return {
+            "version": self.SNAPSHOT_VERSION,
+            "config": self.cfg.model_dump(mode="json"),
+            "radar_ids": list(self.radar_ids),
+            "t_last": self._t_last,
+            "skipped": self.skipped,
+            "filter": self.filter.to_snapshot(),
+            "pairs": self.pairs.to_snapshot(),
+        }
+
+    def from_snapshot(self, snap) -> None:
+        """Hold the state of :meth:`to_snapshot`, on an estimator just made with the same
+        configuration but perhaps another mode (the snapshot's mode is taken); a
+        :class:`~skyfuse.schemas.snapshot.SnapshotError` otherwise (discard the estimator)."""
+        snap = check_version(snap, "registration", self.SNAPSHOT_VERSION)
+        config = mapping(snap.get("config"), "registration configuration")
+        mine = self.cfg.model_dump(mode="json")
+        if {**config, "mode": None} != {**mine, "mode": None}:
+            raise SnapshotError("the registration configuration differs from the snapshot's")
+        try:
+            mode = RegistrationMode(config.get("mode"))
+        except ValueError:
+            raise SnapshotError(f"registration mode {config.get('mode')!r}") from None
+        radar_ids = strings(snap, "radar_ids")
+        t_last = snap.get("t_last")
+        if type(t_last) not in (int, type(None)):
+            raise SnapshotError("t_last: not integer ns")
+        self.filter.from_snapshot(mapping(snap.get("filter"), "registration filter"))
+        if self.filter.n_radars != len(radar_ids) or len(radar_ids) > MAX_RADARS:
+            raise SnapshotError(f"{len(radar_ids)} radars, a filter of {self.filter.n_radars}")
+        self.pairs.from_snapshot(mapping(snap.get("pairs"), "registration pairs"))
+        radars = self.pairs.store.radar
+        if len(radars) and (radars.min() < 0 or radars.max() >= len(radar_ids)):
+            raise SnapshotError("registration pairs of radars beyond the radar list")
+        self.set_mode(mode)
+        self.radar_ids, self._t_last = list(radar_ids), t_last
+        self.skipped = entry(snap, "skipped", int)

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import fields
 
 import numpy as np
+from skyfuse.schemas.snapshot import SnapshotError, array_field, mapping
 
 _COMPACT_MIN = 1024
 
@@ -168,18 +169,55 @@ class ComponentSlots:
         if dead > max(self.alive, _COMPACT_MIN):
             self._grow(self.data.take(np.zeros(0, np.int64)))
 
-    def problem(self, ntracks: int) -> str | None:
-        """Why the slots are inconsistent with ``ntracks`` tracks (a restored state),
-        ``None`` if they are not."""
-        cap = len(self.data.track)
-        for name in _fields(self.data):
-            v = getattr(self.data, name)
-            for a in v if isinstance(v, list) else (v,):
-                if not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != cap:
-                    return f"component slots: {name} is not {cap} rows"
-        t = self.data.track[: self.n]
-        if not 0 <= self.n <= cap or self.alive != int((t >= 0).sum()):
-            return f"component slots: {self.alive} live of {self.n} used in {cap}"
-        if len(t) and t.max(initial=-1) >= ntracks:
-            return f"component slots: a component of track row {int(t.max())} of {ntracks}"
-        return None
+    def rows(self, rows: np.ndarray, ntracks: int):
+        """(the live components of the track rows ``rows`` (sorted) in slot order, each
+        component's index into ``rows``): a copy, or views when ``rows`` are all of the
+        ``ntracks`` tracks and every used slot is live (:meth:`tracks`)."""
+        inside = np.zeros(ntracks, bool)
+        inside[rows] = True
+        comp = self.tracks(inside)
+        return comp, np.searchsorted(rows, comp.track)
+
+    # ---------------------------------------------------------------- snapshots
+    def to_snapshot(self) -> dict:
+        """The live components, in slot order, as named columns (a per-mode list field
+        ``x`` as ``x0``, ``x1``, …): ``{"rows": C, "columns": {name: array}}``."""
+        comp = self.live()
+        cols = {}
+        for name in _fields(comp):
+            v = getattr(comp, name)
+            if isinstance(v, list):
+                cols.update({f"{name}{j}": a for j, a in enumerate(v)})
+            else:
+                cols[name] = v
+        return {"rows": len(comp), "columns": cols}
+
+    @classmethod
+    def from_snapshot(cls, snap, empty, ntracks: int) -> ComponentSlots:
+        """Slots holding the components of :meth:`to_snapshot`, checked against
+        ``empty`` (a components object with 0 rows: the columns, their dtypes and row
+        shapes) and the ``ntracks`` track rows: every component belongs to a row, every
+        row has a component, weights are finite and non-negative
+        (:class:`~schemas.snapshot.SnapshotError` otherwise)."""
+        snap = mapping(snap, "components")
+        c = snap.get("rows")
+        if type(c) is not int or c < 0:
+            raise SnapshotError(f"components: rows {c!r}")
+        cols = mapping(snap.get("columns"), "component columns")
+        values, names = [], set()
+        for name in _fields(empty):
+            v = getattr(empty, name)
+            per_mode = isinstance(v, list)
+            keyed = [(f"{name}{j}", a) for j, a in enumerate(v)] if per_mode else [(name, v)]
+            names.update(k for k, _ in keyed)
+            got = [array_field(cols, k, a.dtype, (c, *a.shape[1:])) for k, a in keyed]
+            values.append(got if per_mode else got[0])
+        if set(cols) != names:
+            raise SnapshotError(f"component columns {sorted(set(cols) - names)} not declared")
+        comp = type(empty)(*values)
+        counts = np.bincount(comp.track[comp.track >= 0], minlength=ntracks)
+        if (comp.track < 0).any() or len(counts) > ntracks or (ntracks and counts.min() == 0):
+            raise SnapshotError(f"components of {len(counts)} track rows for {ntracks} tracks")
+        if not (np.isfinite(comp.w).all() and (comp.w >= 0).all()):
+            raise SnapshotError("component weights not finite and non-negative")
+        return cls.holding(comp)

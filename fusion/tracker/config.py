@@ -1,7 +1,9 @@
 """``TrackerConfig``: every tunable of the existence-based trackers, with working defaults.
 
-The thesis leaves g, P_G, v_max, ψ_init, τ_t and the pruning threshold open (spec 02 §10,
-spec 03 §2); the defaults here are the **[IMPL]** choices documented next to each field.
+The thesis leaves g, P_G, v_max, ψ_init, τ_t and the pruning threshold open ([thesis]
+ch. 7); the defaults here are the **[IMPL]** choices documented next to each field.
+The tracker kinds and motions are the registry's (:mod:`.registry`), shipped or
+registered later.
 The model is plain pydantic so the fusion service and ``skyfuse track`` can load it from
 TOML (``services.config.build_config(TrackerConfig, toml_path=...)``).
 """
@@ -10,7 +12,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from .registry import (
     MOTIONS,
@@ -21,7 +23,8 @@ from .registry import (
     tracker_help,
 )
 
-#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry`.
+#: Tracker kinds and motion densities, derived from :mod:`fusion.tracker.registry` (the
+#: parts shipped; a part registered later is accepted too, see ``_registered``).
 TrackerKind = Literal[tuple(TRACKERS)]  # type: ignore[valid-type]
 MotionKind = Literal[tuple(MOTIONS)]  # type: ignore[valid-type]
 
@@ -75,7 +78,7 @@ class TrackerConfig(BaseModel):
         2,
         ge=0,
         description="Scans with a plot (weight > 0.5) after initiation before confirmation "
-        "(spec 02 §8: above τ_c 'long enough')",
+        "([thesis] §7.1: above τ_c 'long enough')",
     )
     life_cycle: Literal["existence", "m_of_n"] = Field(
         "existence",
@@ -209,7 +212,7 @@ class TrackerConfig(BaseModel):
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )
 
-    # IMM densities (motion = imm-cv-ct | imm-cv-singer; spec 01 §4-5) [IMPL] defaults for
+    # IMM densities (motion = imm-cv-ct | imm-cv-singer; [Dikić], [MZD]) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
     # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.
     imm_q_cv: float = Field(4.0, ge=0.0, description="IMM: CV-mode acceleration variance, m²/s⁴")
@@ -256,7 +259,7 @@ class TrackerConfig(BaseModel):
         "ReachGate)",
     )
 
-    # particle trackers ipf / lmipf (spec 02 §6, spec 04 A.2; fusion.particles)
+    # particle trackers ipf / lmipf ([LM-IPF]; fusion/tracker/density/particles.py)
     particles: int = Field(
         1000, ge=1, le=1_000_000, description="ipf/lmipf: particles per track N (source 1000)"
     )
@@ -270,6 +273,16 @@ class TrackerConfig(BaseModel):
         "systematic", description="ipf/lmipf: resampling scheme (source: systematic)"
     )
     particle_seed: int = Field(0, ge=0, description="ipf/lmipf: seed of the particle noise")
+
+    @field_validator("tracker", "motion", mode="wrap")
+    @classmethod
+    def _registered(cls, value, handler, info):
+        """A name registered after this module was imported (a density or tracker kind
+        of another module, e.g. a test's) is accepted as well as the shipped ones."""
+        names = TRACKERS if info.field_name == "tracker" else MOTIONS
+        if isinstance(value, str) and value in names:
+            return value
+        return handler(value)
 
     @model_validator(mode="after")
     def _check(self) -> TrackerConfig:
@@ -308,7 +321,7 @@ class TrackerConfig(BaseModel):
     @property
     def memory_depth(self) -> int:
         """Effective Singer depth: 0 for the single-Gaussian trackers."""
-        return 0 if self.tracker in SINGLE_GAUSSIAN_KINDS else self.depth
+        return self.depth if TRACKERS[self.tracker].memory else 0
 
     @property
     def association(self) -> str:

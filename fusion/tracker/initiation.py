@@ -1,4 +1,4 @@
-"""Track initiation from plots no existing track selected (spec 02 §5, spec 03 §2).
+"""Track initiation from plots no existing track selected ([thesis] §3.5, §7.1).
 
 * Two-point differencing (3.25-3.27): a plot z₁ kept from an earlier batch and a new plot
   z₂ with ‖z₂ − z₁‖ ≤ v_max Δt start a track (the formulas live in
@@ -11,12 +11,12 @@ forms pairs is consumed by them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from skyfuse.fusion.association.gating import window_pairs
 from skyfuse.fusion.filters.initiation import one_point as initial_one_point
 from skyfuse.fusion.filters.initiation import two_point
+
+from .store import Column, ColumnGroup, Table
 
 __all__ = ["PlotBuffer", "one_point", "pair_plots", "two_point"]
 
@@ -27,37 +27,25 @@ def one_point(z: np.ndarray, R: np.ndarray, v_max: float) -> tuple[np.ndarray, n
     return initial_one_point(z, R, v_max**2 / 3.0)
 
 
-@dataclass
-class PlotBuffer:
-    """Plots not selected by any track, waiting for a two-point partner."""
-
-    z: np.ndarray
-    R: np.ndarray
-    time: np.ndarray  # ns
-    uid: np.ndarray
+class PlotBuffer(Table):
+    """Plots not selected by any track, waiting for a two-point partner: a
+    :class:`~.store.Table` of z (m, k), R (m, k, k), time (m,) ns and the plots' history
+    ids uid (m,) (one row per plot, not per track: its own table)."""
 
     @classmethod
     def empty(cls, k: int) -> PlotBuffer:
         return cls(
-            np.zeros((0, k)), np.zeros((0, k, k)), np.zeros(0, np.int64), np.zeros(0, np.int64)
-        )
-
-    def __len__(self) -> int:
-        return len(self.time)
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.z, self.R, self.time, self.uid = (
-            self.z[mask],
-            self.R[mask],
-            self.time[mask],
-            self.uid[mask],
-        )
+            ColumnGroup(
+                "plot buffer",
+                (Column("z", np.float64, (k,), doc="position, system frame, m"),
+                 Column("R", np.float64, (k, k), doc="its covariance, m²"),
+                 Column("time", np.int64, doc="plot time, ns"),
+                 Column("uid", np.int64, doc="plot history id")),
+            )
+        )  # fmt: skip
 
     def add(self, z: np.ndarray, R: np.ndarray, time: np.ndarray, uid: np.ndarray) -> None:
-        self.z = np.concatenate([self.z, z])
-        self.R = np.concatenate([self.R, R])
-        self.time = np.concatenate([self.time, time])
-        self.uid = np.concatenate([self.uid, uid])
+        self.append(z=z, R=R, time=time, uid=uid)
 
 
 def pair_plots(
@@ -69,7 +57,7 @@ def pair_plots(
     max_dt: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pairs (buffer index, new plot index, Δt s) with min_dt ≤ Δt ≤ max_dt and
-    ‖z₂ − z₁‖ ≤ v_max Δt (the maximum-velocity criterion of spec 02 §5)."""
+    ‖z₂ − z₁‖ ≤ v_max Δt (the maximum-velocity criterion of [thesis] §7.1)."""
     if len(buffer) == 0 or len(z) == 0:
         e = np.zeros(0, np.int64)
         return e, e, np.zeros(0)

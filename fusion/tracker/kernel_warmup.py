@@ -11,13 +11,16 @@ the live fusion service, latency on its first batches (a profile of the service 
 :func:`warm_up` calls each kernel once on a tiny valid input of the one signature the
 tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so a
 service can pay this at start, before it declares itself alive. It computes nothing that
-is kept. No equations here: the kernels are documented where they are defined
+is kept. The kernels every tracker uses are called here (gating, the Joseph covariance,
+moment matching, the existence chain, plot validity, the out-of-sequence noise terms, the
+re-identification fix test, the sensor registration's); those of a density are called by
+the density's own ``warm_up``, which the registry calls for every registered density
+(:func:`fusion.tracker.registry.warm_up_parts`), so a new density needs no line here. No
+equations here: the kernels are documented where they are defined
 (:mod:`fusion.association.gating_kernels`, :mod:`fusion.filters.cholesky_kernels`,
 :mod:`fusion.filters.kalman`, :mod:`fusion.filters.moment_matching`,
 :mod:`fusion.tracker.oosm_kernel`, :mod:`fusion.tracker.reidentification`,
-:mod:`fusion.models.coordinated_turn_kernels`, :mod:`fusion.models.cv_kernels`,
 :mod:`fusion.tracker.existence`, :mod:`fusion.tracker.plot_validity_kernel`,
-:mod:`fusion.tracker.density.imm_likelihood_kernel`, :mod:`fusion.tracker.density.imm_mixture`,
 :mod:`fusion.registration.bias_filter_kernel`, :mod:`fusion.registration.pairing_kernel`).
 """
 
@@ -28,58 +31,38 @@ import time
 import numpy as np
 from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
-from skyfuse.fusion.filters.kalman import joseph_covariance, update_with_innovation
-from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows_each
-from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn
-from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
+from skyfuse.fusion.filters.kalman import joseph_covariance
+from skyfuse.fusion.filters.moment_matching import moment_match
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
 from skyfuse.fusion.registration.pairing_kernel import pair_residuals, partner_rows
-from skyfuse.fusion.tracker.density.imm_likelihood_kernel import mode_pair_likelihoods
-from skyfuse.fusion.tracker.density.imm_mixture import ModeTransition
-from skyfuse.fusion.tracker.existence import markov_chain_one
-from skyfuse.fusion.tracker.oosm import noise_terms
-from skyfuse.fusion.tracker.plot_validity_kernel import all_plots_valid
-from skyfuse.fusion.tracker.reidentification import keeps_fix
+
+from .existence import markov_chain_one
+from .oosm import noise_terms
+from .plot_validity_kernel import all_plots_valid
+from .registry import warm_up_parts
+from .reidentification import keeps_fix
 
 
 def warm_up() -> float:
-    """Call every compiled kernel once (2 states, d = 2); return the seconds it took
-    (near zero when they are already loaded in this process)."""
+    """Call every compiled kernel once (2 states, d = 2), those of every registered
+    density included; return the seconds it took (near zero when they are already loaded
+    in this process)."""
     t0 = time.perf_counter()
     eye = np.eye(2)
     P = np.stack([eye, 2.0 * eye])
     positive_definite(P)
     all_plots_valid(np.zeros((2, 2)), P, np.zeros(2))
     keeps_fix(P, np.zeros(2, np.int64), P, np.ones(2, np.int64), 4.0)
-    one = np.zeros(1, np.int64)
-    for k in (2, 3):  # the closed form and the Cholesky form
-        Sk = np.eye(k)[None]
-        mode_pair_likelihoods(one, one, np.zeros((1, 1, k)), Sk[None].copy(), np.zeros((1, k)),
-                              Sk.copy(), np.ones((1, 1)))  # fmt: skip
     y = np.zeros((2, 2))
     gate(y, P, y + 0.5, P, 9.0)  # gating_kernels (k = 2)
     gate(np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)), None, 9.0)  # and k = 3
     K = np.full((2, 2, 1), 0.5)
     joseph_covariance(P, K, np.array([[1.0, 0.0]]), np.ones((2, 1, 1)))
-    H2 = np.eye(2)
-    update_with_innovation(np.zeros((2, 2)), P, H2, P + P, np.ones((2, 2)), P)  # k = 2
-    update_with_innovation(np.zeros((2, 2)), P, H2[:1], P[:, :1, :1] + 1.0, np.ones((2, 1)),
-                           P[:, :1, :1])  # k = 1 (any k != 2)  # fmt: skip
     w = np.array([0.4, 0.6, 1.0])
     x = np.arange(6.0).reshape(3, 2)
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
-    moment_match_rows_each(np.full((1, 2, 2), 0.5), x[None, :2], P[None])
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
-    ConstantVelocity().predict(x[:2, :], P, np.array([1.0, 2.0]))
     markov_chain_one(0.98, 0.0).predict(np.array([[0.5, 0.0]]), np.array([1.0]))
-    ModeTransition(np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0)(np.array([1.0, 2.0]))
-    ct = CoordinatedTurn()
-    xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
-    ct.transition(xt, 4.0)
-    ct.predict(xt, Pt, 4.0)
-    ct.Q(4.0, xt)
-    to_cv_layout(ct, xt, Pt)
-    from_common(ct, *to_common(ct, xt, Pt))
     i1 = np.zeros(1, np.int64)
     partner_rows(i1, i1, i1 + 1, i1, i1, i1 + 1, i1, 10)
     v2, m2, h = np.zeros((1, 2)), np.eye(2)[None].copy(), np.zeros((1, 2, 4))
@@ -88,4 +71,5 @@ def warm_up() -> float:
     gate_and_update(np.zeros(8), np.eye(8), np.arange(8) >= 4, np.ones(4), np.ones((1, 2)),
                     eye[None].copy(), np.ones((1, 2, 4)), np.ones((1, 2, 4)),
                     np.array([1]), np.array([0]), 10.0, counts, counts.copy())  # fmt: skip
+    warm_up_parts()
     return time.perf_counter() - t0

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .store import Column, ColumnGroup
+
 
 def to_confirm(
     psi: np.ndarray, confirmed: np.ndarray, updates: np.ndarray, tau_c: float, min_updates: int
@@ -38,6 +40,17 @@ def to_confirm_m_of_n(confirmed: np.ndarray, updates: np.ndarray, m: int) -> np.
     """Tentative tracks with M scans with a plot: ``updates`` after the one that started
     them (a tentative track past its first N scans has been deleted already)."""
     return ~confirmed & (updates + 1 >= m)
+
+
+def life_cycle_columns():
+    """The per-track counters of the M-of-N life cycle (declared in the track store only
+    when ``life_cycle = "m_of_n"``): ``scans``, the batches that saw the track (the one that
+    started it included), and ``misses``, the consecutive ones of them without a plot."""
+    return ColumnGroup(
+        "life_cycle",
+        (Column("scans", np.int64, fill=1, doc="batches that saw the track, its first included"),
+         Column("misses", np.int64, fill=0, doc="consecutive batches without a plot")),
+    )  # fmt: skip
 
 
 def to_terminate_by_count(

@@ -41,15 +41,16 @@ same fallback is used for any component whose A1 conditional noise covariance
 P_vv − P_xvᵀ P⁻¹(k|k) P_xv is not positive semi-definite (a mixture posterior that is not
 a Kalman posterior of the stored prior), so every OOSM posterior is a valid covariance.
 
-**Mixtures and IMM** (:mod:`.oosm_density`): every Gaussian component (every mode of
-every IMM component) is retrodicted with its own model and its own posterior, with the
-track-level prior of the last step (moment-matched over the components, per mode); the
-retrodicted components gate and weigh the late plots through the density's own
-``likelihoods`` (so p^τ_i is the OOSM likelihood N(z(τ); H x̂(τ|k), S(τ)) / P_G), the
-association part and the existence update are the configured ones (:mod:`.oosm_pass`).
+**Mixtures and IMM** (the densities' :class:`~.density.base.Retrodiction`): every Gaussian
+component (every mode of every IMM component) is retrodicted with its own model and its
+own posterior, with the track-level prior of the last step (moment-matched over the
+components, per mode); the retrodicted components gate and weigh the late plots through
+the density's own ``likelihoods`` (so p^τ_i is the OOSM likelihood N(z(τ); H x̂(τ|k),
+S(τ)) / P_G), the association part and the existence update are the configured ones
+(:mod:`.oosm_pass`).
 
-The memory of the last step (:class:`LastStep`) is one prior per track and mode, keyed by
-track id, bounded by the number of live tracks.
+The memory of the last step is one prior per track and mode: columns of the track store
+(:mod:`.store`), declared by :class:`~.oosm_pass.OutOfSequence`.
 """
 
 from __future__ import annotations
@@ -145,117 +146,3 @@ def oosm_update(
     W = _tr(np.linalg.solve(S, _tr(Pxz)))
     x_new = x + np.einsum("nij,nj->ni", W, nu)
     return x_new, _sym(P - W @ _tr(Pxz))
-
-
-class LastStep:
-    """The prior of every track's last update, per mode (one mode for a Gaussian
-    mixture), keyed by track id: slot s holds ids[s], t[s] ns the update time, x[j][s]
-    (d_j,) and P[j][s] (d_j, d_j) the track-level predicted state of mode j at t
-    (moment-matched over the track's components with weights ξ^c μ^c_j). Slots
-    0 … len − 1 are used, in the order the tracks were first stored; ``keys`` are their ids
-    sorted and ``order`` the slot of each key, so a new track is a write into the next
-    free slot (the arrays grow by doubling) and never a copy of the stored states."""
-
-    def __init__(self, dims: list[int], capacity: int = 64) -> None:
-        self.n = 0
-        self.ids = np.zeros(capacity, np.int64)
-        self.t = np.zeros(capacity, np.int64)
-        self.x = [np.zeros((capacity, d)) for d in dims]
-        self.P = [np.zeros((capacity, d, d)) for d in dims]
-        self.keys = np.zeros(0, np.int64)
-        self.order = np.zeros(0, np.int64)
-
-    @classmethod
-    def empty(cls, dims: list[int]) -> LastStep:
-        return cls(dims)
-
-    def __len__(self) -> int:
-        return self.n
-
-    def _slots(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(stored (m,), slot (m,)) of track ids (m,); slot is a placeholder (0) where
-        not stored."""
-        if self.n == 0:
-            return np.zeros(len(ids), bool), np.zeros(len(ids), np.int64)
-        pos = np.minimum(np.searchsorted(self.keys, ids), self.n - 1)
-        return self.keys[pos] == ids, self.order[pos]
-
-    def record(self, ids: np.ndarray, t: np.ndarray, x: list, P: list, live: np.ndarray) -> None:
-        """Store the priors of tracks ``ids`` (unique) updated at ``t``: in place for the
-        ids stored, in new slots for the others; the ids no longer ``live`` (the tracker's
-        ids) are forgotten once the store exceeds 2 × live + 64 entries, so it stays
-        bounded by the tracks."""
-        ids = np.asarray(ids, dtype=np.int64)
-        t = np.asarray(t, dtype=np.int64)
-        have, slot = self._slots(ids)
-        s = slot[have]
-        self.t[s] = t[have]
-        for j in range(len(self.x)):
-            self.x[j][s], self.P[j][s] = x[j][have], P[j][have]
-        if not have.all():
-            new = ~have
-            self._append(ids[new], t[new], [a[new] for a in x], [a[new] for a in P])
-        if self.n > 2 * len(live) + 64:
-            self._compact(np.isin(self.ids[: self.n], live))
-
-    def _append(self, ids: np.ndarray, t: np.ndarray, x: list, P: list) -> None:
-        lo, hi = self.n, self.n + len(ids)
-        if hi > len(self.ids):
-            self._resize(max(hi, 2 * len(self.ids)))
-        self.ids[lo:hi], self.t[lo:hi] = ids, t
-        for j in range(len(self.x)):
-            self.x[j][lo:hi], self.P[j][lo:hi] = x[j], P[j]
-        self.n = hi
-        by_id = np.argsort(ids, kind="stable")
-        new_keys, new_slots = ids[by_id], lo + by_id
-        if not len(self.keys) or new_keys[0] > self.keys[-1]:  # new tracks: the largest ids
-            self.keys = np.concatenate([self.keys, new_keys])
-            self.order = np.concatenate([self.order, new_slots])
-            return
-        at = np.searchsorted(self.keys, new_keys)
-        self.keys = np.insert(self.keys, at, new_keys)
-        self.order = np.insert(self.order, at, new_slots)
-
-    def _resize(self, capacity: int) -> None:
-        def grow(a: np.ndarray) -> np.ndarray:
-            b = np.zeros((capacity, *a.shape[1:]), a.dtype)
-            b[: self.n] = a[: self.n]
-            return b
-
-        self.ids, self.t = grow(self.ids), grow(self.t)
-        self.x, self.P = [grow(a) for a in self.x], [grow(a) for a in self.P]
-
-    def _compact(self, keep: np.ndarray) -> None:
-        """Keep the used slots where ``keep`` (n,), in their order."""
-        idx = np.flatnonzero(keep)
-        self.ids[: len(idx)], self.t[: len(idx)] = self.ids[idx], self.t[idx]
-        for j in range(len(self.x)):
-            self.x[j][: len(idx)], self.P[j][: len(idx)] = self.x[j][idx], self.P[j][idx]
-        self.n = len(idx)
-        self._index()
-
-    def _index(self) -> None:
-        self.order = np.argsort(self.ids[: self.n], kind="stable")
-        self.keys = self.ids[self.order]
-
-    def problem(self) -> str | None:
-        """Why the store's arrays are inconsistent (a restored state), ``None`` if not."""
-        cap = len(self.ids)
-        sizes = [len(self.t), *map(len, self.x), *map(len, self.P)]
-        if not 0 <= self.n <= cap or any(k != cap for k in sizes):
-            return f"last-step store of {self.n} in {cap} slots, arrays of {sizes} rows"
-        if len(self.keys) != self.n or len(self.order) != self.n:
-            return f"last-step index of {len(self.keys)} keys for {self.n} slots"
-        if self.n and not np.array_equal(self.ids[self.order], self.keys):
-            return "last-step index does not match the stored ids"
-        return None
-
-    def lookup(self, ids: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, list, list]:
-        """(known (s,), x[j] (s, d_j), P[j]) of tracks ``ids`` whose stored step is the
-        one at their current time ``t`` (else known False and the rows are placeholders)."""
-        ids = np.asarray(ids, dtype=np.int64)
-        if self.n == 0:
-            return np.zeros(len(ids), bool), None, None
-        have, slot = self._slots(ids)
-        known = have & (self.t[slot] == np.asarray(t, dtype=np.int64))
-        return known, [a[slot] for a in self.x], [a[slot] for a in self.P]

@@ -1,4 +1,5 @@
-"""Re-identification of a terminated track by kinematic continuity (issue 17).
+"""Re-identification of a terminated track by kinematic continuity (docs/tracker.md,
+"Re-identification").
 
 An aircraft that the radar loses for a while (the cone of silence over the radar,
 shadowing, a low aircraft detected intermittently) has its track terminated, and a new
@@ -50,13 +51,14 @@ Fresh ids still come from the tracker's counter and are never given twice.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numba
 import numpy as np
 from skyfuse.fusion.association.gating import gate_threshold
 from skyfuse.fusion.filters.kalman import predict
 from skyfuse.fusion.models.cv import ConstantVelocity
+from skyfuse.schemas.snapshot import mapping
+
+from .store import Column, ColumnGroup, Table
 
 NS = 1e-9
 FIX_HORIZON = 60.0
@@ -129,49 +131,53 @@ def keeps_fix(
                       c(P_new, dtype=np.float64), FIX_HORIZON, float(q))  # fmt: skip
 
 
-@dataclass
 class TerminatedTracks:
-    """Bounded store of recently terminated confirmed tracks: ids (n,), x (n, d),
-    P (n, d, d), t (n,) ns of the last fix."""
+    """Bounded store of recently terminated confirmed tracks: a :class:`~.store.Table` of
+    their former ids (n,), last fixes x (n, d), P (n, d, d) and fix times t (n,) ns, in
+    the order they ended (keyed by the former id, not by a live track: its own table).
+    model: the CV output model; the other arguments are (R1)-(R3)'s."""
 
-    model: ConstantVelocity
-    max_gap: float
-    q: float = 4.0
-    p_gate: float = 0.99
-    max_sigma: float = 5000.0
-    min_speed: float = 15.0
-    capacity: int = 1024
-    ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    x: np.ndarray | None = None
-    P: np.ndarray | None = None
-    t: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-
-    def __post_init__(self) -> None:
-        d = self.model.dim
-        self.x = np.zeros((0, d)) if self.x is None else self.x
-        self.P = np.zeros((0, d, d)) if self.P is None else self.P
-        self.gate = gate_threshold(self.p_gate, d)
+    def __init__(
+        self,
+        model: ConstantVelocity,
+        max_gap: float,
+        q: float = 4.0,
+        p_gate: float = 0.99,
+        max_sigma: float = 5000.0,
+        min_speed: float = 15.0,
+        capacity: int = 1024,
+    ) -> None:
+        self.model, self.max_gap, self.q = model, max_gap, q
+        self.max_sigma, self.min_speed, self.capacity = max_sigma, min_speed, capacity
+        d = model.dim
+        self.gate = gate_threshold(p_gate, d)
+        self.rows = Table(
+            ColumnGroup(
+                "terminated tracks",
+                (Column("ids", np.int64, doc="former track id"),
+                 Column("x", np.float64, (d,), doc="last fix, CV layout"),
+                 Column("P", np.float64, (d, d), doc="its covariance"),
+                 Column("t", np.int64, doc="time of the fix, ns")),
+            )
+        )  # fmt: skip
 
     def __len__(self) -> int:
-        return len(self.ids)
+        return len(self.rows)
 
     def add(self, ids: np.ndarray, x: np.ndarray, P: np.ndarray, t: np.ndarray) -> None:
         """Store terminated tracks (their last fixes); keep the newest ``capacity``."""
         if len(ids) == 0:
             return
-        self.ids = np.concatenate([self.ids, np.asarray(ids, np.int64)])[-self.capacity :]
-        self.x = np.concatenate([self.x, x])[-self.capacity :]
-        self.P = np.concatenate([self.P, P])[-self.capacity :]
-        self.t = np.concatenate([self.t, np.asarray(t, np.int64)])[-self.capacity :]
+        self.rows.append(ids=np.asarray(ids, np.int64), x=x, P=P, t=np.asarray(t, np.int64))
+        excess = len(self.rows) - self.capacity
+        if excess > 0:
+            self.rows.keep(np.arange(len(self.rows)) >= excess)
 
     def expire(self, now_ns: int) -> None:
         """Drop the tracks whose last fix is more than ``max_gap`` s before ``now_ns``."""
-        self._keep((now_ns - self.t) * NS <= self.max_gap)
-
-    def _keep(self, keep: np.ndarray) -> None:
-        self.ids, self.x, self.P, self.t = (
-            self.ids[keep], self.x[keep], self.P[keep], self.t[keep]
-        )  # fmt: skip
+        keep = (now_ns - self.rows.t) * NS <= self.max_gap
+        if not keep.all():
+            self.rows.keep(keep)
 
     def distances(
         self, x: np.ndarray, P: np.ndarray, t: np.ndarray, born: np.ndarray
@@ -183,15 +189,16 @@ class TerminatedTracks:
         d2 = np.full((m, n), np.inf)
         if m == 0 or n == 0:
             return d2
+        old = self.rows
         vel = [i + 1 for i in self.model.position_index[:2]]
         fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= self.min_speed
-        fast_old = np.hypot(self.x[:, vel[0]], self.x[:, vel[1]]) >= self.min_speed
-        ok = (born[:, None] >= self.t[None, :]) & fast_new[:, None] & fast_old[None, :]
+        fast_old = np.hypot(old.x[:, vel[0]], old.x[:, vel[1]]) >= self.min_speed
+        ok = (born[:, None] >= old.t[None, :]) & fast_new[:, None] & fast_old[None, :]
         ii, jj = np.nonzero(ok)
         if len(ii) == 0:
             return d2
-        dt = (t[ii] - self.t[jj]) * NS
-        xo, Po = _predict_fix(self.x[jj], self.P[jj], dt, self.q, self.model)
+        dt = (t[ii] - old.t[jj]) * NS
+        xo, Po = _predict_fix(old.x[jj], old.P[jj], dt, self.q, self.model)
         pos = list(self.model.position_index)
         sharp = Po[:, pos, pos].max(axis=1) <= self.max_sigma**2
         ii, jj, xo, Po = ii[sharp], jj[sharp], xo[sharp], Po[sharp]
@@ -214,8 +221,77 @@ class TerminatedTracks:
     def take(self, idx: np.ndarray) -> np.ndarray:
         """The ids of stored tracks ``idx`` (≥ 0), removed from the store."""
         idx = np.asarray(idx, np.int64)
-        ids = self.ids[idx]
+        ids = self.rows.ids[idx]
         keep = np.ones(len(self), bool)
         keep[idx] = False
-        self._keep(keep)
+        self.rows.keep(keep)
         return ids
+
+
+def _first_fix(new) -> dict:
+    """A new track's fix: its initial state."""
+    return {"fix_x": new.x, "fix_P": new.P, "fix_t": new.t}
+
+
+class Reidentification:
+    """The re-identification part of a tracker: the last informative fix of every live
+    track (columns ``fix_x``, ``fix_P``, ``fix_t`` of the track store, (R1')) and the
+    terminated tracks awaiting a continuation (:class:`TerminatedTracks`)."""
+
+    def __init__(self, cfg, model: ConstantVelocity, tracks, density) -> None:
+        self.q = cfg.reid_q
+        self.tracks, self.density = tracks, density
+        self.terminated = TerminatedTracks(
+            model, cfg.reid_max_gap, cfg.reid_q, cfg.reid_p, cfg.reid_max_sigma,
+            cfg.reid_min_speed,
+        )  # fmt: skip
+        d = model.dim
+        tracks.declare(
+            ColumnGroup(
+                "re-identification",
+                (Column("fix_x", np.float64, (d,), doc="last informative fix, CV layout"),
+                 Column("fix_P", np.float64, (d, d), doc="its covariance"),
+                 Column("fix_t", np.int64, doc="its time, ns")),
+                init=_first_fix,
+            )
+        )  # fmt: skip
+
+    def update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
+        """The fixes of the tracks ``hit`` by a plot at times ``t`` ns: their new
+        estimates, unless the old fix stays more informative (R1')."""
+        x, P = self.density.estimate(hit)
+        tr = self.tracks
+        old = keeps_fix(tr.fix_P[hit], tr.fix_t[hit], P, t, self.q)
+        new = hit[~old]
+        tr.fix_x[new], tr.fix_P[new], tr.fix_t[new] = x[~old], P[~old], t[~old]
+
+    def ended(self, rows: np.ndarray) -> None:
+        """The confirmed tracks ``rows`` end: their fixes become candidates."""
+        if len(rows):
+            tr = self.tracks
+            self.terminated.add(tr.ids[rows], tr.fix_x[rows], tr.fix_P[rows], tr.fix_t[rows])
+
+    def reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray | None:
+        """Newly confirmed ``rows`` that continue a recently terminated track take its id
+        ((R1)-(R3)); returns their former ids (−1: not re-identified), or None when no
+        terminated track was a candidate."""
+        if len(rows) == 0:
+            return None
+        self.terminated.expire(t_batch)
+        if len(self.terminated) == 0:
+            return None
+        previous = np.full(len(rows), -1, np.int64)
+        tr = self.tracks
+        x, P = self.density.estimate(rows)
+        j = self.terminated.match(x, P, tr.t_last[rows], tr.born[rows])
+        hit = j >= 0
+        previous[hit] = tr.ids[rows[hit]]
+        tr.ids[rows[hit]] = self.terminated.take(j[hit])
+        return previous
+
+    def to_snapshot(self) -> dict:
+        """The terminated tracks (the fixes are track-store columns)."""
+        return {"terminated": self.terminated.rows.to_snapshot()}
+
+    def from_snapshot(self, snap) -> None:
+        self.terminated.rows.from_snapshot(mapping(snap, "re-identification").get("terminated"))

@@ -1,4 +1,5 @@
-"""The existence-based multi-target tracker: a short sequence of swappable parts.
+"""The existence-based multi-target tracker: a short sequence of swappable parts
+([thesis] ch. 5-7; docs/tracker.md).
 
 ``Tracker(config).step(batch) -> TrackerOutput`` applies one :class:`MeasurementBatch`
 (one radar sector or scan, system frame) to all tracks. Per batch:
@@ -7,17 +8,27 @@
    are predicted to their illumination time and updated; the others keep their state
    and existence (a radar that does not see a region does not erode its tracks).
 2. **Prediction** of the track density (:mod:`.density`: Gaussian mixture with Singer
-   memory, or an IMM per component, 5.4-5.5, spec 01 §5; particle clouds for ipf/lmipf,
-   :mod:`fusion.particles`, spec 04 A4) and of existence (Markov chain,
-   :mod:`.existence`, 5.3) over per-track dt arrays.
+   memory, [thesis] 5.4-5.5, or an IMM per component; particle clouds for ipf/lmipf,
+   [LM-IPF] eq. 6) and of existence (Markov chain, :mod:`.existence`, [thesis] 5.3) over
+   per-track dt arrays.
 3. **Likelihoods**: the density gates the plots and returns the track × plot table
-   p^τ_i = likelihood / P_G (5.7-5.10, 4.17).
+   p^τ_i = likelihood / P_G ([thesis] 5.7-5.10, 4.17).
 4. **Clutter** density per table row (:mod:`.clutter`): known or estimated (2.35).
 5. **Association** part from the registry (:mod:`.registry`, :mod:`.associators`):
    single (IPDA/ITS, 5.16-5.18), lm (6.12-6.22), joint (6.1-6.8), gnn (MAP event).
-6. **Update** of the density with β₀, β (ITS children 5.12-5.15, merge, pruning).
-7. **Management** (:mod:`.management`): duplicate removal, confirmation, termination;
-   **initiation** (:mod:`.initiation`) from the plots no track gated.
+6. **Update** of the density with β₀, β (ITS children 5.12-5.15, merge, pruning); the
+   tracks whose illumination time is older than their state take the out-of-sequence
+   update instead (:mod:`.oosm_pass`).
+7. **Management** (:mod:`.management`): duplicate removal, confirmation, termination
+   ([thesis] §7.1-7.2); **initiation** (:mod:`.initiation`) from the plots no track
+   gated.
+
+The state of every track is one row of the track store ``Tracker.tracks``
+(:mod:`.store`): columns declared by their owners (the tracker, the density, the
+out-of-sequence memory, the re-identification). The steps shared with the
+out-of-sequence pass are :class:`~.phases.Phases`. ``to_snapshot`` /
+``from_snapshot`` write and read the whole state by those declarations, with a version
+and the configuration.
 
 All arrays run over tracks, components and plots; the only Python loops are over JIPDA
 clusters with more than one track and GNN clusters.
@@ -30,17 +41,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from skyfuse.fusion.association.gating import gate_probability, gate_threshold
 from skyfuse.fusion.models.cv import ConstantVelocity
+from skyfuse.schemas.snapshot import SnapshotError, check_version, counts, entry, strings
 
-from .associators import AssociationProblem
-from .clutter import clutter_density
 from .config import TrackerConfig
 from .coverage import detection_share, existence_clock, select_tracks, track_heights
-from .density.base import GatedTable, Prediction, TrackDensity
+from .density.base import TrackDensity
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
-from .ipda import AssociationResult
 from .management import (
     duplicates,
+    life_cycle_columns,
     shared_plot_pairs,
     to_confirm,
     to_confirm_m_of_n,
@@ -49,8 +59,10 @@ from .management import (
 )
 from .measurements import MeasurementBatch
 from .oosm_pass import OutOfSequence
+from .phases import Phases
 from .registry import ASSOCIATIONS, make_density
-from .reidentification import TerminatedTracks, keeps_fix
+from .reidentification import Reidentification
+from .store import Column, ColumnGroup, NewTracks, Table
 
 NS = 1e-9
 #: Tracks whose closed-form predicted existence is at least τ_t + this are not terminated
@@ -75,7 +87,7 @@ class TrackEventRecord:
 class OutputPrediction:
     """The track estimates x (n, d), P (n, d, d) and existence-chain states (n, 2) at
     their times ``t_last`` (n,) ns after one step (copies), predicted on demand to
-    ``time_ns`` with the output model (CV, spec 02 5.4) and the existence chain (5.3):
+    ``time_ns`` with the output model (CV, [thesis] 5.4) and the existence chain (5.3):
     only the rows a consumer asks for are predicted."""
 
     time_ns: int
@@ -164,16 +176,21 @@ class TrackerOutput:
 class Tracker:
     """Multi-target tracker over arrays; see the module docstring for one step.
 
-    Track arrays (rows aligned with ``self.density``): ids, exist (n, 2) Markov-chain
-    state, t_last (ns), confirmed, updates, radar_mask, last_update (ns), height (m, of
-    the last plot, NaN unknown), coast_from (ns: the last plot or the last batch that
-    found the track in a cone of silence; ``max_coast`` counts from it), scans (batches
-    that saw the track, the one that started it included) and misses (consecutive of them
-    without a plot; both for ``life_cycle = "m_of_n"``)."""
+    Every piece of per-track state is a column of the track store ``tracks``
+    (:mod:`.store`), declared by its owner: the tracker's own (``ids``, ``exist`` (n, 2)
+    Markov-chain state, ``t_last`` ns, ``confirmed``, ``updates``, ``radar_mask``,
+    ``last_update`` ns, ``height`` m of the last plot (NaN unknown), ``coast_from`` ns (the
+    last plot or the last batch that found the track in a cone of silence; ``max_coast``
+    counts from it), ``born`` ns), the density's, the out-of-sequence memory and the
+    re-identification fixes. ``density``: a :class:`~.density.base.TrackDensity` not yet
+    attached to a store (default: the configured one, :func:`.registry.make_density`)."""
 
-    def __init__(self, config: TrackerConfig | None = None) -> None:
+    SNAPSHOT_VERSION = 1
+    """Version of :meth:`to_snapshot` (the columns and parts it holds)."""
+
+    def __init__(self, config: TrackerConfig | None = None, density=None) -> None:
         self.cfg = cfg = config or TrackerConfig()
-        # output model: predicts the CV-layout estimates between batches (spec 02 5.4)
+        # output model: predicts the CV-layout estimates between batches ([thesis] 5.4)
         self.model = ConstantVelocity(q=cfg.q, ndim=cfg.ndim, q_vertical=cfg.q_vertical)
         self.d = self.model.dim
         self.k = cfg.ndim
@@ -183,39 +200,51 @@ class Tracker:
         self.P_G = gate_probability(self.g, self.k)
         self.g_dup = gate_threshold(cfg.duplicate_p, self.d)
         self.chain = self._make_chain(cfg)
-        self.density: TrackDensity = make_density(cfg)
+        self.tracks = Table(self._columns())
+        if cfg.life_cycle == "m_of_n":
+            self.tracks.declare(life_cycle_columns())
+        self.density: TrackDensity = make_density(cfg) if density is None else density
+        self.density.attach(self.tracks)
+        self.reid = (
+            None
+            if cfg.reid_max_gap is None
+            else Reidentification(cfg, self.model, self.tracks, self.density)
+        )
+        self.oosm = OutOfSequence(self.density, self.tracks, cfg.oosm)
         self.associate = ASSOCIATIONS[cfg.association]
-        self.oosm = OutOfSequence(self.density, cfg.oosm)
+        self.phases = Phases(cfg, self.tracks, self.chain, self.associate, self.g, self.P_G,
+                             self.reid)  # fmt: skip
         self.newest_ns = 0
         """The newest batch time applied, ns: outputs never go back in time."""
-        self.ids = np.zeros(0, np.int64)
-        self.exist = np.zeros((0, 2))
-        self.t_last = np.zeros(0, np.int64)
-        self.confirmed = np.zeros(0, bool)
-        self.updates = np.zeros(0, np.int64)
-        self.radar_mask = np.zeros(0, np.int64)
-        self.last_update = np.zeros(0, np.int64)
-        self.height = np.zeros(0)
-        self.coast_from = np.zeros(0, np.int64)
-        self.born = np.zeros(0, np.int64)
-        self.fix_x = np.zeros((0, self.d))
-        self.fix_P = np.zeros((0, self.d, self.d))
-        self.fix_t = np.zeros(0, np.int64)
-        self.scans = np.zeros(0, np.int64)
-        self.misses = np.zeros(0, np.int64)
-        self.terminated = TerminatedTracks(
-            self.model,
-            cfg.reid_max_gap or 0.0,
-            cfg.reid_q,
-            cfg.reid_p,
-            cfg.reid_max_sigma,
-            cfg.reid_min_speed,
-        )
         self.buffer = PlotBuffer.empty(self.k)
         self.radar_names: list[str] = []
         self._next_id = 1
         self._next_uid = 1
         self.totals: dict[str, int] = {}
+
+    def _columns(self) -> ColumnGroup:
+        """The tracker's own columns (:meth:`_new_rows` fills those without a fill)."""
+        i8, f8 = np.int64, np.float64
+        return ColumnGroup(
+            "tracker",
+            (Column("ids", i8, doc="track id"),
+             Column("exist", f8, (2,), doc="existence-chain state (5.3, 6.15-6.17)"),
+             Column("t_last", i8, doc="time of the state, ns"),
+             Column("confirmed", bool, fill=False, doc="confirmed (never revoked)"),
+             Column("updates", i8, fill=0, doc="scans with a plot of weight > 0.5"),
+             Column("radar_mask", i8, fill=0, doc="bit i: radar_names[i] updated it"),
+             Column("last_update", i8, doc="time of the last plot, ns"),
+             Column("height", f8, fill=np.nan, doc="height of the last plot, m"),
+             Column("coast_from", i8, doc="max_coast counts from here, ns"),
+             Column("born", i8, doc="initiation time, ns")),
+            init=self._new_rows,
+        )  # fmt: skip
+
+    def _new_rows(self, new: NewTracks) -> dict:
+        """A new track's existence is ψ_init, its clocks its initiation time."""
+        t, k = new.t, len(new)
+        exist = np.column_stack([np.full(k, self.cfg.psi_init), np.zeros(k)])
+        return {"exist": exist, "t_last": t, "last_update": t, "coast_from": t, "born": t}
 
     @staticmethod
     def _make_chain(cfg: TrackerConfig) -> ExistenceChain:
@@ -232,20 +261,19 @@ class Tracker:
     # ------------------------------------------------------------------ helpers
     @property
     def n(self) -> int:
-        return len(self.ids)
+        return len(self.tracks)
+
+    @property
+    def ids(self) -> np.ndarray:
+        """The ids of the live tracks, in row order (a view of the store's column)."""
+        return self.tracks.ids
 
     def existence(self) -> np.ndarray:
-        return self.chain.existence(self.exist)
+        return self.chain.existence(self.tracks.exist)
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
         """MMSE estimates x (n, d), P (n, d, d) of all tracks at their t_last."""
         return self.density.estimate(np.arange(self.n))
-
-    def _estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
-        """The estimates of all tracks for reading only: the density's own arrays when it
-        offers them (``estimates_view``, no copy of every track per batch), else a copy."""
-        view = getattr(self.density, "estimates_view", None)
-        return view() if view is not None else self.estimates()
 
     def _count(self, key: str, value: int) -> None:
         self.totals[key] = self.totals.get(key, 0) + int(value)
@@ -257,43 +285,13 @@ class Tracker:
             self.radar_names.append(radar_id)
         return 1 << self.radar_names.index(radar_id)
 
-    _ARRAYS = (
-        "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update",
-        "height", "coast_from", "born", "fix_x", "fix_P", "fix_t", "scans", "misses",
-    )  # fmt: skip
-
-    def _remove(self, keep: np.ndarray) -> None:
-        for name in self._ARRAYS:
-            setattr(self, name, getattr(self, name)[keep])
-        self.density.keep(keep)
-
     def _add_tracks(self, x: np.ndarray, P: np.ndarray, t: np.ndarray) -> None:
         nn = len(x)
         if nn == 0:
             return
-        t = t.astype(np.int64)
-        zeros = np.zeros(nn, np.int64)
-        new = {
-            "ids": self._next_id + np.arange(nn),
-            "exist": np.column_stack([np.full(nn, self.cfg.psi_init), np.zeros(nn)]),
-            "t_last": t,
-            "confirmed": np.zeros(nn, bool),
-            "updates": zeros,
-            "radar_mask": zeros,
-            "last_update": t,
-            "height": np.full(nn, np.nan),
-            "coast_from": t,
-            "born": t,
-            "fix_x": x,
-            "fix_P": P,
-            "fix_t": t,
-            "scans": np.ones(nn, np.int64),
-            "misses": zeros,
-        }
+        ids = self._next_id + np.arange(nn)
         self._next_id += nn
-        for name in self._ARRAYS:
-            setattr(self, name, np.concatenate([getattr(self, name), new[name]]))
-        self.density.add(x, P)
+        self.tracks.append(NewTracks(x, P, t.astype(np.int64)), ids=ids)
 
     def add_track(
         self,
@@ -313,24 +311,23 @@ class Tracker:
         if not 0.0 < psi <= 1.0:
             raise ValueError(f"add_track: existence = {psi}: must be in (0, 1]")
         self._add_tracks(x, P, np.array([time_ns], dtype=np.int64))
-        self.exist[-1] = (psi, 0.0)
-        self.confirmed[-1] = confirmed
+        self.tracks.exist[-1] = (psi, 0.0)
+        self.tracks.confirmed[-1] = confirmed
         return int(self.ids[-1])
 
     def delete_tracks(self, track_ids: np.ndarray) -> int:
         """Remove the tracks with these ids at once, without events (evaluation: the true
-        tracks at the end of a Monte Carlo run, spec 03 §2 "Across runs"). Unknown ids are
-        ignored; returns the number of tracks removed."""
+        tracks at the end of a Monte Carlo run). Unknown ids are ignored; returns the
+        number of tracks removed."""
         drop = np.isin(self.ids, np.asarray(track_ids, dtype=np.int64).reshape(-1))
         if drop.any():
-            self._remove(~drop)
+            self.tracks.keep(~drop)
         return int(drop.sum())
 
     def component_counts(self) -> dict[int, int]:
         """Number of mixture components of every track, by id (1 when the density has
         no components)."""
-        counter = getattr(self.density, "component_counts", None)
-        counts = counter() if counter is not None else np.ones(self.n, np.int64)
+        counts = self.density.component_counts()
         return {int(i): int(c) for i, c in zip(self.ids, counts)}
 
     # ------------------------------------------------------------------ the step
@@ -340,12 +337,13 @@ class Tracker:
         m = len(b)
         stats = {"plots": m, "rejected": sum(b.rejected.values())}
         bit = self._radar_bit(b.radar_id)
-        x, P = self._estimates_view()
-        view = select_tracks(b, x, P, self.t_last, self.pos, self.vel, self.cfg.coverage_sigma)
+        tr = self.tracks
+        x, P = self.density.estimates_view()
+        view = select_tracks(b, x, P, tr.t_last, self.pos, self.vel, self.cfg.coverage_sigma)
         t_pred = view.t_pred
         # the detection share of the tracks in coverage only (the others are not used)
         cand = np.flatnonzero(view.inside)
-        seen, cone = detection_share(b, view, cand, self.height[cand])
+        seen, cone = detection_share(b, view, cand, tr.height[cand])
         is_blind = cone < self.cfg.blind_share
         blind = np.zeros(self.n, bool)
         blind[cand[is_blind]] = True
@@ -353,30 +351,16 @@ class Tracker:
         share = np.zeros(self.n)  # by track row; only the rows in coverage are used
         share[cand] = seen * cone
         stats["tracks_in_coverage"] = len(sel)
-        sel, late, t_tau = self.oosm.split(self, sel, view.t_sweep, stats)  # older: oosm_pass
+        sel, late, t_tau = self.oosm.split(sel, view.t_sweep, stats)  # older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
-        dt = (t_pred[sel] - self.t_last[sel]) * NS
-        pred = self.density.predict(sel, dt)
-        t_e = existence_clock(self.t_last[sel], self.coast_from[sel])
-        exist_pred = self.chain.predict(self.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
-        table = self.density.likelihoods(pred, b.z, b.R, self.g)
-        stats["gated_pairs"] = len(table.tp_track)
-        res = self._associate(b, pred, table, exist_pred[:, 0], share[sel])
-        self.density.update(pred, table, res.beta0, res.beta)
-        self.oosm.record(self, sel, t_pred, pred)
-        stats.update(res.stats)
-        stats.update(getattr(self.density, "stats", {}))
-        self.exist[sel] = self.chain.update(exist_pred, res.psi_post)
-        self.t_last[sel] = t_pred[sel]
-        assigned = self._record_hits(sel, t_pred, res, table, bit)
-        used = self._used_plots(m, table, res)
+        assigned, used = self._update(b, sel, t_pred, share, bit, stats)
         if len(late):
             assigned, used = self.oosm.apply(
-                self, b, late, t_tau, share, bit, assigned, used, stats
+                self.phases, b, late, t_tau, share, bit, assigned, used, stats
             )
             sel = np.union1d(sel, late)
-        self.height = track_heights(self.height, assigned, b.heights)
-        self.coast_from = np.where(blind, np.maximum(self.coast_from, t_pred), self.coast_from)
+        tr.height[:] = track_heights(tr.height, assigned, b.heights)
+        tr.coast_from[:] = np.where(blind, np.maximum(tr.coast_from, t_pred), tr.coast_from)
         events: list[TrackEventRecord] = []
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
         new = self._initiate(b, used)
@@ -386,79 +370,25 @@ class Tracker:
             self._count(k_, v)
         return self._output(b, assigned, events, stats)
 
-    def _associate(
-        self,
-        b: MeasurementBatch,
-        pred: Prediction,
-        table: GatedTable,
-        psi_det: np.ndarray,
-        share: np.ndarray,
-    ) -> AssociationResult:
-        """Clutter density per row, then the configured association part; P_D of each
-        row without a gated plot scaled by its detection ``share`` (:mod:`.coverage`; a
-        plot in the gate shows the radar saw where the track is)."""
-        cfg = self.cfg
-        share = share.copy()
-        share[table.tp_track] = 1.0
-        pdpg = float(b.p_detection) * self.P_G * share
-        # the track-level moments only for the estimated clutter (known: not used)
-        estimated = cfg.clutter == "estimated"
-        rho = clutter_density(
-            cfg.clutter,
-            b.clutter_density,
-            cfg.clutter_density_floor,
-            table.tp_track,
-            table.tp_plot,
-            pred.S0 if estimated else None,
-            b.R,
-            pdpg,
-            psi_det,
-            self.g,
-            z=b.z,
-            z_mean=pred.z_mean if estimated else None,
-            volume_floor=cfg.clutter_volume,
-        )
-        problem = AssociationProblem(
-            psi_det,
-            pdpg,
-            table.tp_track,
-            table.tp_plot,
-            len(b),
-            table.p,
-            rho,
-            cfg.lm_prior_density,
-            cfg.jipda_max_events,
-        )
-        return self.associate(problem)
-
-    def _record_hits(
-        self,
-        sel: np.ndarray,
-        t_pred: np.ndarray,
-        res: AssociationResult,
-        table: GatedTable,
-        bit: int,
-    ) -> np.ndarray:
-        """Update counters of detected tracks (weight of a plot > 0.5) and return each
-        track's most likely plot of the batch (−1: none, or β₀ larger)."""
-        hit = sel[(1.0 - res.beta0) > 0.5]
-        self.scans[sel] += 1
-        self.misses[sel] += 1
-        self.misses[hit] = 0
-        self.updates[hit] += 1
-        self.radar_mask[hit] |= bit
-        self.last_update[hit] = t_pred[hit]
-        if self.cfg.reid_max_gap is not None and len(hit):
-            self._update_fixes(hit, t_pred[hit])
-        assigned = np.full(self.n, -1, dtype=np.int64)
-        if len(res.beta):
-            tp_track, tp_plot = table.tp_track, table.tp_plot
-            order = np.lexsort((-res.beta, tp_track))
-            first = np.concatenate(([True], tp_track[order][1:] != tp_track[order][:-1]))
-            best = order[first]
-            good = res.beta[best] > res.beta0[tp_track[best]]
-            assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
-        return assigned
+    def _update(self, b, sel, t_pred, share, bit, stats) -> tuple[np.ndarray, np.ndarray]:
+        """The ordinary prediction and update of the tracks ``sel`` (steps 2-6 of the
+        module docstring); returns each track's most likely plot and the plots used."""
+        tr = self.tracks
+        dt = (t_pred[sel] - tr.t_last[sel]) * NS
+        pred = self.density.predict(sel, dt)
+        t_e = existence_clock(tr.t_last[sel], tr.coast_from[sel])
+        exist_pred = self.chain.predict(tr.exist[sel], np.maximum(t_pred[sel] - t_e, 0) * NS)
+        table = self.density.likelihoods(pred, b.z, b.R, self.g)
+        stats["gated_pairs"] = len(table.tp_track)
+        res = self.phases.associate(b, pred, table, exist_pred[:, 0], share[sel])
+        self.density.update(pred, table, res.beta0, res.beta)
+        self.oosm.record(sel, t_pred, pred)
+        stats.update(res.stats)
+        stats.update(self.density.stats)
+        tr.exist[sel] = self.chain.update(exist_pred, res.psi_post)
+        tr.t_last[sel] = t_pred[sel]
+        assigned = self.phases.record_hits(sel, t_pred, res, table, bit)
+        return assigned, self.phases.used_plots(len(b), table, res)
 
     # ------------------------------------------------------------------ management
     def _manage(
@@ -471,13 +401,13 @@ class Tracker:
     ) -> np.ndarray:
         """Duplicates first (so that an established track keeps its id), confirmation of
         the survivors, termination; removes the dropped tracks and returns ``assigned``
-        for the remaining ones (spec 02 §8, spec 03 §2)."""
+        for the remaining ones ([thesis] §7.1-7.2)."""
         keep = self._remove_duplicates(sel, assigned, t_batch, events, stats)
         self._confirm(sel, keep, t_batch, events)
         keep &= ~self._terminate(keep, t_batch, events, stats)
         if not keep.all():
             assigned = assigned[keep]
-            self._remove(keep)
+            self.tracks.keep(keep)
         return assigned
 
     def _remove_duplicates(
@@ -495,20 +425,21 @@ class Tracker:
         keep = np.ones(self.n, bool)
         if len(a) == 0:
             return keep
+        tr = self.tracks
         psi_all = self.existence()
-        x, P = self._estimates_view()
-        scans = self.updates if self.cfg.duplicate_survivor == "established" else None
-        loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, self.confirmed, scans, self.g_dup)
+        x, P = self.density.estimates_view()
+        scans = tr.updates if self.cfg.duplicate_survivor == "established" else None
+        loser, winner = duplicates(sel[a], sel[c], x, P, psi_all, tr.confirmed, scans, self.g_dup)
         keep[loser] = False
         for lo, wi in zip(loser, winner):
-            if self.confirmed[lo]:
+            if tr.confirmed[lo]:
                 events.append(
                     TrackEventRecord(
                         t_batch,
                         "merged",
-                        int(self.ids[lo]),
+                        int(tr.ids[lo]),
                         float(psi_all[lo]),
-                        int(self.ids[wi]),
+                        int(tr.ids[wi]),
                         "duplicate of a track on the same target",
                     )
                 )
@@ -518,51 +449,30 @@ class Tracker:
     def _confirm(
         self, sel: np.ndarray, keep: np.ndarray, t_batch: int, events: list[TrackEventRecord]
     ) -> None:
-        """Confirmation of the updated tracks (hysteresis: never revoked)."""
-        cfg = self.cfg
-        psi_sel = self.chain.existence(self.exist[sel]) if len(sel) else np.zeros(0)
+        """Confirmation of the updated tracks (hysteresis: never revoked), then their
+        re-identification (:mod:`.reidentification`)."""
+        cfg, tr = self.cfg, self.tracks
+        psi_sel = self.chain.existence(tr.exist[sel]) if len(sel) else np.zeros(0)
         if cfg.life_cycle == "m_of_n":
-            conf = to_confirm_m_of_n(self.confirmed[sel], self.updates[sel], cfg.confirm_m_of_n[0])
+            conf = to_confirm_m_of_n(tr.confirmed[sel], tr.updates[sel], cfg.confirm_m_of_n[0])
         else:
             conf = to_confirm(
-                psi_sel, self.confirmed[sel], self.updates[sel], cfg.tau_confirm,
+                psi_sel, tr.confirmed[sel], tr.updates[sel], cfg.tau_confirm,
                 cfg.confirm_min_updates,
             )  # fmt: skip
         rows = sel[conf & keep[sel]]
-        self.confirmed[rows] = True
-        psi_rows = self.chain.existence(self.exist[rows]) if len(rows) else np.zeros(0)
-        previous = self._reidentify(rows, t_batch)
+        tr.confirmed[rows] = True
+        psi_rows = self.chain.existence(tr.exist[rows]) if len(rows) else np.zeros(0)
+        previous = None if self.reid is None else self.reid.reidentify(rows, t_batch)
+        if previous is None:
+            previous = np.full(len(rows), -1, np.int64)
+        else:
+            self._count("reidentified", int((previous >= 0).sum()))
         for r, old, psi_r in zip(rows, previous, psi_rows):
             why = "" if old < 0 else f"re-identified (tentative id {old})"
             events.append(
-                TrackEventRecord(t_batch, "confirmed", int(self.ids[r]), float(psi_r), reason=why)
+                TrackEventRecord(t_batch, "confirmed", int(tr.ids[r]), float(psi_r), reason=why)
             )
-
-    def _update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
-        """The re-identification fixes of the tracks ``hit`` by a plot at times ``t`` ns:
-        their new estimates, unless the old fix stays more informative (R1')."""
-        x, P = self.density.estimate(hit)
-        cfg = self.cfg
-        old = keeps_fix(self.fix_P[hit], self.fix_t[hit], P, t, cfg.reid_q)
-        new = hit[~old]
-        self.fix_x[new], self.fix_P[new], self.fix_t[new] = x[~old], P[~old], t[~old]
-
-    def _reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
-        """Newly confirmed ``rows`` that continue a recently terminated track take its id
-        (:mod:`.reidentification`); returns their former ids (−1: not re-identified)."""
-        previous = np.full(len(rows), -1, np.int64)
-        if self.cfg.reid_max_gap is None or len(rows) == 0:
-            return previous
-        self.terminated.expire(t_batch)
-        if len(self.terminated) == 0:
-            return previous
-        x, P = self.density.estimate(rows)
-        j = self.terminated.match(x, P, self.t_last[rows], self.born[rows])
-        hit = j >= 0
-        previous[hit] = self.ids[rows[hit]]
-        self.ids[rows[hit]] = self.terminated.take(j[hit])
-        self._count("reidentified", int(hit.sum()))
-        return previous
 
     def _terminate(
         self,
@@ -574,64 +484,49 @@ class Tracker:
         """Tracks to end: existence predicted to the batch time below τ_t, or no plot for
         ``max_coast`` seconds (counted from the later of the last plot and the last batch
         that found the track in a cone of silence, :mod:`.coverage`)."""
-        cfg = self.cfg
+        cfg, tr = self.cfg, self.tracks
         coasting = np.zeros(self.n, bool)
         if cfg.max_coast is not None:
-            coasting = (t_batch - np.maximum(self.last_update, self.coast_from)) > round(
+            coasting = (t_batch - np.maximum(tr.last_update, tr.coast_from)) > round(
                 cfg.max_coast / NS
             )
         # the existence clock stands still in a cone of silence (:mod:`.coverage`)
-        dt = np.maximum(t_batch - existence_clock(self.t_last, self.coast_from), 0) * NS
+        dt = np.maximum(t_batch - existence_clock(tr.t_last, tr.coast_from), 0) * NS
         # exact existence prediction only where the closed form says ψ can be near τ_t
         rows = np.arange(self.n)
-        bound = self.chain.existence_bound(self.exist, dt)
+        bound = self.chain.existence_bound(tr.exist, dt)
         if bound is not None:
             rows = np.flatnonzero((bound < cfg.tau_terminate + TERMINATION_MARGIN) | coasting)
         psi_now = np.ones(self.n)
         if len(rows):  # (usually none: every track's bound is above τ_t)
-            psi_now[rows] = self.chain.existence(self.chain.predict(self.exist[rows], dt[rows]))
+            psi_now[rows] = self.chain.existence(self.chain.predict(tr.exist[rows], dt[rows]))
         ended, why = to_terminate(psi_now, cfg.tau_terminate), "existence below tau_t"
         if cfg.life_cycle == "m_of_n":  # the counts decide, not ψ (reported as it is)
             psi_now = self.existence()
             ended = to_terminate_by_count(
-                self.confirmed, self.updates, self.scans, self.misses, cfg.confirm_m_of_n,
+                tr.confirmed, tr.updates, tr.scans, tr.misses, cfg.confirm_m_of_n,
                 cfg.max_misses,
             )  # fmt: skip
             why = "max_misses scans without a plot"
         term = (ended | coasting) & keep
-        for r in np.flatnonzero(term & self.confirmed):
+        for r in np.flatnonzero(term & tr.confirmed):
             events.append(
                 TrackEventRecord(
                     t_batch,
                     "terminated",
-                    int(self.ids[r]),
+                    int(tr.ids[r]),
                     float(psi_now[r]),
                     reason="no plot for max_coast" if coasting[r] else why,
                 )
             )
         stats["terminated"] = int(term.sum())
-        ended = np.flatnonzero(term & self.confirmed)
-        if self.cfg.reid_max_gap is not None and len(ended):
-            self.terminated.add(
-                self.ids[ended], self.fix_x[ended], self.fix_P[ended], self.fix_t[ended]
-            )
+        if self.reid is not None:
+            self.reid.ended(np.flatnonzero(term & tr.confirmed))
         return term
-
-    def _used_plots(self, m: int, table: GatedTable, res: AssociationResult) -> np.ndarray:
-        """Plots that may not start tracks: gated by any track (``init_free_weight`` None),
-        or claimed by the tracks with a total association weight Σ_τ β^τ_i of at least
-        ``init_free_weight`` (a plot of a second, closely spaced target that a track gates
-        but does not take can then start its own track)."""
-        used = np.zeros(m, bool)
-        if self.cfg.init_free_weight is None:
-            used[table.tp_plot] = True
-            return used
-        claimed = np.bincount(table.tp_plot, weights=res.beta, minlength=m)
-        return claimed >= self.cfg.init_free_weight
 
     def _initiate(self, b: MeasurementBatch, used: np.ndarray) -> int:
         """New tracks from the plots not ``used`` by tracks (two-point or one-point,
-        spec 02 §5)."""
+        [thesis] §3.5)."""
         cfg = self.cfg
         m = len(b)
         uid = self._next_uid + np.arange(m, dtype=np.int64)
@@ -670,31 +565,101 @@ class Tracker:
     ) -> TrackerOutput:
         # a late batch (older than the newest one) does not move the output back in time:
         # the tracks are predicted to the newest time (never backwards)
-        t_out = max(int(b.time_ns), self.newest_ns)
-        self.newest_ns = t_out
+        self.newest_ns = max(int(b.time_ns), self.newest_ns)
+        return self.output(b.radar_id, assigned, events, stats, b)
+
+    def output(
+        self,
+        radar_id: str = "",
+        assigned: np.ndarray | None = None,
+        events: list[TrackEventRecord] | None = None,
+        stats: dict[str, int] | None = None,
+        batch: MeasurementBatch | None = None,
+    ) -> TrackerOutput:
+        """All live tracks at the newest batch time (``newest_ns``): the output of the
+        last step, or of the state restored from a snapshot (no plot assigned)."""
+        tr = self.tracks
         x, P = self.estimates()
         snapshot = OutputPrediction(
-            t_out,
+            self.newest_ns,
             x,
             P,
-            self.t_last.copy(),
-            self.exist.copy(),
+            tr.t_last.copy(),
+            tr.exist.copy(),
             self.model,
             self.chain,
-            existence_clock(self.t_last, self.coast_from),
+            existence_clock(tr.t_last, tr.coast_from),
         )
         return TrackerOutput(
-            time_ns=t_out,
-            radar_id=b.radar_id,
-            ids=self.ids.copy(),
+            time_ns=self.newest_ns,
+            radar_id=radar_id,
+            ids=tr.ids.copy(),
             prediction=snapshot,
-            confirmed=self.confirmed.copy(),
-            updates=self.updates.copy(),
-            radar_mask=self.radar_mask.copy(),
+            confirmed=tr.confirmed.copy(),
+            updates=tr.updates.copy(),
+            radar_mask=tr.radar_mask.copy(),
             radar_names=list(self.radar_names),
-            last_update_ns=self.last_update.copy(),
-            assigned_plot=assigned,
-            events=events,
-            stats=stats,
-            batch=b,
+            last_update_ns=tr.last_update.copy(),
+            assigned_plot=np.full(self.n, -1, np.int64) if assigned is None else assigned,
+            events=[] if events is None else events,
+            stats={} if stats is None else stats,
+            batch=batch,
         )
+
+    # ------------------------------------------------------------------ snapshots
+    def to_snapshot(self) -> dict:
+        """The whole state, by declared names (:mod:`schemas.snapshot`): the version, the
+        configuration that produced it, the track store's columns, the parts' own state
+        (density components or random generator, terminated tracks, buffered plots) and
+        the counters. Arrays are views: serialise before the next step."""
+        return {
+            "version": self.SNAPSHOT_VERSION,
+            "config": self.cfg.model_dump(mode="json"),
+            "tracks": self.tracks.to_snapshot(),
+            "density": self.density.to_snapshot(),
+            "reidentification": None if self.reid is None else self.reid.to_snapshot(),
+            "plot_buffer": self.buffer.to_snapshot(),
+            "next_id": self._next_id,
+            "next_uid": self._next_uid,
+            "newest_ns": self.newest_ns,
+            "radar_names": list(self.radar_names),
+            "totals": dict(self.totals),
+        }
+
+    def from_snapshot(self, snap) -> None:
+        """Hold the state of :meth:`to_snapshot`, on a tracker just made with the same
+        configuration. A snapshot of another version or configuration, or whose parts do
+        not fit their declarations or each other, is a :class:`SnapshotError`; the tracker
+        is then to be discarded (see :func:`tracker_from_snapshot`)."""
+        snap = check_version(snap, "tracker", self.SNAPSHOT_VERSION)
+        if snap.get("config") != self.cfg.model_dump(mode="json"):
+            raise SnapshotError("the tracker configuration differs from the snapshot's")
+        if self.n:
+            raise SnapshotError("a snapshot is restored into a tracker without tracks")
+        self.tracks.from_snapshot(snap.get("tracks"))
+        self.density.from_snapshot(snap.get("density"))
+        if self.reid is not None:
+            self.reid.from_snapshot(snap.get("reidentification"))
+        self.buffer.from_snapshot(snap.get("plot_buffer"))
+        next_id, names = entry(snap, "next_id", int), strings(snap, "radar_names")
+        ids = self.tracks.ids
+        if len(ids) and (ids.min() < 1 or ids.max() >= next_id or len(np.unique(ids)) < len(ids)):
+            raise SnapshotError(f"track ids not unique and within 1 … {next_id - 1}")
+        if len(names) > 63 or (self.tracks.radar_mask >> len(names)).any():
+            raise SnapshotError(f"radar masks beyond the {len(names)} radar names")
+        self._next_id, self._next_uid = next_id, entry(snap, "next_uid", int)
+        self.newest_ns, self.radar_names = entry(snap, "newest_ns", int), list(names)
+        self.totals = dict(counts(snap, "totals"))
+
+
+def tracker_from_snapshot(snap) -> Tracker:
+    """A tracker holding a snapshot (:meth:`Tracker.to_snapshot`), built with the
+    configuration the snapshot records; :class:`SnapshotError` if it does not fit."""
+    snap = check_version(snap, "tracker", Tracker.SNAPSHOT_VERSION)
+    try:
+        cfg = TrackerConfig.model_validate(snap.get("config"))
+    except ValueError as e:  # pydantic's ValidationError
+        raise SnapshotError(f"tracker configuration: {str(e)[:200]}") from None
+    tracker = Tracker(cfg)
+    tracker.from_snapshot(snap)
+    return tracker

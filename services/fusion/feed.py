@@ -32,6 +32,7 @@ import pydantic_core
 from skyfuse.fusion.frames import SystemFrame
 from skyfuse.fusion.tracker.tracker import TrackerOutput
 from skyfuse.schemas import FeedKind, TrackBatch
+from skyfuse.schemas.snapshot import SnapshotError, array_field, counts, entry, mapping
 
 TWO_PI = 2.0 * math.pi
 
@@ -40,6 +41,14 @@ _ARRAYS = (
     "states", "covariances",
 )  # fmt: skip
 _GEO = ("lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "speed", "heading")
+
+
+def _declared(d: int) -> dict[str, tuple[type, tuple[int, ...]]]:
+    """dtype and row shape of each column of a :class:`TrackTable` with ``d`` states."""
+    i8, f8 = np.int64, np.float64
+    return {"ids": (i8, ()), "time": (i8, ()), "last_update": (i8, ()),
+            "confirmed": (np.bool_, ()), "existence": (f8, ()), "updates": (i8, ()),
+            "radar_mask": (i8, ()), "states": (f8, (d,)), "covariances": (f8, (d, d))}  # fmt: skip
 
 
 @dataclass
@@ -92,6 +101,26 @@ class TrackTable:
         if all(p.geo for p in parts):
             t.geo = {k: np.concatenate([p.geo[k] for p in parts]) for k in _GEO}
         return t
+
+    def to_snapshot(self) -> dict:
+        """The columns by name (the geodetic ones under ``geo``, empty when not filled)."""
+        return {"columns": {k: getattr(self, k) for k in _ARRAYS}, "geo": dict(self.geo)}
+
+    @classmethod
+    def from_snapshot(cls, snap, d: int) -> TrackTable:
+        """A table of :meth:`to_snapshot` with states of ``d`` entries; every column with
+        its declared dtype and one row per track
+        (:class:`~skyfuse.schemas.snapshot.SnapshotError` otherwise)."""
+        snap = mapping(snap, "track table")
+        cols = mapping(snap.get("columns"), "track table columns")
+        n = len(array_field(cols, "ids", np.int64, (None,)))
+        values = [array_field(cols, k, dt, (n, *shape)) for k, (dt, shape) in _declared(d).items()]
+        geo = mapping(snap.get("geo"), "track table geo")
+        if geo and set(geo) != set(_GEO):
+            raise SnapshotError(f"geodetic columns {sorted(geo)}")
+        table = cls(*values)
+        table.geo = {k: array_field(geo, k, np.float64, (n,)) for k in _GEO if geo}
+        return table
 
     def with_geodetic(self, frame: SystemFrame, ndim: int) -> TrackTable:
         """Fill lat/lon/alt and the ENU velocity, speed and heading from the states
@@ -204,8 +233,8 @@ class FeedBuilder:
         self._known = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool))
         self._parts: list[TrackTable] = []
         self._last: TrackerOutput | None = None
-        self._pic_last: TrackerOutput | None = None
-        """The last output the picture includes (its time and radar names)."""
+        self._pic_head: tuple[int, list[str]] | None = None
+        """Time (ns) and radar names of the last output the picture includes."""
         self._lock = threading.Lock()
         self._source: tuple[str | None, int | None] = (None, None)
         """Radar and seq of the last batch the picture includes."""
@@ -250,7 +279,7 @@ class FeedBuilder:
         keep = alive & ~_member(table.ids, self.picture.ids)
         picture = TrackTable.concat([self.picture.take(np.flatnonzero(keep)), table])
         with self._lock:  # the snapshot is read from another thread
-            self.picture, self._pic_last = picture, self._last
+            self.picture, self._pic_head = picture, _head(self._last)
             self._source = (source_radar, source_seq)
             self.cycle += 1
             msg = self._message(FeedKind.DELTA, table, removed, source_radar, source_seq)
@@ -267,17 +296,17 @@ class FeedBuilder:
         picture = self._checked(table)[0]
         self._known = (picture.ids, picture.last_update, picture.confirmed)
         with self._lock:
-            self.picture, self._pic_last = picture, out
+            self.picture, self._pic_head = picture, _head(out)
         return self.snapshot()
 
     def snapshot(self) -> FeedMessage | None:
         """The current picture as a full message (what a subscriber has rebuilt, after
         delta ``cycle``); callable from any thread."""
         with self._lock:
-            if self._pic_last is None:
+            if self._pic_head is None:
                 return None
             return self._message(
-                FeedKind.FULL, self.picture, np.zeros(0, np.int64), *self._source, self._pic_last
+                FeedKind.FULL, self.picture, np.zeros(0, np.int64), *self._source, self._pic_head
             )
 
     def _checked(self, table: TrackTable) -> tuple[TrackTable, np.ndarray]:
@@ -289,20 +318,74 @@ class FeedBuilder:
         self.rejected[key] = self.rejected.get(key, 0) + int((~ok).sum())
         return table.take(np.flatnonzero(ok)), table.ids[~ok]
 
-    def _message(self, kind, table, removed, source_radar, source_seq, out=None) -> FeedMessage:
-        out = self._last if out is None else out
+    def _message(self, kind, table, removed, source_radar, source_seq, head=None) -> FeedMessage:
+        time_ns, radar_names = _head(self._last) if head is None else head
         header = {
             "fusion_id": self.fusion_id,
             "kind": kind.value,
             "cycle": self.cycle,
-            "time": int(out.time_ns),
+            "time": time_ns,
             "frame": self.frame.spec().model_dump(mode="json"),
             "state_labels": self.labels,
             "source_radar": source_radar,
             "source_seq": source_seq,
             "batches": self._batches if kind is FeedKind.DELTA else 0,
         }
-        return FeedMessage(header, table, removed.astype(np.int64), out.radar_names, self.ndim)
+        return FeedMessage(header, table, removed.astype(np.int64), radar_names, self.ndim)
+
+    # --- snapshots -----------------------------------------------------------------------
+    def to_snapshot(self) -> dict:
+        """The picture (its rows and its head), the cycle counter, the change detection's
+        last view of the tracks, the rows recorded but not yet sent, the counters. Arrays
+        are views: serialise before the next step."""
+        kid, klu, kcf = self._known
+        return {
+            "cycle": self.cycle,
+            "rejected": dict(self.rejected),
+            "picture": self.picture.to_snapshot(),
+            "picture_head": None if self._pic_head is None else list(self._pic_head),
+            "source": list(self._source),
+            "known": {"ids": kid, "last_update": klu, "confirmed": kcf},
+            "pending": [t.to_snapshot() for t in self._parts],
+            "batches": self._batches,
+            "recorded": self._last is not None,
+        }
+
+    def from_snapshot(self, snap, last: TrackerOutput | None) -> None:
+        """Hold :meth:`to_snapshot` (on a builder just made); ``last``: the tracker's output
+        of the restored state (:meth:`Tracker.output`), the source of the next full
+        picture. :class:`~skyfuse.schemas.snapshot.SnapshotError` if it does not fit."""
+        snap = mapping(snap, "feed")
+        d = len(self.labels)
+        known = mapping(snap.get("known"), "feed known")
+        kid = array_field(known, "ids", np.int64, (None,))
+        n = len(kid)
+        self._known = (kid, array_field(known, "last_update", np.int64, (n,)),
+                       array_field(known, "confirmed", np.bool_, (n,)))  # fmt: skip
+        pending = entry(snap, "pending", list)
+        self._parts = [TrackTable.from_snapshot(t, d) for t in pending]
+        self.picture = TrackTable.from_snapshot(snap.get("picture"), d)
+        head, source = snap.get("picture_head"), entry(snap, "source", list)
+        self._pic_head = None if head is None else _checked_head(head)
+        if len(source) != 2 or type(source[0]) not in (str, type(None)):
+            raise SnapshotError("feed source: not [radar, seq]")
+        self._source = (source[0], source[1] if type(source[1]) is int else None)
+        self.cycle, self._batches = entry(snap, "cycle", int), entry(snap, "batches", int)
+        self.rejected = dict(counts(snap, "rejected"))
+        self._last = last if entry(snap, "recorded", bool) else None
+
+
+def _head(out: TrackerOutput) -> tuple[int, list[str]]:
+    """(time ns, radar names) of a tracker output: what a message's header needs."""
+    return int(out.time_ns), list(out.radar_names)
+
+
+def _checked_head(head) -> tuple[int, list[str]]:
+    if type(head) is not list or len(head) != 2 or type(head[0]) is not int:
+        raise SnapshotError("picture head: not [time, radar names]")
+    if type(head[1]) is not list or not all(type(r) is str for r in head[1]):
+        raise SnapshotError("picture head: radar names not strings")
+    return head[0], list(head[1])
 
 
 def _sorting(keys: np.ndarray) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from skyfuse.fusion.registration import RegistrationMode
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.fusion.tracker.tracker import Tracker, TrackerOutput
 from skyfuse.schemas import FrameSpec, PlotBatch, RadarKind, RadarSite, TrackEvent, TrackEventKind
+from skyfuse.schemas.snapshot import counts, mapping
 from skyfuse.services.fusion import coalesce
 from skyfuse.services.fusion.adapter import measurement_batch_from
 from skyfuse.services.fusion.feed import FeedBuilder, FeedMessage
@@ -309,6 +310,33 @@ class TrackPipeline:
     @property
     def cycle(self) -> int:
         return self.feed.cycle
+
+    # --- snapshots -----------------------------------------------------------------------
+    def to_snapshot(self) -> dict:
+        """The state of this pipeline by its owners' declarations: the tracker's (with its
+        configuration), the feed's picture and cycle, the registration estimate, and the
+        counters. The frame and the other settings are the factory's (the service checks
+        that they are the same before it restores)."""
+        return {
+            "tracker": self.tracker.to_snapshot(),
+            "feed": self.feed.to_snapshot(),
+            "registration": self.registration.to_snapshot(),
+            "rejected": dict(self.rejected),
+            "oosm": dict(self.oosm),
+            "coalesced": dict(self.coalesced),
+        }
+
+    def from_snapshot(self, snap) -> None:
+        """Hold :meth:`to_snapshot`, on a pipeline just made with the same settings;
+        :class:`~skyfuse.schemas.snapshot.SnapshotError` if a part does not fit (then
+        discard the pipeline: its parts may be half restored)."""
+        snap = mapping(snap, "pipeline")
+        self.tracker.from_snapshot(snap.get("tracker"))
+        self.registration.from_snapshot(snap.get("registration"))
+        self.feed.from_snapshot(snap.get("feed"), self.tracker.output())
+        self.rejected = dict(counts(snap, "rejected"))
+        self.oosm = Counter(counts(snap, "oosm"))
+        self.coalesced = Counter(counts(snap, "coalesced"))
 
     def track_events(self, out: TrackerOutput) -> list[TrackEvent]:
         return [

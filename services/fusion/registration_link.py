@@ -1,4 +1,4 @@
-"""Online sensor registration in the fusion pipeline (issue 17): the two calls
+"""Online sensor registration in the fusion pipeline (docs/registration.md): the two calls
 :class:`~skyfuse.services.fusion.pipeline.TrackPipeline` makes per plot batch, the
 configuration shared by ``skyfuse fusion``, ``skyfuse track`` and ``skyfuse eval FILE``,
 and the published :class:`~skyfuse.schemas.RegistrationStatus`.
@@ -32,6 +32,7 @@ from skyfuse.fusion.registration import (
     observe_tracker_output,
 )
 from skyfuse.schemas import RadarKind, RegistrationStatus
+from skyfuse.schemas.snapshot import entry, mapping
 
 REGISTRATION_SECTION = "registration"
 """The TOML table of :class:`RegistrationConfig`."""
@@ -78,6 +79,23 @@ class RegistrationLink:
         n = observe_tracker_output(self.estimator, out, converted, velocity_index)
         self.pairs_used += n
         return n
+
+    def to_snapshot(self) -> dict:
+        """The estimator's snapshot and this link's counters."""
+        return {
+            "estimator": self.estimator.to_snapshot(),
+            "plots_near_radar": self.plots_near_radar,
+            "pairs_used": self.pairs_used,
+            "time_ns": self.time_ns,
+        }
+
+    def from_snapshot(self, snap) -> None:
+        """Hold :meth:`to_snapshot` (on a link just made with the same configuration)."""
+        snap = mapping(snap, "registration")
+        self.estimator.from_snapshot(snap.get("estimator"))
+        self.plots_near_radar = entry(snap, "plots_near_radar", int)
+        self.pairs_used = entry(snap, "pairs_used", int)
+        self.time_ns = entry(snap, "time_ns", int)
 
     def status(self, fusion_id: str) -> RegistrationStatus:
         """The estimates with their σ, as published (schemas.registration)."""

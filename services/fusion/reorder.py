@@ -3,7 +3,7 @@ network jitter; each is held ``wait`` seconds of wall time after its arrival and
 in ``(time_end, arrival order)`` order. See ``services.fusion.service`` for how the
 service uses it.
 
-**Time that cannot be hijacked** (issue 14). No single message may stop or drag the
+**Time that cannot be hijacked** (docs/reliability.md). No single message may stop or drag the
 service's time:
 
 * **Receiver clock check.** A batch whose ``time_end`` (or a plot time) is more than
@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from skyfuse.schemas import PlotBatch
+from skyfuse.schemas.snapshot import SnapshotError, mapping
 from skyfuse.services.runtime.seen_batches import SeenBatches
 
 
@@ -170,3 +171,28 @@ class ReorderBuffer:
         self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
         self.radar_time[rid] = max(self.radar_time.get(rid, p.time_end), p.time_end)
         return p
+
+    # --- snapshots ---------------------------------------------------------------------
+    def to_snapshot(self) -> dict:
+        """What a restart must keep: the per-radar watermarks, the service time and the
+        batches seen (``services.runtime.seen_batches``); batches still held are not
+        saved (a restart loses at most the hold)."""
+        return {
+            "radar_time": dict(self.radar_time),
+            "last_time": self.last_time,
+            "seen": self.seen.to_snapshot(),
+        }
+
+    def from_snapshot(self, snap) -> None:
+        """Take the watermarks, service time and batches seen of :meth:`to_snapshot`
+        (:class:`~skyfuse.schemas.snapshot.SnapshotError` if malformed; then nothing
+        changes)."""
+        snap = mapping(snap, "reorder buffer")
+        marks = mapping(snap.get("radar_time"), "watermarks")
+        last = snap.get("last_time")
+        if not all(type(v) is int for v in marks.values()) or type(last) not in (int, type(None)):
+            raise SnapshotError("watermarks or service time not integer ns")
+        seen = SeenBatches(self.seen.max_radars, self.seen.window, self.seen.epochs)
+        seen.from_snapshot(snap.get("seen"))
+        self.radar_time.update(marks)
+        self.last_time, self.seen = last, seen

@@ -296,6 +296,12 @@ class CyclePipeline(Protocol):
 
     def snapshot(self) -> FeedMessage | None: ...
 
+    def to_snapshot(self) -> dict:
+        """Its state by declared names (``services.fusion.state_store`` saves it)."""
+
+    def from_snapshot(self, snap: dict) -> None:
+        """Hold a :meth:`to_snapshot` (on a pipeline just made with the same settings)."""
+
 
 @dataclass
 class _Radar:

@@ -1,5 +1,5 @@
 """One active publisher per fusion id: election through Zenoh liveliness, hot standby
-(issue 14 §4).
+(docs/reliability.md §5).
 
 Every instance of fusion id ``F`` declares a liveliness token
 ``skyfuse/@v1/fusion/F/active/{start_ns}-{zid}`` (its start instant in ns, zero-padded,

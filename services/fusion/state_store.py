@@ -1,22 +1,25 @@
-"""Restart with the same picture: the fusion service's state on disk (issue 14 §3).
+"""Restart with the same picture: the fusion service's state on disk (docs/reliability.md).
 
 Two files in the state directory of one fusion id (``--state-dir``, default
 ``$XDG_STATE_HOME/skyfuse/fusion-{id}``, i.e. ``~/.local/state/skyfuse/fusion-{id}``):
 
 * ``state.npz`` — the whole tracker state, written every ``snapshot_interval`` s
-  (default 2 s) and at a clean stop: the track pipeline (the tracker object as it is —
-  tracks, components, existence, ids, the next id — and the feed's picture and cycle
-  counter), the system frame, the radar sites and the reorder buffer's per-radar
-  watermarks and recently seen batch ids (so batches already applied are refused as
-  duplicates after a restart). The tracker is serialised **generically** by
-  :mod:`~skyfuse.services.fusion.state_codec` (a JSON manifest + NumPy arrays, every
-  object's attributes as they are, only allow-listed types rebuilt: reading it cannot
-  execute code), with a format version and a fingerprint of the tracker configuration.
-  At start the service resumes from it when it was written less than ``resume_max_age``
-  s ago (default 60 s), by the same fusion id, with the same tracker configuration and
-  the same configured frame, and its arrays are consistent (one row per track);
-  otherwise it starts empty and says why. The same blob is what a standby on another
-  host receives on ``fusion/{id}/state`` (:mod:`~skyfuse.services.fusion.standby`).
+  (default 2 s) and at a clean stop: the snapshot of each owner of the state, by the
+  names and shapes it declares (:mod:`schemas.snapshot`) — the track pipeline's
+  (``TrackPipeline.to_snapshot``: the tracker's track store and parts with the tracker
+  configuration and a version, the feed's picture and cycle counter, the registration
+  estimate), the system frame and the radar sites (their wire models' JSON), the reorder
+  buffer's per-radar watermarks and recently seen batch ids (so batches already applied
+  are refused as duplicates after a restart) — under a header with the snapshot
+  :data:`FORMAT`, the fusion id, the time written, the epoch and the id ceiling. The
+  container is :mod:`~skyfuse.services.fusion.state_codec` (a JSON manifest + NumPy
+  arrays of plain values: reading it cannot execute code). At start the service resumes
+  from it when it was written less than ``resume_max_age`` s ago (default 60 s), by the
+  same fusion id, with the same tracker configuration and the same configured frame, and
+  every part fits its declaration; otherwise it starts empty and says why (a snapshot of
+  another format or version is refused with a message naming both). The same blob is
+  what a standby on another host receives on ``fusion/{id}/state``
+  (:mod:`~skyfuse.services.fusion.standby`).
 * ``ids.json`` — a ceiling of the track ids given so far and the incarnation ``epoch``.
   Before any output is published, the service checks that its tracker's next id is below
   the persisted ceiling, else it first writes a new one (next id + a reserve: ``ID_RESERVE``,
@@ -50,19 +53,19 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
+from skyfuse.schemas import FrameSpec, RadarSite
+from skyfuse.schemas.snapshot import SnapshotError
 from skyfuse.services.fusion import state_codec
 from skyfuse.services.fusion.state_codec import StateRejected
-from skyfuse.services.runtime.seen_batches import SeenBatches
 from skyfuse.services.runtime.state_files import atomic_write, state_home
 
 log = logging.getLogger(__name__)
 
-FORMAT = 4
-"""Version of what a snapshot holds (1: the pickle of earlier versions; 2: the
-out-of-sequence store kept sorted by track id; 3: that store in slots with a sorted
-index; 4: the densities' components in slots). A snapshot of another version is
-refused (``format version``) and the service starts empty."""
+FORMAT = 5
+"""Version of what a snapshot holds (1: the pickle of earlier versions; 2-4: the private
+attributes of the pipeline's objects; 5: the owners' declared snapshots). A snapshot of
+another version is refused (``format version``, naming both) and the service starts
+empty."""
 STATE_FILE, IDS_FILE = "state.npz", "ids.json"
 ID_RESERVE = 1000
 """Ids reserved by one write of ``ids.json`` at least (the jump at a restart is at most
@@ -163,8 +166,8 @@ class StateStore:
 
     # --- state -----------------------------------------------------------------------
     def serialise(self, state: dict, epoch: int) -> bytes:
-        """``state`` (a dict of allow-listed objects, :func:`capture`) as one blob
-        (:func:`state_codec.dumps`), with the id ceiling persisted when it was made."""
+        """``state`` (:func:`capture`) as one blob (:func:`state_codec.dumps`), with the id
+        ceiling persisted when it was made."""
         return state_codec.dumps(
             {"format": FORMAT, "fusion_id": self.fusion_id, "written_ns": time.time_ns(),
              "epoch": epoch, "id_ceiling": self.next_id_floor, **state},
@@ -217,13 +220,21 @@ def age_s(saved: dict) -> float:
     return (time.time_ns() - saved["written_ns"]) / 1e9
 
 
-_PARTS = {"frame": object, "sites": dict, "reorder": dict, "pipeline": (dict, type(None))}
+_PARTS = {
+    "frame": (dict, type(None)),
+    "sites": dict,
+    "reorder": dict,
+    "pipeline": (dict, type(None)),
+}
 
 
 def _check_header(saved, fusion_id: str) -> None:
     """Refuse a decoded snapshot that is not one of this fusion id's."""
     if type(saved) is not dict or saved.get("format") != FORMAT:
-        raise StateRejected("format version", "another snapshot layout")
+        found = saved.get("format") if type(saved) is dict else None
+        raise StateRejected(
+            "format version", f"snapshot format {found!r}: this version reads format {FORMAT}"
+        )
     if saved.get("fusion_id") != fusion_id:
         raise StateRejected("other fusion id", str(saved.get("fusion_id"))[:40])
     for name in ("written_ns", "epoch", "id_ceiling"):
@@ -234,126 +245,68 @@ def _check_header(saved, fusion_id: str) -> None:
             raise StateRejected("malformed header", f"no {name}")
 
 
-_LOCK_TYPES = (type(threading.Lock()), type(threading.RLock()))
-
-
-def _without_locks(obj) -> dict:
-    return {k: v for k, v in vars(obj).items() if not isinstance(v, _LOCK_TYPES)}
-
-
 def capture(core) -> dict:
-    """The state of a :class:`~skyfuse.services.fusion.service.FusionCore` to save: its
-    pipeline's attributes as they are (the tracker object, the feed builder's picture,
-    cycle and change-detection state; locks left out), the frame, the known sites and the
-    reorder buffer's per-radar watermarks and seen batch ids."""
-    pipe, buf = core.pipeline, core.buffer
-    state = None
-    if pipe is not None:
-        state = _without_locks(pipe)
-        state["feed"] = _without_locks(pipe.feed)
+    """The state of a :class:`~skyfuse.services.fusion.service.FusionCore` to save, by its
+    owners' snapshots: the pipeline's (None before the first batch), the frame and the
+    known sites (their wire models), the reorder buffer's watermarks and seen batch ids,
+    and the fingerprint of the tracker configuration."""
+    pipe = core.pipeline
     return {
-        "frame": core.frame,
-        "sites": {rid: r.site for rid, r in core.radars.items() if r.site is not None},
-        "reorder": {
-            "radar_time": dict(buf.radar_time),
-            "last_time": buf.last_time,
-            "seen": buf.seen,
-        },
-        "pipeline": state,
+        "frame": None if core.frame is None else core.frame.model_dump(mode="json"),
+        "sites": {rid: r.site.model_dump(mode="json") for rid, r in core.radars.items() if r.site},
+        "reorder": core.buffer.to_snapshot(),
+        "pipeline": None if pipe is None else pipe.to_snapshot(),
         "fingerprint": None if pipe is None else tracker_fingerprint(pipe),
     }
+
+
+def _parts(saved: dict) -> tuple[list[RadarSite], FrameSpec | None]:
+    """The sites and frame of a decoded snapshot, validated (:class:`SnapshotError`)."""
+    sites = []
+    for rid, value in saved["sites"].items():
+        try:
+            site = RadarSite.model_validate(value)
+        except ValueError:  # pydantic's ValidationError
+            raise SnapshotError(f"site {rid[:40]!r}") from None
+        if site.radar_id != rid:
+            raise SnapshotError(f"site {rid[:40]!r} of radar {site.radar_id[:40]!r}")
+        sites.append(site)
+    frame = saved["frame"]
+    try:
+        return sites, None if frame is None else FrameSpec.model_validate(frame)
+    except ValueError:
+        raise SnapshotError("frame") from None
 
 
 def restore(core, saved: dict) -> str | None:
     """Put a saved state (:func:`capture`) back into a new ``FusionCore``; ``None`` on
     success, else why the tracker state was not taken (the sites and watermarks are
     still restored when well-formed: batches already applied stay refused as
-    duplicates). A state whose parts have other types, or whose arrays do not have one
-    row per track, is refused (``state inconsistent: …``) and changes nothing."""
-    why = _parts_problem(saved)
-    if why is not None:
-        return f"state inconsistent: {why}"
-    for site in saved["sites"].values():
+    duplicates). A state whose parts do not fit their declarations is refused
+    (``state inconsistent: …``) and changes nothing of the tracking."""
+    try:
+        sites, frame = _parts(saved)
+        core.buffer.from_snapshot(saved["reorder"])
+    except SnapshotError as e:
+        return f"state inconsistent: {e}"
+    for site in sites:
         core.on_site(site, configured=True)
-    buf, rs = core.buffer, saved["reorder"]
-    buf.radar_time.update(rs["radar_time"])
-    buf.last_time = rs["last_time"]
-    buf.seen = rs["seen"]
-    state, frame = saved["pipeline"], saved["frame"]
-    if state is None:
+    state = saved["pipeline"]
+    if state is None or frame is None:
         return "no tracker state saved yet"
-    if (
-        core.cfg.frame_lat0 is not None
-        and core.cfg.frame_spec(list(saved["sites"].values())) != frame
-    ):
+    if core.cfg.frame_lat0 is not None and core.cfg.frame_spec(sites) != frame:
         return "the configured frame differs from the saved one"
     pipe = core._factory(frame)
-    if tracker_fingerprint(pipe) != saved["fingerprint"]:
+    if tracker_fingerprint(pipe) != saved.get("fingerprint"):
         return "the tracker configuration differs from the saved one"
-    if type(state.get("tracker")) is not type(pipe.tracker) or type(state.get("feed")) is not dict:
-        return "state inconsistent: the tracker or feed has another type"
-    feed = state.pop("feed")
-    vars(pipe).update(state)
-    vars(pipe.feed).update(feed)
-    why = track_rows_problem(pipe)
-    if why is not None:
-        return f"state inconsistent: {why}"
+    try:
+        pipe.from_snapshot(state)
+        pipe.snapshot()  # the picture can be computed from it
+    except SnapshotError as e:
+        return f"state inconsistent: {e}"
+    except Exception as e:  # values that fit their shapes but not each other
+        return f"state inconsistent: picture not computable ({type(e).__name__})"
     core.pipeline, core.frame = pipe, frame
-    return None
-
-
-def _parts_problem(saved: dict) -> str | None:
-    """Why the sites / reorder parts of a decoded snapshot cannot be applied."""
-    sites, rs = saved["sites"], saved["reorder"]
-    if not all(type(s).__name__ == "RadarSite" and k == s.radar_id for k, s in sites.items()):
-        return "sites"
-    if type(saved["frame"]).__name__ != "FrameSpec":
-        return "frame"
-    try:
-        ok = (
-            all(type(k) is str and type(v) is int for k, v in rs["radar_time"].items())
-            and (rs["last_time"] is None or type(rs["last_time"]) is int)
-            and type(rs["seen"]) is SeenBatches
-            and all(type(getattr(rs["seen"], a)) is int for a in ("max_radars", "window", "epochs"))
-            and all(type(k) is str and type(v) is dict for k, v in rs["seen"].radars.items())
-        )
-    except (KeyError, AttributeError, TypeError):
-        ok = False
-    return None if ok else "reorder watermarks"
-
-
-TRACK_ROWS = (
-    "ids", "exist", "t_last", "confirmed", "updates", "radar_mask", "last_update", "height",
-    "coast_from", "scans", "misses",
-)  # fmt: skip
-"""The tracker's per-track arrays (one row per track, the order of ``ids``)."""
-
-
-def track_rows_problem(pipe) -> str | None:
-    """Why a restored pipeline's track arrays are inconsistent (``None``: they are not):
-    every per-track array and the density have ``len(ids)`` rows, and the picture can be
-    computed from them."""
-    tr = pipe.tracker
-    if not isinstance(tr.ids, np.ndarray) or tr.ids.ndim != 1:
-        return "track ids"
-    n = len(tr.ids)
-    for name in TRACK_ROWS:
-        a = getattr(tr, name, None)
-        if a is not None and (not isinstance(a, np.ndarray) or a.ndim < 1 or len(a) != n):
-            return f"tracker.{name} has {getattr(a, 'shape', None)} rows for {n} tracks"
-    oosm = getattr(tr, "oosm", None)
-    last = getattr(oosm, "last", None)
-    if last is not None and (why := last.problem()) is not None:
-        return why
-    slots = getattr(tr.density, "slots", None)
-    if slots is not None and (why := slots.problem(n)) is not None:
-        return why
-    try:
-        if len(tr.density) != n:
-            return f"the density has {len(tr.density)} tracks for {n}"
-        pipe.snapshot()
-    except Exception as e:  # arrays of wrong shapes deeper inside the density
-        return f"picture not computable ({type(e).__name__})"
     return None
 
 
@@ -465,7 +418,7 @@ class Persistence:
 
     def _serialised(self) -> tuple[bytes, int, int] | None:
         """The snapshot blob, next id and epoch; ``None`` (counted, logged) if a part of
-        the state is of a type outside the codec's allow-list."""
+        the state holds a value outside the snapshot vocabulary (a bug of its owner)."""
         core = self.core
         nid = self.store.next_id_floor if core.pipeline is None else next_track_id(core.pipeline)
         try:

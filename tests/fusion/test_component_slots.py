@@ -1,11 +1,14 @@
 """The slot store of density components against the store it replaces (take and
 concatenate after every operation), over random sequences of appends, replacements,
-removals of tracks and compactions; and the consistency check of a restored store."""
+removals of tracks and compactions, with a snapshot round trip after each; and the
+checks of a restored snapshot."""
 
 import numpy as np
+import pytest
 from skyfuse.fusion.tracker.component_slots import ComponentSlots
 from skyfuse.fusion.tracker.components import Mixture
 from skyfuse.fusion.tracker.density.imm_mixture import IMMComponents
+from skyfuse.schemas.snapshot import SnapshotError
 
 
 def _imm(rng, tracks):
@@ -60,8 +63,10 @@ def test_slots_follow_the_take_and_concatenate_store(monkeypatch):
             ntracks = int(mask.sum())
             slots.keep(mask)
         compactions += dead_before > 0 and slots.n == len(slots)  # dead slots dropped
-        assert len(slots) == len(ref) and slots.problem(ntracks) is None
+        assert len(slots) == len(ref)
         _same(slots.live(), ref)
+        empty = ref.take(np.zeros(0, np.int64))
+        _same(ComponentSlots.from_snapshot(slots.to_snapshot(), empty, ntracks).live(), ref)
         inside = rng.random(ntracks) < 0.5
         _same(slots.tracks(inside), ref.take(np.flatnonzero(inside[ref.track])))
     assert compactions > 0 and 0 in reallocations  # both compaction paths ran
@@ -84,13 +89,24 @@ def test_views_of_all_slots_stay_valid_after_writes():
     assert list(slots.live().track) == [0, 2, 3, 1, 1]
 
 
-def test_a_broken_store_is_reported():
+def _snapshot_refused(snap, ntracks, match):
+    empty = _imm(np.random.default_rng(0), [])
+    with pytest.raises(SnapshotError, match=match):
+        ComponentSlots.from_snapshot(snap, empty, ntracks)
+
+
+def test_a_broken_snapshot_is_refused():
     rng = np.random.default_rng(2)
-    slots = ComponentSlots.holding(_imm(rng, [0, 1, 1]))
-    assert slots.problem(2) is None
-    assert "track row 1 of 1" in slots.problem(1)
-    slots.alive = 7
-    assert "7 live" in slots.problem(2)
-    slots.alive = 3
-    slots.data.x[1] = slots.data.x[1][:2]
-    assert "not" in slots.problem(2)
+    snap = ComponentSlots.holding(_imm(rng, [0, 1, 1])).to_snapshot()
+    assert len(ComponentSlots.from_snapshot(snap, _imm(rng, []), 2)) == 3
+    _snapshot_refused(snap, 1, "track rows for 1 tracks")  # a component of row 1 of 1
+    _snapshot_refused(snap, 3, "track rows for 3 tracks")  # row 2 without a component
+    cols = snap["columns"]
+    for name, value, match in (
+        ("x1", cols["x1"][:2], "x1: shape"),
+        ("mu", cols["mu"].astype(np.float32), "mu: dtype"),
+        ("w", -cols["w"], "weights"),
+        ("extra", cols["w"], "not declared"),
+    ):
+        _snapshot_refused({**snap, "columns": {**cols, name: value}}, 2, match)
+    _snapshot_refused({**snap, "columns": {k: v for k, v in cols.items() if k != "P0"}}, 2, "P0")

@@ -44,7 +44,7 @@ def _tracker_with_overflight(max_elevation):
     # aircraft at 11 km height flying north at 100 m/s, 1 km east of the radar
     x = np.array([1_000.0, 0.0, -2_000.0, 100.0])
     tid = trk.add_track(x, np.diag([50.0**2, 10.0**2, 50.0**2, 10.0**2]), 0, 0.99, True)
-    trk.height[:] = 11_000.0
+    trk.tracks.height[:] = 11_000.0
     cov = SectorCoverage(site=np.zeros(2), max_elevation=max_elevation, site_height=0.0)
     out = None
     for k in range(1, 21):  # 20 empty 4 s scans: the track stays within 6 km of the radar

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.fusion.tracker.density.imm_mixture import imm_density
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 
 def _hand_cv(x, P, dt, q):
@@ -21,7 +22,7 @@ def _density(**kw):
     d = imm_density(cfg, "ct")
     x = np.array([[1000.0, 200.0, -3000.0, 50.0]])
     P = np.diag([40.0**2, 6.0**2, 40.0**2, 6.0**2])[None]
-    d.add(x, P)
+    store_for(d).append(NewTracks(x, P))
     return d, x[0], P[0], cfg
 
 

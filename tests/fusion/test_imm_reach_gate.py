@@ -8,6 +8,7 @@ import numpy as np
 from scipy.stats import chi2
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.fusion.tracker.density.imm_mixture import imm_density
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 G = float(chi2.ppf(0.99, 2))
 
@@ -24,7 +25,7 @@ def _coasted(reach_gate: bool, coasts: int = 3, dt: float = 4.0):
     x = np.array([[0.0, 150.0, 0.0, 0.0]])
     P = np.array([[[70.0**2, 0, 500.0, 0], [0, 400.0**2, 0, 0], [500.0, 0, 40.0**2, 0],
                    [0, 0, 0, 400.0**2]]])  # fmt: skip
-    d.add(x, P)
+    store_for(d).append(NewTracks(x, P))
     rows = np.array([0])
     for _ in range(coasts):
         pred = d.predict(rows, np.array([dt]))
@@ -73,10 +74,10 @@ def test_a_plot_resets_the_fix():
     _hit(d_off, x, z, R)
     # the new fix is the updated estimate, its clock restarts
     xu, Pu = d.estimate(np.array([0]))
-    np.testing.assert_allclose(d.reach.p[0], xu[0, [0, 2]])
-    assert d.reach.since[0] == 0.0
+    np.testing.assert_allclose(d.tracks.reach_p[0], xu[0, [0, 2]])
+    assert d.tracks.reach_since[0] == 0.0
     sf = np.sqrt(_lambda_max(Pu[0][np.ix_([0, 2], [0, 2])]))
-    np.testing.assert_allclose(d.reach.sigma[0], sf)
+    np.testing.assert_allclose(d.tracks.reach_sigma[0], sf)
     # 4 s later: a plot 200 m beyond the new reach, well inside the old fix's reach
     new_reach = 350.0 * 4.0 + np.sqrt(G) * (sf + 50.0)
     old_reach = 350.0 * 28.0 + np.sqrt(G) * (np.sqrt(_lambda_max(P[np.ix_([0, 2], [0, 2])])) + 50.0)

@@ -12,6 +12,7 @@ from skyfuse.fusion.association.assignment import assign_auction, assign_jv, ass
 from skyfuse.fusion.filters.moment_matching import moment_match_rows_each
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.fusion.tracker.density.imm_mixture import IMMComponents, imm_density
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 
 def _spd(rng, n, k):
@@ -51,7 +52,9 @@ def _ct_density():
         [rng.uniform(-5e3, 5e3, 4), rng.uniform(50, 200, 4), rng.uniform(-5e3, 5e3, 4),
          rng.uniform(-200, -50, 4)]
     )  # fmt: skip
-    d.add(x, np.broadcast_to(np.diag([900.0, 100.0, 900.0, 100.0]), (4, 4, 4)).copy())
+    store_for(d).append(
+        NewTracks(x, np.broadcast_to(np.diag([900.0, 100.0, 900.0, 100.0]), (4, 4, 4)).copy())
+    )
     return d
 
 

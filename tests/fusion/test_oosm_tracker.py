@@ -98,12 +98,12 @@ def test_late_batch_is_counted_and_keeps_the_track_time(kind, motion):
     tr = Tracker(cfg)
     tr.add_track([1000.0, 180, 2000, -90], np.diag([300.0**2, 30.0**2] * 2), 0, 0.9, True)
     for t, radar, z in batches:
-        before = tr.t_last.copy()
+        before = tr.tracks.t_last.copy()
         out = tr.step(MeasurementBatch(round(t * NS), radar, z[None], R, 1.0, 1e-12))
         if radar == "B":
             assert out.stats["oosm_tracks"] == 1 and out.stats["oosm_hits"] == 1
             assert out.stats["oosm_prior_known"] == 1
-            np.testing.assert_array_equal(tr.t_last, before)
+            np.testing.assert_array_equal(tr.tracks.t_last, before)
             assert out.time_ns == round((t + 2.0) * NS)
     assert tr.totals["oosm_plots"] == sum(b[1] == "B" for b in batches)
 
@@ -132,7 +132,7 @@ def _sweep_case(oosm: bool, in_order: bool) -> np.ndarray:
     outs = [tr.step(b) for b in ((s, a) if in_order else (a, s))]
     if oosm and not in_order:
         assert outs[1].stats["oosm_tracks"] == 1  # batch time 4 s > t_k = 2 s, but τ ≈ 1 s
-        assert tr.t_last[0] == 2 * NS
+        assert tr.tracks.t_last[0] == 2 * NS
     return tr.estimates()[0][0]
 
 

@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 from skyfuse.fusion.tracker.oosm import oosm_update, retrodict
+from skyfuse.fusion.tracker.oosm_pass import OutOfSequence
+from skyfuse.fusion.tracker.store import Column, ColumnGroup, Table
 
 Q_ACC = 4.0  # m²/s⁴
 SIGMA = 50.0  # m, plot σ per axis
@@ -124,29 +126,43 @@ def test_posterior_covariance_is_consistent(lag_steps, with_prior):
         assert nees.mean() >= lo
 
 
-def test_last_step_store_matches_a_dict_and_stays_bounded():
-    """LastStep against a plain dict over random record calls with tracks dying."""
-    from skyfuse.fusion.tracker.oosm import LastStep
+class _Priors:
+    """The density's side of the memory: ``track_priors`` hands back what it is given."""
 
+    late_plots = "retrodict"
+    mode_dims = (2,)
+
+    def track_priors(self, pred):
+        return pred
+
+
+def test_last_step_memory_follows_the_rows():
+    """The out-of-sequence memory (columns of the track store) against a plain dict keyed
+    by track id, over random records, new tracks and removals: a row's prior is its own,
+    leaves with it, and is used only at the time it was recorded."""
     rng = np.random.default_rng(2)
-    store, ref, live, next_id = LastStep.empty([2]), {}, np.arange(1, 11), 11
+    tracks = Table(ColumnGroup("tracker", (Column("ids", np.int64), Column("t_last", np.int64))))
+    oosm = OutOfSequence(_Priors(), tracks, True)
+    ref, next_id = {}, 1
     for step in range(300):
-        if rng.random() < 0.3:  # some tracks die, new ones start
-            live = np.concatenate([live[rng.random(len(live)) > 0.2], [next_id, next_id + 1]])
+        if rng.random() < 0.3 or not len(tracks):  # some tracks end, new ones start
+            if len(tracks):
+                tracks.keep(rng.random(len(tracks)) > 0.2)
+            tracks.append(ids=next_id + np.arange(2), t_last=np.full(2, -5))
             next_id += 2
-        ids = np.sort(rng.choice(live, size=min(len(live), 4), replace=False))
-        x = rng.normal(size=(len(ids), 2))
+        rows = np.sort(rng.choice(len(tracks), size=min(len(tracks), 4), replace=False))
+        x = rng.normal(size=(len(rows), 2))
         P = np.einsum("ni,nj->nij", x, x) + np.eye(2)
-        store.record(ids, np.full(len(ids), step), [x], [P], live)
-        ref.update({int(i): (step, x[k]) for k, i in enumerate(ids)})
-        assert len(store) <= 2 * len(live) + 64
-    known, xs, _ = store.lookup(live, np.array([ref.get(int(i), (-1,))[0] for i in live]))
-    for k, i in enumerate(live):
+        tracks.t_last[rows] = step
+        oosm.record(rows, np.full(len(tracks), step), ([x], [P]))
+        ref.update({int(i): (step, x[k]) for k, i in enumerate(tracks.ids[rows])})
+    known, xs, _ = oosm._priors(np.arange(len(tracks)))
+    for k, i in enumerate(tracks.ids):
         assert known[k] == (int(i) in ref)
         if known[k]:
             np.testing.assert_array_equal(xs[0][k], ref[int(i)][1])
-    # a different time: not this track's last step
-    assert not store.lookup(live[:1], np.array([10**6]))[0].any()
+    tracks.t_last[:1] = 10**6  # a different time: not this track's last step
+    assert not oosm._priors(np.arange(1))[0].any()
 
 
 def test_singular_or_nan_prior_falls_back_without_error():
@@ -162,25 +178,3 @@ def test_singular_or_nan_prior_falls_back_without_error():
     ref = retrodict(model, x, P, lag)
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a, b)
-
-
-def test_last_step_store_grows_and_its_index_is_checked():
-    """Hundreds of new tracks at once (past the initial capacity, ids out of order):
-    every stored prior is found again by id; a broken index is reported, not used."""
-    from skyfuse.fusion.tracker.oosm import LastStep
-
-    rng = np.random.default_rng(5)
-    store = LastStep.empty([3])
-    ids = rng.permutation(np.arange(1000, 1300))
-    x = rng.normal(size=(300, 3))
-    P = np.einsum("ni,nj->nij", x, x) + np.eye(3)
-    for part in np.array_split(np.arange(300), 3):
-        store.record(ids[part], np.full(len(part), 7), [x[part]], [P[part]], ids)
-    assert len(store) == 300 and store.problem() is None
-    known, xs, Ps = store.lookup(ids[::-1], np.full(300, 7))
-    assert known.all()
-    np.testing.assert_array_equal(xs[0], x[::-1])
-    np.testing.assert_array_equal(Ps[0], P[::-1])
-    assert not store.lookup(np.array([5, 2000]), np.array([7, 7]))[0].any()
-    store.order = store.order[::-1].copy()
-    assert "does not match" in store.problem()

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydantic import ValidationError
-from skyfuse.fusion.particles.density import ParticleDensity
 from skyfuse.fusion.tracker import MeasurementBatch, Tracker, TrackerConfig
+from skyfuse.fusion.tracker.density.particles import ParticleDensity
 
 T = 1.0
 F = np.array([[1, T, 0, 0], [0, 1, 0, 0], [0, 0, 1, T], [0, 0, 0, 1]], float)

@@ -19,8 +19,9 @@ import pytest
 from scipy import stats
 from skyfuse.fusion.filters import kalman
 from skyfuse.fusion.models import ConstantVelocity
-from skyfuse.fusion.particles.density import ParticleDensity
 from skyfuse.fusion.particles.likelihood import pair_likelihoods
+from skyfuse.fusion.tracker.density.particles import ParticleDensity
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 CV = ConstantVelocity(q=0.75, ndim=2)
 P0 = np.diag([25.0, 100.0, 25.0, 100.0])
@@ -53,8 +54,9 @@ def _steady_covariance(scans=30):
 def test_one_track_no_clutter_matches_kalman(neff_threshold):
     T, N = 100, 2000
     dens = ParticleDensity(CV, N, neff_threshold=neff_threshold, seed=1)
+    store_for(dens)
     P1 = _steady_covariance()
-    dens.add(np.tile(X0, (T, 1)), np.tile(P1, (T, 1, 1)))
+    dens.tracks.append(NewTracks(np.tile(X0, (T, 1)), np.tile(P1, (T, 1, 1))))
     x, P = X0[None], P1[None]
     rows = np.arange(T)
     for z in _plots(np.random.default_rng(3), 6):
@@ -91,7 +93,10 @@ def test_pair_likelihoods_use_each_plots_own_covariance():
 def test_gate_uses_moment_matched_cloud_and_track_likelihood_is_weighted_sum():
     rng = np.random.default_rng(5)
     dens = ParticleDensity(CV, 500, seed=2)
-    dens.add(X0 + np.array([[0.0, 0, 0, 0], [400.0, 0, 0, 0]]), np.tile(P0, (2, 1, 1)))
+    store_for(dens)
+    dens.tracks.append(
+        NewTracks(X0 + np.array([[0.0, 0, 0, 0], [400.0, 0, 0, 0]]), np.tile(P0, (2, 1, 1)))
+    )
     pred = dens.predict(np.arange(2), np.array([1.0, 2.0]))
     z = np.array(X0[[0, 2]] + [20, 0]) + rng.normal(size=(60, 2)) * 40
     Rs = np.tile(R, (60, 1, 1))
@@ -143,13 +148,15 @@ def test_ipda_loop_confirms_on_a_target_and_decays_on_clutter():
         c = _clutter(rng, z, rho)
         scans.append(np.vstack([c, z[None]]) if rng.random() < 0.9 else c)
     dens = ParticleDensity(CV, 1000, seed=4)
-    dens.add(X0[None], P0[None])
+    store_for(dens)
+    dens.tracks.append(NewTracks(X0[None], P0[None]))
     psi_target = _ipda_run(dens, scans, rho)
     assert psi_target[-1] > 0.99 and psi_target[5:].min() > 0.9
     err = dens.estimate([0])[0][0, [0, 2]] - CV.F(25.0) @ X0 @ np.eye(4)[:, [0, 2]]
     assert np.hypot(*err) < 30.0
     dens = ParticleDensity(CV, 1000, seed=4)
-    dens.add(X0[None], P0[None])
+    store_for(dens)
+    dens.tracks.append(NewTracks(X0[None], P0[None]))
     centre = X0[[0, 2]]
     psi_clutter = _ipda_run(dens, [_clutter(rng, centre, rho) for _ in range(25)], rho)
     assert psi_clutter[-1] < 0.05
@@ -158,12 +165,13 @@ def test_ipda_loop_confirms_on_a_target_and_decays_on_clutter():
 def test_add_keep_and_three_dimensional_positions():
     cv3 = ConstantVelocity(q=1.0, ndim=3)
     dens = ParticleDensity(cv3, 300, seed=0)
+    store_for(dens)
     assert dens.dim == 6 and len(dens) == 0
     x = np.array([[0, 1, 0, 2, 1000, 0], [5e3, 0, 5e3, 0, 2000, 0]], float)
-    dens.add(x, np.tile(np.eye(6) * 9.0, (2, 1, 1)))
-    dens.add(x[:1] + 1e4, np.eye(6)[None] * 9.0)
-    assert len(dens) == 3 and dens.x.shape == (3, 300, 6)
-    dens.keep(np.array([True, False, True]))
+    dens.tracks.append(NewTracks(x, np.tile(np.eye(6) * 9.0, (2, 1, 1))))
+    dens.tracks.append(NewTracks(x[:1] + 1e4, np.eye(6)[None] * 9.0))
+    assert len(dens) == 3 and dens.tracks.particles.shape == (3, 300, 6)
+    dens.tracks.keep(np.array([True, False, True]))
     assert len(dens) == 2
     assert np.allclose(dens.estimate([1])[0], x[:1] + 1e4)
     pred = dens.predict(np.array([0, 1]), np.array([1.0, 4.0]))
@@ -172,7 +180,7 @@ def test_add_keep_and_three_dimensional_positions():
     table = dens.likelihoods(pred, z, np.eye(3)[None] * 25.0, stats.chi2.ppf(0.99, 3))
     assert table.tp_track.tolist() == [0] and table.lik.shape == (1, 300)
     dens.update(pred, table, np.array([0.5, 1.0]), np.array([0.5]))
-    assert np.allclose(dens.w.sum(axis=1), 1.0)
+    assert np.allclose(dens.tracks.weights.sum(axis=1), 1.0)
 
 
 def test_update_weights_follow_a14_before_resampling():
@@ -180,7 +188,8 @@ def test_update_weights_follow_a14_before_resampling():
     evaluated here with explicit loops over plots and particles."""
     rng = np.random.default_rng(9)
     dens = ParticleDensity(CV, 60, seed=5)
-    dens.add(np.array([X0, X0 + 30.0]), np.tile(P0, (2, 1, 1)))
+    store_for(dens)
+    dens.tracks.append(NewTracks(np.array([X0, X0 + 30.0]), np.tile(P0, (2, 1, 1))))
     pred = dens.predict(np.array([1, 0]), np.array([1.0, 0.5]))
     z = np.vstack([X0[[0, 2]] + rng.normal(size=(3, 2)) * 5, X0[[0, 2]] + 45.0])
     table = dens.likelihoods(pred, z, np.tile(R, (4, 1, 1)), G99)
@@ -200,23 +209,26 @@ def test_update_weights_follow_a14_before_resampling():
         assert np.allclose(mean[0], w @ pred.x[t], rtol=1e-12)
         dx = pred.x[t] - w @ pred.x[t]
         assert np.allclose(cov[0], (w[:, None] * dx).T @ dx, rtol=1e-9)
-    assert np.allclose(dens.w, 1.0 / 60)  # resampled every scan by default
+    assert np.allclose(dens.tracks.weights, 1.0 / 60)  # resampled every scan by default
 
 
 def test_neff_threshold_resamples_only_degenerate_rows_and_edge_cases():
     dens = ParticleDensity(CV, 200, neff_threshold=0.5, seed=1)
-    dens.add(np.array([X0, X0 + 5e3]), np.tile(P0, (2, 1, 1)))
+    store_for(dens)
+    dens.tracks.append(NewTracks(np.array([X0, X0 + 5e3]), np.tile(P0, (2, 1, 1))))
     pred = dens.predict(np.arange(2), np.ones(2))
     table = dens.likelihoods(pred, (X0[[0, 2]] + [20.0, 0.0])[None], R[None], G99)
     assert table.tp_track.tolist() == [0]
     dens.update(pred, table, np.array([0.0, 1.0]), np.array([1.0]))
-    assert np.allclose(dens.w[0], 1 / 200)  # informative plot: N_eff < N/2, resampled
-    assert np.array_equal(dens.x[1], pred.x[1])  # β_0 = 1: prior cloud kept as predicted
+    assert np.allclose(dens.tracks.weights[0], 1 / 200)  # informative plot: N_eff < N/2
+    assert np.array_equal(
+        dens.tracks.particles[1], pred.x[1]
+    )  # β_0 = 1: prior cloud kept as predicted
     empty = dens.predict(np.zeros(0, np.int64), np.zeros(0))
     t0 = dens.likelihoods(empty, np.zeros((0, 2)), np.zeros((0, 2, 2)), G99)
     assert len(t0) == 0 and empty.z_mean.shape == (0, 2)
     still = dens.predict(np.arange(2), np.zeros(2))  # dt = 0: no motion, no noise
-    assert np.array_equal(still.x, dens.x)
+    assert np.array_equal(still.x, dens.tracks.particles)
     with pytest.raises(ValueError, match="scheme"):
         ParticleDensity(CV, 10, scheme="nope")
     with pytest.raises(ValueError, match="neff_threshold"):
@@ -242,8 +254,9 @@ def test_prediction_spread_is_q(ndim):
     cv = ConstantVelocity(q=2.0, ndim=ndim, q_vertical=0.1 if ndim == 3 else None)
     N, dt = 20000, 3.0
     dens = ParticleDensity(cv, N, seed=6)
+    store_for(dens)
     x = np.arange(1.0, cv.dim + 1)
-    dens.add(x[None], np.zeros((1, cv.dim, cv.dim)))
+    dens.tracks.append(NewTracks(x[None], np.zeros((1, cv.dim, cv.dim))))
     pred = dens.predict(np.array([0]), np.array([dt]))
     Q = cv.Q(dt)
     tol = 5 * np.sqrt((np.outer(np.diag(Q), np.diag(Q)) + Q**2) / N)
@@ -253,8 +266,9 @@ def test_prediction_spread_is_q(ndim):
 
 def test_roughening_in_the_density_spreads_duplicates():
     dens = ParticleDensity(CV, 400, roughening=0.2, seed=3)
-    dens.add(X0[None], P0[None])
+    store_for(dens)
+    dens.tracks.append(NewTracks(X0[None], P0[None]))
     pred = dens.predict(np.array([0]), np.array([1.0]))
     table = dens.likelihoods(pred, (CV.F(1.0) @ X0)[[0, 2]][None], R[None], G99)
     dens.update(pred, table, np.zeros(1), np.ones(1))
-    assert len(np.unique(dens.x[0][:, 0])) == 400  # no duplicated ancestors left
+    assert len(np.unique(dens.tracks.particles[0][:, 0])) == 400  # no duplicated ancestors left

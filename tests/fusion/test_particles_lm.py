@@ -11,7 +11,8 @@ from skyfuse.fusion.particles.association import (
     lm_clutter_density,
     lm_ipf_association,
 )
-from skyfuse.fusion.particles.density import ParticleDensity
+from skyfuse.fusion.tracker.density.particles import ParticleDensity
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 CV = ConstantVelocity(q=0.75, ndim=2)
 R = np.eye(2) * 25.0
@@ -21,10 +22,11 @@ PD, PG = 0.8, 0.99
 
 def _table(centres, rng, per_track=4):
     dens = ParticleDensity(CV, 800, seed=3)
+    store_for(dens)
     n = len(centres)
     x = np.zeros((n, 4))
     x[:, [0, 2]] = centres
-    dens.add(x, np.tile(np.diag([25.0, 4.0, 25.0, 4.0]), (n, 1, 1)))
+    dens.tracks.append(NewTracks(x, np.tile(np.diag([25.0, 4.0, 25.0, 4.0]), (n, 1, 1))))
     pred = dens.predict(np.arange(n), np.ones(n))
     z = np.vstack([c + rng.normal(size=(per_track, 2)) * 8 for c in centres])
     table = dens.likelihoods(pred, z, np.tile(R, (len(z), 1, 1)), G)

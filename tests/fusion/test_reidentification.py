@@ -71,7 +71,7 @@ def test_ambiguous_or_early_candidates_are_not_matched():
     got = st.match(x_new, P[:1], np.array([60 * S]), np.array([50 * S]))
     assert got.tolist() == [-1]
     # only one old track left: matched; a track started before its last fix never is
-    st._keep(np.array([True, False]))
+    st.rows.keep(np.array([True, False]))
     assert st.match(x_new, P[:1], np.array([60 * S]), np.array([-1 * S])).tolist() == [-1]
     assert st.match(x_new, P[:1], np.array([60 * S]), np.array([50 * S])).tolist() == [0]
     assert st.take(np.array([0])).tolist() == [1] and len(st) == 0

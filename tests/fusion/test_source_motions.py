@@ -11,6 +11,7 @@ import pytest
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.fusion.tracker.density.source_motions import G0, PCWPA_SIGMAS, SOURCE_TPM_IMM2
 from skyfuse.fusion.tracker.registry import make_density
+from skyfuse.fusion.tracker.store import NewTracks, store_for
 
 T = 4.0
 
@@ -119,7 +120,7 @@ def test_one_track_of_the_density_equals_a_textbook_imm(motion, settings):
     zs, R = _turn_plots(rng)
     x0 = np.array([zs[0][0], -250.0, zs[0][1], 90.0])
     P0 = np.diag([R[0, 0], 100.0**2, R[1, 1], 100.0**2])
-    density.add(x0[None], P0[None])
+    store_for(density).append(NewTracks(x0[None], P0[None]))
     start = [_embed(m, x0, P0, 10.0**2) for m in models]
     ref = _reference_imm(
         models, tpm, mu0 / mu0.sum(), [a for a, _ in start], [b for _, b in start], zs[1:], R
@@ -208,7 +209,7 @@ def test_the_manoeuvre_modes_take_over_during_a_4g_turn(motion, settings):
     density = _density(motion, **settings)
     n = 100
     truth, z, R = _turning_truth(n, np.random.default_rng(6))
-    density.add(*two_point(z[:, 0], R, z[:, 1], R, T))
+    store_for(density).append(NewTracks(*two_point(z[:, 0], R, z[:, 1], R, T)))
     mus = _own_plots(density, z, R, 2)  # index k − 2
     cv_before = mus[4 - 2 : 6 - 2, 0].mean()  # scans 4-5
     cv_during = mus[9 - 2 : 11 - 2, 0].mean()  # scans 9-10
@@ -230,7 +231,7 @@ def test_the_three_model_imm_from_a_one_point_start_converges_without_blowing_up
     R = np.eye(2) * 100.0**2
     truth = np.array([30_000.0, 30_000.0]) + np.arange(10)[:, None] * T * np.array([-220.0] * 2)
     z = truth[None] + rng.normal(0, 100.0, (n, 10, 2))
-    density.add(*one_point(z[:, 0], R, 350.0**2))
+    store_for(density).append(NewTracks(*one_point(z[:, 0], R, 350.0**2)))
     _own_plots(density, z, R, 1)
     x, _ = density.estimate(np.arange(n))
     err = np.linalg.norm(x[:, [0, 2]] - truth[-1], axis=1)
@@ -249,7 +250,7 @@ def test_the_three_model_imm_with_the_altitude_channel_tracks_a_climbing_target(
         [250.0, -100.0, 10.0]
     )
     z = truth[None] + rng.normal(size=(n, 12, 3)) * np.sqrt(np.diag(R))
-    density.add(*two_point(z[:, 0], R, z[:, 1], R, T))
+    store_for(density).append(NewTracks(*two_point(z[:, 0], R, z[:, 1], R, T)))
     _own_plots(density, z, R, 2)
     x, _ = density.estimate(np.arange(n))
     assert x.shape == (n, 6)

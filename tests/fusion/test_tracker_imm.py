@@ -43,11 +43,11 @@ def test_single_mode_imm_equals_gaussian_mixture(kind, ndim):
     cfg = TrackerConfig(
         tracker=kind, motion="cv", ndim=ndim, clutter="estimated", v_max=300.0, depth=2
     )
-    ref, imm = Tracker(cfg), Tracker(cfg)
-    imm.density = IMMMixtureDensity(
+    one_mode = IMMMixtureDensity(
         [ConstantVelocity(q=cfg.q, ndim=ndim)], ModeTransition([[1.0]], 4.0), [1.0], ndim,
         cfg.memory_depth, cfg.prune_threshold, cfg.max_components,
     )  # fmt: skip
+    ref, imm = Tracker(cfg), Tracker(cfg, density=one_mode)
     assert isinstance(imm.density, TrackDensity)
     for b in batches:
         a, c = ref.step(b), imm.step(b)
@@ -80,10 +80,10 @@ def test_two_model_mode_probabilities_match_hand_written_recursion():
     qs, tpm, T, r, pd, rho = (1.0, 400.0), np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0, 100.0, 0.9, 1e-9
     cfg = TrackerConfig(tracker="ipda", motion="cv", q=1.0, initiation="none", p_gate=0.999999,
                         clutter="known", delta11=1.0)  # fmt: skip
-    tr = Tracker(cfg)
-    tr.density = IMMMixtureDensity(
+    density = IMMMixtureDensity(
         [ConstantVelocity(q=qq) for qq in qs], ModeTransition(tpm, T), [0.5, 0.5], 2
     )
+    tr = Tracker(cfg, density=density)
     x0 = np.array([0.0, 200.0, 0.0, 0.0])
     P0 = np.diag([r, 100.0, r, 100.0])
     tr.add_track(x0, P0, 0, existence=0.5)

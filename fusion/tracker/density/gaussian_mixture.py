@@ -1,8 +1,10 @@
-"""Gaussian-mixture track density with Singer N-scan memory: today's ITS components
-(spec 02 §7; thesis 5.4-5.15; spec 03 §1.1 step 6). Depth 0 is IPDA (one Gaussian).
+"""Gaussian-mixture track density with Singer N-scan memory: the ITS components of
+[thesis] ch. 4-5 (5.4-5.15). Depth 0 is IPDA (one Gaussian, [thesis] 2.37-2.41).
 
 Every track is a mixture {ξ^c, x̂^c, P^c, h^c} in the flat :class:`Mixture` store of
-:mod:`fusion.tracker.components`. Per batch:
+:mod:`fusion.tracker.components` (in slots, :mod:`fusion.tracker.component_slots`); the
+track-level estimate x̂, P is two columns of the tracker's track store
+(:mod:`fusion.tracker.store`). Per batch:
 
 * predict (5.4-5.5): x̂⁻ = F x̂, P⁻ = F P Fᵀ + Q per component over the track's dt with the
   linear motion model (CV, state [x, vx, y, vy(, z, vz)]);
@@ -11,6 +13,15 @@ Every track is a mixture {ξ^c, x̂^c, P^c, h^c} in the flat :class:`Mixture` st
 * update: ITS children (5.12-5.15, :func:`fusion.tracker.its.component_update`), Singer
   N-scan merge, pruning (:mod:`fusion.tracker.components`), and the moment-matched track
   estimate (4.66-4.68), which :meth:`estimate` returns.
+
+Late plots (:class:`~.base.Retrodiction`, :mod:`fusion.tracker.oosm`): every component c
+is retrodicted with the CV model from its own posterior (x̂^c, P^c) and the track's last
+prior (Bar-Shalom 2002, A1, (O1)-(O4)); the late plots are gated and weighed by
+:meth:`likelihoods` on the retrodicted components (p^c_i = N(z_i; H x̂^c(τ|k), S^c_i(τ)) /
+P_G); the children are those of 5.12-5.15 with the Kalman update replaced by the OOSM
+update (O5): the "no plot" child keeps x̂^c, P^c with weight β₀ ξ^c, the child of plot i
+is x̂^c(k|τ), P^c(k|τ) with weight β_i ξ^c p^c_i / p^τ_i; then the same Singer merge,
+pruning and estimate. The late plot enters the plot history as one more scan.
 
 Plot-history ids are numbered here, one per plot of every ``likelihoods`` call.
 """
@@ -21,12 +32,16 @@ from dataclasses import dataclass
 
 import numpy as np
 from skyfuse.fusion.association.gating import GatedPairs, gate
+from skyfuse.fusion.filters.kalman import update_with_innovation
 from skyfuse.fusion.filters.moment_matching import moment_match
+from skyfuse.fusion.models.cv import ConstantVelocity
+from skyfuse.schemas.snapshot import entry, mapping
 
 from .. import components as comp
 from ..component_slots import ComponentSlots
-from ..its import component_update
-from .base import GatedTable, Prediction, gate_probability_of
+from ..its import component_update, shift_history
+from ..oosm import oosm_update, retrodict
+from .base import GatedTable, Prediction, estimate_group, gate_probability_of
 
 
 class MixturePrediction(Prediction):
@@ -85,30 +100,63 @@ def track_table(
     return uniq // max(m, 1), uniq % max(m, 1), p_track, row
 
 
+class MixtureRetrodiction(MixturePrediction):
+    """The retrodicted components of late tracks (what :meth:`likelihoods` gates) and
+    what the out-of-sequence update needs: the current components ``current`` and the
+    cross terms ``cross`` (C (C, d, d) of (O1)-(O4), :func:`fusion.tracker.oosm.retrodict`)."""
+
+    def __init__(self, rows, w, loc, y, HPH, mix, current, cross) -> None:
+        super().__init__(rows, w, loc, y, HPH, mix)
+        self.current, self.cross = current, cross
+
+
 class GaussianMixtureDensity:
     """ITS / IPDA Gaussian mixtures of all tracks (see the module docstring).
 
     model: a linear motion model with ``F(dt)``, ``Q(dt)``, ``H()``, ``dim``; depth: Singer
-    memory N; prune_threshold, max_components: §7.11 pruning."""
+    memory N; prune_threshold, max_components: the pruning of the mixtures."""
+
+    late_plots = "retrodict"
 
     def __init__(
         self, model, depth: int, prune_threshold: float = 1e-3, max_components: int = 30
     ) -> None:
         self.model = model
         self.dim = model.dim
+        self.mode_dims = (model.dim,)
         self.H = model.H()
         self.pos = np.array(model.position_index)
         self.depth = depth
         self.prune_threshold = prune_threshold
         self.max_components = max_components
         self.slots = ComponentSlots(comp.Mixture.empty(self.dim, depth))
-        self.x = np.zeros((0, self.dim))
-        self.P = np.zeros((0, self.dim, self.dim))
+        self.tracks = None
         self.stats: dict[str, int] = {}
         self._next_uid = 1
 
+    @classmethod
+    def from_config(cls, cfg) -> GaussianMixtureDensity:
+        """The ``cv`` motion of a ``TrackerConfig``: CV (q, ndim, q_vertical), the kind's
+        Singer depth, pruning."""
+        model = ConstantVelocity(q=cfg.q, ndim=cfg.ndim, q_vertical=cfg.q_vertical)
+        return cls(model, cfg.memory_depth, cfg.prune_threshold, cfg.max_components)
+
+    # ------------------------------------------------------------------ tracks
+    def attach(self, tracks) -> None:
+        """Columns ``x`` (n, d), ``P`` (n, d, d): the track estimates; new tracks get one
+        component (ξ = 1, their initial Gaussian, empty history)."""
+        tracks.declare(estimate_group(self.dim, self._appended, self._kept))
+        self.tracks = tracks
+
+    def _appended(self, rows: np.ndarray, new) -> None:
+        hist = np.zeros((len(rows), self.depth), np.int64)
+        self.slots.append(comp.Mixture(rows, np.ones(len(rows)), new.x.copy(), new.P.copy(), hist))
+
+    def _kept(self, mask: np.ndarray) -> None:
+        self.slots.keep(mask)
+
     def __len__(self) -> int:
-        return len(self.x)
+        return len(self.tracks)
 
     @property
     def mix(self) -> comp.Mixture:
@@ -119,26 +167,10 @@ class GaussianMixtureDensity:
     def mix(self, value: comp.Mixture) -> None:
         self.slots = ComponentSlots.holding(value)
 
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
-        nn, n = len(x), len(self)
-        if nn == 0:
-            return
-        hist = np.zeros((nn, self.depth), np.int64)
-        new = comp.Mixture(n + np.arange(nn), np.ones(nn), x.copy(), P.copy(), hist)
-        self.slots.append(new)
-        self.x = np.concatenate([self.x, x])
-        self.P = np.concatenate([self.P, P])
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.slots.keep(mask)
-        self.x, self.P = self.x[mask], self.P[mask]
-
+    # ------------------------------------------------------------------ one batch
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> MixturePrediction:
         """Components of ``rows`` (sorted) predicted over dt (s,) s (5.4-5.5)."""
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
-        pred = self.slots.tracks(inside)
-        loc = np.searchsorted(rows, pred.track)
+        pred, loc = self.slots.rows(rows, len(self))
         dtc = np.asarray(dt, dtype=np.float64)[loc]
         pred.x, pred.P = self.model.predict(pred.x, pred.P, dtc)
         y = pred.x[:, self.pos]
@@ -181,7 +213,7 @@ class GaussianMixtureDensity:
     def store_children(self, rows: np.ndarray, children: comp.Mixture, pairs: int) -> None:
         """Singer merge and pruning of the updated components ``children`` of the tracks
         ``rows`` (sorted), which replace their components; track estimates (4.66-4.68).
-        Also the out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`)."""
+        Also the last step of the out-of-sequence update (:meth:`update_late`)."""
         merged = comp.singer_merge(children)
         kept = comp.prune(merged, self.prune_threshold, self.max_components, len(self))
         inside = np.zeros(len(self), bool)
@@ -194,16 +226,73 @@ class GaussianMixtureDensity:
         }
         loc = np.searchsorted(rows, kept.track)
         _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(rows))
-        self.x[rows] = x
-        self.P[rows] = P
+        self.tracks.x[rows] = x
+        self.tracks.P[rows] = P
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.x[rows].copy(), self.P[rows].copy()
+        return self.tracks.x[rows].copy(), self.tracks.P[rows].copy()
 
     def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
         """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
-        return self.x, self.P
+        return self.tracks.x, self.tracks.P
 
     def component_counts(self) -> np.ndarray:
         """Mixture components per track (n,)."""
         return comp.components_per_track(self.slots.live(), len(self))
+
+    # ------------------------------------------------------------------ late plots
+    def track_priors(self, pred: MixturePrediction) -> tuple[list, list]:
+        """The track-level prior of each predicted track: the moment match of its
+        predicted components (4.66-4.68), one mode."""
+        _, x, P = moment_match(pred.mix.w, pred.mix.x, pred.mix.P, pred.loc, len(pred.rows))
+        return [x], [P]
+
+    def retrodict(self, rows: np.ndarray, lag: np.ndarray, priors) -> MixtureRetrodiction:
+        """The components of ``rows`` retrodicted over ``lag`` (O1-O4)."""
+        cur, loc = self.slots.rows(rows, len(self))
+        known, xs, Ps = priors
+        x, P, C = retrodict(self.model, cur.x, cur.P, lag[loc], xs[0][loc], Ps[0][loc], known[loc])
+        retro = comp.Mixture(cur.track, cur.w, x, P, cur.hist)
+        pos = self.pos
+        return MixtureRetrodiction(rows, cur.w, loc, x[:, pos], P[:, pos][:, :, pos], retro, cur, C)
+
+    def update_late(
+        self, pred: MixtureRetrodiction, table: MixtureTable, beta0: np.ndarray, beta: np.ndarray
+    ) -> None:
+        """The children of the module docstring ("late plots"), merged and pruned."""
+        cur = pred.current
+        hist0 = shift_history(cur.hist, np.zeros(len(cur), np.int64))
+        children = comp.Mixture(cur.track, cur.w * beta0[pred.loc], cur.x, cur.P, hist0)
+        pairs = table.pairs
+        if len(pairs):
+            c = pairs.state
+            w = cur.w[c] * beta[table.pair_row] * table.p_pair / table.p[table.pair_row]
+            x, P = oosm_update(cur.x[c], cur.P[c], pred.cross[c], self.H, pairs.nu, pairs.S)
+            hist = shift_history(cur.hist[c], table.uid[pairs.plot])
+            children = comp.Mixture.concat([children, comp.Mixture(cur.track[c], w, x, P, hist)])
+            children = children.take(np.flatnonzero(children.w > 0.0))
+        self.store_children(pred.rows, children, len(table.tp_track))
+
+    # ------------------------------------------------------------------ snapshots
+    def to_snapshot(self) -> dict:
+        """The components (the estimates are track-store columns) and the next plot
+        history id."""
+        return {"components": self.slots.to_snapshot(), "next_uid": self._next_uid}
+
+    def from_snapshot(self, snap) -> None:
+        snap = mapping(snap, "density")
+        empty = comp.Mixture.empty(self.dim, self.depth)
+        slots = ComponentSlots.from_snapshot(snap.get("components"), empty, len(self))
+        self.slots, self._next_uid = slots, entry(snap, "next_uid", int)
+
+    @staticmethod
+    def warm_up() -> None:
+        """Load the compiled kernels of this density (CV prediction, the Kalman update of
+        the gated pairs, moment matching) on tiny inputs."""
+        P = np.stack([np.eye(4), 2.0 * np.eye(4)])
+        x = np.zeros((2, 4))
+        ConstantVelocity().predict(x, P, np.array([1.0, 2.0]))
+        H = ConstantVelocity().H()
+        S = H @ P @ H.T + np.eye(2)
+        update_with_innovation(x, P, H, S, np.ones((2, 2)), np.stack([np.eye(2)] * 2))
+        moment_match(np.array([0.4, 0.6]), x, P, np.array([0, 0]), 1)

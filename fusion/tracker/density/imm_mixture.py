@@ -1,5 +1,6 @@
 """IMM mixture track density: every ITS component is an IMM (IMM-IPDA, IMM-ITS,
-IMM-LM-ITS, IMM-JITS). Spec 01 §5 (004 eq. 15-21) inside spec 02 §7 / spec 03 §1.
+IMM-LM-ITS, IMM-JITS): the IMM of [Dikić] (eq. 15-21) inside the ITS components of
+[thesis] ch. 5-6 (docs/tracker.md, "IMM inside the existence trackers").
 
 Each component c of a track carries a weight ξ^c, a plot history h^c (Singer N-scan
 memory, depth 0 = one IMM per track) and, per mode j, a mode probability μ^c_j and a
@@ -13,12 +14,13 @@ Per batch, for the components of the tracks in coverage over their dt:
    IMM interaction of skyfuse): Π(dt) = Π_T^{dt/T} (the configured mode transition matrix
    Π_T per period T, fractional power by eigendecomposition); c_j = Σ_i Π_ij μ_i,
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
-   common Singer layout (spec 01 §4 conversions, 004 eq. 22), converted back to mode j.
+   common Singer layout (the conversions of [Dikić] eq. 22), converted back to mode j.
 2. **Mode-matched prediction** of every mode (KF or EKF, :func:`fusion.filters.ekf.predict`).
-   **Long coasts** [IMPL] (issue 17): a component predicted over dt > ``coast_after``
+   **Long coasts** [IMPL] (docs/tracker.md, "Re-identification, held existence and
+   straight coasts"): a component predicted over dt > ``coast_after``
    (a track outside every radar's coverage, in a cone of silence, or missed for several
    scans) is predicted in ⌈dt / coast_step⌉ equal steps, and afterwards every
-   manoeuvre mode takes the CV mode's prediction (converted to its layout, spec 01 §4):
+   manoeuvre mode takes the CV mode's prediction (converted to its layout, eq. 22):
    a lost aircraft is assumed to fly straight, as the output model and the
    re-identification assume. In one step the discrete models' noise lets a single
    piecewise-constant acceleration act for the whole gap (σ_pos = √q dt²/2, ≈ 10 km
@@ -28,10 +30,10 @@ Per batch, for the components of the tracks in coverage over their dt:
    P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
    track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
-   per-model gating of 003; ``gating = "mixed"``: if the gate of the component's
+   per-model gating of [MZD]; ``gating = "mixed"``: if the gate of the component's
    mode-mixed prediction holds it); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G
-   (eq. 18, 4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL] (issue 17,
-   :class:`ReachGate`, eq. C1): a pair whose plot is farther from the track's last fix
+   (eq. 18, 4.17), p^τ_i = Σ_c ξ^c p^c_i (5.10). **Reachability** [IMPL]
+   (:mod:`.reach_gate`, eq. C1): a pair whose plot is farther from the track's last fix
    than v_max times the time since, plus √g times the largest σ of the fix and of the
    plot, is dropped first.
 4. **Update**: the "no plot" child keeps the predicted modes with μ = c; the child of plot
@@ -41,6 +43,14 @@ Per batch, for the components of the tracks in coverage over their dt:
    Σ ξ μ_j / Σ ξ); pruning as for the Gaussian mixture.
 5. **Estimate** (eq. 20-21, 4.66-4.68): all modes of all components of a track
    moment-matched in the common layout, returned in the CV layout (m, m/s).
+
+Late plots (:class:`~.base.Retrodiction`): every mode of every component retrodicted with
+its own model and the track's last prior of that mode (Bar-Shalom 2002, A1,
+:mod:`fusion.tracker.oosm`), without mode interaction over the lag (:meth:`retrodict`).
+
+State: the components in a slot store (:mod:`fusion.tracker.component_slots`); the
+track estimates and the reachability gate's fixes are columns of the track store
+(:mod:`fusion.tracker.store`).
 
 With one CV mode and Π = [[1]] every step reduces to the Gaussian-mixture density (IPDA /
 ITS); the tests check that equivalence and the mode probabilities of a two-model case.
@@ -57,74 +67,23 @@ from skyfuse.fusion.filters.ekf import predict as ekf_predict
 from skyfuse.fusion.filters.imm_interaction import interact, same_layout
 from skyfuse.fusion.filters.initiation import embed_common
 from skyfuse.fusion.filters.kalman import update_with_innovation
-from skyfuse.fusion.filters.moment_matching import moment_match, moment_match_rows
-from skyfuse.fusion.filters.small_spd import largest_eigenvalue
+from skyfuse.fusion.filters.moment_matching import (
+    moment_match,
+    moment_match_rows,
+    moment_match_rows_each,
+)
 from skyfuse.fusion.models import ConstantVelocity, CoordinatedTurn, Singer
 from skyfuse.fusion.models.conversions import from_common, to_common, to_cv_layout
+from skyfuse.schemas.snapshot import entry, mapping
 
 from ..component_slots import ComponentSlots
 from ..components import history_groups, prune_indices
-from .base import GatedTable, gate_probability_of
+from ..its import shift_history
+from ..oosm import oosm_update, retrodict
+from .base import GatedTable, estimate_group, gate_probability_of
 from .gaussian_mixture import MixturePrediction, track_table
 from .imm_likelihood_kernel import mode_pair_likelihoods
-
-
-class ReachGate:
-    """Reachability gate from the last plot [IMPL] (issue 17, eq. C1): a plot z_i can be
-    the track's aircraft only if
-
-        ‖z_i − p_f‖ ≤ v_max Δt + √g (σ_f + σ_i),
-
-    p_f the track's position estimate after its last plot of weight > 0.5 (the fix), Δt
-    the time since (the sum of the predictions' dt), σ_f and σ_i the largest standard
-    deviations (√λ_max) of the fix's position and of the plot's R, g the gate. An
-    aircraft moves at most v_max; the fix and the plot are each off by at most √g σ
-    with probability P_G per axis of largest spread. Pairs outside are dropped before
-    the likelihoods: they hold only after a long, loose coast, where the mixture's
-    prediction (its covariance from the linearised turn mode) has outgrown the distance
-    an aircraft can fly. ``speed`` None: no gate. The out-of-sequence update (a plot older
-    than the fix, :mod:`fusion.tracker.oosm_density`) is not gated."""
-
-    def __init__(self, speed: float | None, ndim: int) -> None:
-        self.speed = speed
-        self.pos = [2 * a for a in range(ndim)]  # CV layout [x, vx, y, vy(, z, vz)]
-        self.p = np.zeros((0, ndim))
-        self.sigma = np.zeros(0)
-        self.since = np.zeros(0)
-
-    def _sigma(self, P: np.ndarray) -> np.ndarray:
-        return largest_sigma(P[:, self.pos][:, :, self.pos])
-
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
-        self.p = np.concatenate([self.p, x[:, self.pos]])
-        self.sigma = np.concatenate([self.sigma, self._sigma(P)])
-        self.since = np.concatenate([self.since, np.zeros(len(x))])
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.p, self.sigma, self.since = self.p[mask], self.sigma[mask], self.since[mask]
-
-    def predict(self, rows: np.ndarray, dt: np.ndarray) -> None:
-        self.since[rows] += np.maximum(dt, 0.0)
-
-    def fix(self, rows: np.ndarray, x: np.ndarray, P: np.ndarray) -> None:
-        if len(rows):
-            self.p[rows], self.sigma[rows], self.since[rows] = x[:, self.pos], self._sigma(P), 0.0
-
-    def reachable(
-        self, rows: np.ndarray, since: np.ndarray, z: np.ndarray, sigma_z: np.ndarray, g: float
-    ) -> np.ndarray:
-        """(P,) True where plot z (P, k), of largest σ ``sigma_z`` (P,), is reachable
-        ``since`` (P,) s after the fix of ``rows``."""
-        if self.speed is None or len(rows) == 0:
-            return np.ones(len(rows), bool)
-        k = z.shape[1]
-        dist = np.linalg.norm(z - self.p[rows][:, :k], axis=1)
-        return dist <= self.speed * since + np.sqrt(g) * (self.sigma[rows] + sigma_z)
-
-
-def largest_sigma(C: np.ndarray) -> np.ndarray:
-    """√λ_max (n,) of covariances C (n, k, k): the standard deviation along the widest axis."""
-    return np.sqrt(np.maximum(largest_eigenvalue(C), 0.0))
+from .reach_gate import ReachGate, largest_sigma
 
 
 class ModeTransition:
@@ -238,6 +197,16 @@ class IMMPrediction(MixturePrediction):
         return self._moments
 
 
+class IMMRetrodiction(IMMPrediction):
+    """Retrodicted IMM components of late tracks (what ``likelihoods`` gates, without the
+    reachability gate) and what the out-of-sequence update needs: the current components
+    ``current`` and the cross terms ``cross[j]`` of each mode (O1-O4)."""
+
+    def __init__(self, rows, comp, loc, y, HPH, *, current, cross) -> None:
+        super().__init__(rows, comp, loc, y, HPH)
+        self.current, self.cross = current, cross
+
+
 @dataclass
 class IMMTable(GatedTable):
     """Track × plot table plus the (component, plot) pairs behind it: pair_comp, pair_plot
@@ -263,7 +232,11 @@ class IMMMixtureDensity:
     init_acceleration: σ (m/s²) of the zero acceleration of new tracks in the common
     layout; ndim: 2 or 3; depth, prune_threshold, max_components as the Gaussian mixture;
     gating: ``per-mode`` (a plot is gated if any mode's gate holds it, [MZD] §5) or
-    ``mixed`` (the gate of each component's mode-mixed prediction, eq. 20-21 over c)."""
+    ``mixed`` (the gate of each component's mode-mixed prediction, eq. 20-21 over c);
+    coast_after, coast_step: the long coasts of step 2; reach_speed: v_max of the
+    reachability gate (:mod:`.reach_gate`), None: off."""
+
+    late_plots = "retrodict"
 
     def __init__(
         self,
@@ -299,6 +272,7 @@ class IMMMixtureDensity:
         self.gating = gating
         self.H = [m.H() for m in self.models]
         self.pos = [np.array(m.position_index) for m in self.models]
+        self.mode_dims = tuple(m.dim for m in self.models)
         self.same_layout = same_layout(self.models)
         r = len(self.models)
         self.slots = ComponentSlots(
@@ -311,8 +285,7 @@ class IMMMixtureDensity:
                 [np.zeros((0, m.dim, m.dim)) for m in self.models],
             )
         )
-        self.x = np.zeros((0, self.dim))
-        self.P = np.zeros((0, self.dim, self.dim))
+        self.tracks = None
         self.stats: dict[str, int] = {}
         self._next_uid = 1
 
@@ -321,7 +294,7 @@ class IMMMixtureDensity:
         return len(self.models)
 
     def __len__(self) -> int:
-        return len(self.x)
+        return len(self.tracks)
 
     @property
     def comp(self) -> IMMComponents:
@@ -336,12 +309,21 @@ class IMMMixtureDensity:
         return (x, P) if self.same_layout else from_common(self.models[j], x, P)
 
     # ------------------------------------------------------------------ tracks
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
+    def attach(self, tracks) -> None:
+        """Columns ``x`` (n, d), ``P`` (n, d, d): the track estimates (eq. 20-21, CV
+        layout); the reachability gate's columns when it is on; new tracks get one IMM
+        component (:meth:`_appended`)."""
+        tracks.declare(estimate_group(self.dim, self._appended, self._kept))
+        self.reach.attach(tracks)
+        self.tracks = tracks
+
+    def _kept(self, mask: np.ndarray) -> None:
+        self.slots.keep(mask)
+
+    def _appended(self, rows: np.ndarray, new) -> None:
         """New tracks from CV-layout Gaussians: each mode gets the state converted from the
         common layout (accelerations 0 ± init_acceleration)."""
-        nn, n = len(x), len(self)
-        if nn == 0:
-            return
+        x, P, nn = new.x, new.P, len(rows)
         if self.same_layout and isinstance(self.models[0], ConstantVelocity):
             xs, Ps = [x.copy()] * self.r, [P.copy()] * self.r
         else:
@@ -356,7 +338,7 @@ class IMMMixtureDensity:
             ]
             xs, Ps = [a for a, _ in conv], [b for _, b in conv]
         new = IMMComponents(
-            n + np.arange(nn),
+            rows,
             np.ones(nn),
             np.zeros((nn, self.depth), np.int64),
             np.broadcast_to(self.mu0, (nn, self.r)).copy(),
@@ -364,14 +346,6 @@ class IMMMixtureDensity:
             Ps,
         )
         self.slots.append(new)
-        self.x = np.concatenate([self.x, x])
-        self.P = np.concatenate([self.P, P])
-        self.reach.add(x, P)
-
-    def keep(self, mask: np.ndarray) -> None:
-        self.slots.keep(mask)
-        self.x, self.P = self.x[mask], self.P[mask]
-        self.reach.keep(mask)
 
     # ------------------------------------------------------------------ predict
     def _interact(self, comp: IMMComponents, dt: np.ndarray) -> IMMComponents:
@@ -414,11 +388,8 @@ class IMMMixtureDensity:
         return x, P
 
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> IMMPrediction:
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
         # every component (one sensor seeing all tracks): views, no copy
-        comp = self.slots.tracks(inside)
-        loc = np.searchsorted(rows, comp.track)
+        comp, loc = self.slots.rows(rows, len(self))
         dt = np.asarray(dt, dtype=np.float64)
         self.reach.predict(rows, dt)
         pred = self._interact(comp, dt[loc])
@@ -426,7 +397,7 @@ class IMMMixtureDensity:
         HPH = np.stack(
             [pred.P[j][:, p[:, None], p[None, :]] for j, p in enumerate(self.pos)], axis=1
         )
-        return IMMPrediction(rows, pred, loc, y, HPH, self.reach.since[rows].copy())
+        return IMMPrediction(rows, pred, loc, y, HPH, self.reach.since(rows))
 
     # ------------------------------------------------------------------ likelihoods
     def likelihoods(self, pred: IMMPrediction, z: np.ndarray, R: np.ndarray, g: float) -> IMMTable:
@@ -463,7 +434,7 @@ class IMMMixtureDensity:
         """Null child (μ = c) and one child per gated plot with every mode updated."""
         comp = pred.comp
         null = IMMComponents(
-            comp.track, comp.w * beta0[pred.loc], _shift(comp.hist, 0), comp.mu, comp.x, comp.P
+            comp.track, comp.w * beta0[pred.loc], _no_plot(comp.hist), comp.mu, comp.x, comp.P
         )
         if not (null.w > 0.0).all():  # children of weight 0 are dropped
             null = null.take(np.flatnonzero(null.w > 0.0))
@@ -487,7 +458,7 @@ class IMMMixtureDensity:
             )
             xs.append(xj)
             Ps.append(Pj)
-        upd = IMMComponents(comp.track[c], w, _shift(comp.hist[c], t.uid[p]), mu, xs, Ps)
+        upd = IMMComponents(comp.track[c], w, shift_history(comp.hist[c], t.uid[p]), mu, xs, Ps)
         return IMMComponents.concat([null, upd])
 
     def _merge(self, comp: IMMComponents) -> IMMComponents:
@@ -529,13 +500,13 @@ class IMMMixtureDensity:
         children = self._children(pred, table, beta0, beta)  # all of weight > 0
         self.store_children(pred.rows, children, len(table.pair_comp))
         hit = pred.rows[beta0 < 0.5]
-        self.reach.fix(hit, self.x[hit], self.P[hit])
+        self.reach.fix(hit, self.tracks.x[hit], self.tracks.P[hit])
 
     def store_children(self, rows: np.ndarray, children: IMMComponents, pairs: int) -> None:
         """Merge and prune the updated components ``children`` of the tracks ``rows``
         (sorted), which replace their components; track estimates (eq. 20-21). Also the
-        out-of-sequence update's last step (:mod:`fusion.tracker.oosm_density`), whose
-        children may carry weight 0 (dropped here)."""
+        out-of-sequence update's last step (:meth:`update_late`), whose children may
+        carry weight 0 (dropped here)."""
         positive = children.w > 0.0
         if not positive.all():
             children = children.take(np.flatnonzero(positive))
@@ -554,8 +525,8 @@ class IMMMixtureDensity:
             "components": len(self.slots),
         }
         x, P = self._track_estimates(kept, np.searchsorted(rows, kept.track), len(rows))
-        self.x[rows] = x
-        self.P[rows] = P
+        self.tracks.x[rows] = x
+        self.tracks.P[rows] = P
 
     def _track_estimates(
         self, comp: IMMComponents, loc: np.ndarray, ngroups: int
@@ -580,11 +551,11 @@ class IMMMixtureDensity:
         return x, P
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.x[rows].copy(), self.P[rows].copy()
+        return self.tracks.x[rows].copy(), self.tracks.P[rows].copy()
 
     def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
         """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
-        return self.x, self.P
+        return self.tracks.x, self.tracks.P
 
     def mode_probabilities(self, rows: np.ndarray) -> np.ndarray:
         """Track-level mode probabilities Σ_c ξ^c μ^c (s, r) of ``rows``."""
@@ -596,13 +567,110 @@ class IMMMixtureDensity:
     def component_counts(self) -> np.ndarray:
         return np.bincount(self.slots.live().track, minlength=len(self))
 
+    # ------------------------------------------------------------------ late plots
+    def track_priors(self, pred: IMMPrediction) -> tuple[list, list]:
+        """The track-level prior per mode j: the moment match of the predicted components'
+        mode j with weights ξ^c c_j."""
+        comp, n = pred.comp, len(pred.rows)
+        out = [
+            moment_match(comp.w * comp.mu[:, j], comp.x[j], comp.P[j], pred.loc, n)[1:]
+            for j in range(self.r)
+        ]
+        return [a for a, _ in out], [b for _, b in out]
 
-def _shift(hist: np.ndarray, new_ids) -> np.ndarray:
-    """h' = (new id, h[0], …, h[N−2]) (spec 02 §7 step 11); N = 0 stays empty."""
-    if hist.shape[1] == 0:
-        return hist
-    ids = np.broadcast_to(np.asarray(new_ids, dtype=np.int64), (len(hist),))
-    return np.column_stack([ids, hist[:, :-1]])
+    def retrodict(self, rows: np.ndarray, lag: np.ndarray, priors) -> IMMRetrodiction:
+        """Every mode of the components of ``rows`` retrodicted with its own model (the
+        coordinated turn with its backward flow and Jacobian) and the track's last prior
+        of that mode (O1-O4). **Approximation**: no mode interaction over the lag (Π(−Δ)
+        is not defined; Π(Δ) over Δ ≤ max_lateness is close to I for the configured
+        chains); exact for one CV mode."""
+        cur, loc = self.slots.rows(rows, len(self))
+        known, xp, Pp = priors
+        xs, Ps, Cs = [], [], []
+        for j, model in enumerate(self.models):
+            x, P, C = retrodict(
+                model, cur.x[j], cur.P[j], lag[loc], xp[j][loc], Pp[j][loc], known[loc]
+            )
+            xs.append(x)
+            Ps.append(P)
+            Cs.append(C)
+        retro = IMMComponents(cur.track, cur.w, cur.hist, cur.mu, xs, Ps)
+        y = np.stack([xs[j][:, self.pos[j]] for j in range(self.r)], axis=1)
+        HPH = np.stack([Ps[j][:, self.pos[j]][:, :, self.pos[j]] for j in range(self.r)], axis=1)
+        return IMMRetrodiction(rows, retro, loc, y, HPH, current=cur, cross=Cs)
+
+    def update_late(
+        self, pred: IMMRetrodiction, table: IMMTable, beta0: np.ndarray, beta: np.ndarray
+    ) -> None:
+        """The "no plot" child keeps the current components with weight β₀ ξ^c and their
+        μ; the child of plot i has every mode OOSM-updated ((O5) of
+        :mod:`fusion.tracker.oosm`), weight β_i ξ^c p^c_i / p^τ_i and μ^c_j ∝ μ^c_j
+        N_j(z(τ)) (eq. 19 with μ in place of c); then the merge and pruning."""
+        cur, t = pred.current, table
+        children = IMMComponents(
+            cur.track, cur.w * beta0[pred.loc], _no_plot(cur.hist), cur.mu, cur.x, cur.P
+        )
+        if len(t.pair_comp):
+            c, p = t.pair_comp, t.pair_plot
+            w = cur.w[c] * beta[t.pair_row] * t.p_pair / t.p[t.pair_row]
+            lw = t.log_n + np.log(np.maximum(cur.mu[c], 1e-300))
+            mu = np.exp(lw - lw.max(axis=1, keepdims=True))
+            mu /= mu.sum(axis=1, keepdims=True)
+            xs, Ps = [], []
+            for j in range(self.r):
+                x, P = oosm_update(
+                    cur.x[j][c], cur.P[j][c], pred.cross[j][c], self.H[j], t.nu[:, j], t.S[:, j]
+                )
+                xs.append(x)
+                Ps.append(P)
+            hist = shift_history(cur.hist[c], t.uid[p])
+            upd = IMMComponents(cur.track[c], w, hist, mu, xs, Ps)
+            children = IMMComponents.concat([children, upd])
+        self.store_children(pred.rows, children, len(t.tp_track))
+
+    # ------------------------------------------------------------------ snapshots
+    def to_snapshot(self) -> dict:
+        """The IMM components (the estimates and the gate's fixes are track-store columns)
+        and the next plot history id."""
+        return {"components": self.slots.to_snapshot(), "next_uid": self._next_uid}
+
+    def from_snapshot(self, snap) -> None:
+        snap = mapping(snap, "density")
+        empty = self.slots.data.take(np.zeros(0, np.int64))
+        slots = ComponentSlots.from_snapshot(snap.get("components"), empty, len(self))
+        self.slots, self._next_uid = slots, entry(snap, "next_uid", int)
+
+    @staticmethod
+    def warm_up() -> None:
+        """Load the compiled kernels of this density on tiny inputs: the pair likelihoods
+        (k = 2 closed form, k = 3 Cholesky), the mode transition, the mixing's moment
+        matching, the coordinated turn's prediction and layout conversions, the Kalman
+        update of the gated pairs (k = 2 and another k)."""
+        one = np.zeros(1, np.int64)
+        for k in (2, 3):
+            Sk = np.eye(k)[None]
+            mode_pair_likelihoods(one, one, np.zeros((1, 1, k)), Sk[None].copy(),
+                                  np.zeros((1, k)), Sk.copy(), np.ones((1, 1)))  # fmt: skip
+        P = np.stack([np.eye(2), 2.0 * np.eye(2)])
+        x = np.arange(4.0).reshape(2, 2)
+        moment_match_rows_each(np.full((1, 2, 2), 0.5), x[None], P[None])
+        ModeTransition(np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0)(np.array([1.0, 2.0]))
+        ct = CoordinatedTurn()
+        xt, Pt = np.array([[0.0, 0.0, 0.5, 0.01, 200.0]]), np.eye(5)[None]
+        ct.transition(xt, 4.0)
+        ct.predict(xt, Pt, 4.0)
+        ct.Q(4.0, xt)
+        to_cv_layout(ct, xt, Pt)
+        from_common(ct, *to_common(ct, xt, Pt))
+        H2 = np.eye(2)
+        update_with_innovation(np.zeros((2, 2)), P, H2, P + P, np.ones((2, 2)), P)  # k = 2
+        update_with_innovation(np.zeros((2, 2)), P, H2[:1], P[:, :1, :1] + 1.0,
+                               np.ones((2, 1)), P[:, :1, :1])  # k = 1 (any k != 2)  # fmt: skip
+
+
+def _no_plot(hist: np.ndarray) -> np.ndarray:
+    """The plot history of a "no plot" child: id 0 first (:func:`~..its.shift_history`)."""
+    return shift_history(hist, np.zeros(len(hist), np.int64))
 
 
 def imm_density(cfg, second: str) -> IMMMixtureDensity:

@@ -88,12 +88,12 @@ def test_sixteen_sectors_coalesced_by_fours_track_as_four_sectors():
     assert got.coalesced["steps"] > 0.8 * len(coarse)
     assert got.coalesced["batches"] > 0.8 * len(fine)
     a, b = ref.tracker, got.tracker
-    assert a.n == b.n and a.confirmed.sum() > 20
+    assert a.n == b.n and a.tracks.confirmed.sum() > 20
     np.testing.assert_array_equal(a.ids, b.ids)
-    np.testing.assert_array_equal(a.confirmed, b.confirmed)
-    np.testing.assert_array_equal(a.t_last, b.t_last)
-    np.testing.assert_array_equal(a.exist, b.exist)
-    for u, v in zip(a._estimates_view(), b._estimates_view()):  # states, covariances
+    np.testing.assert_array_equal(a.tracks.confirmed, b.tracks.confirmed)
+    np.testing.assert_array_equal(a.tracks.t_last, b.tracks.t_last)
+    np.testing.assert_array_equal(a.tracks.exist, b.tracks.exist)
+    for u, v in zip(a.density.estimates_view(), b.density.estimates_view()):  # states, covariances
         np.testing.assert_array_equal(u, v)  # the same plots in the same steps: bitwise
 
 

@@ -1,17 +1,22 @@
 """The snapshot format (``services.fusion.state_codec``) cannot execute code and refuses
-malformed or hostile blobs with a reason; every tracker kind round-trips.
+malformed or hostile blobs with a reason; every tracker kind round-trips; a snapshot of
+the format before the declared snapshots is refused naming both versions.
 
 References: a pickle payload that would create a file if it were unpickled (the file
 must not appear); archives and manifests built here by hand with ``zipfile`` / ``json``
-(unknown types, arrays that differ from the manifest, a compressed member, deep nesting,
-per-track arrays with a wrong number of rows); and, for the round trip, the feed of a
-core that never stopped."""
+(unknown node kinds, arrays that differ from the manifest, a compressed member, deep
+nesting, track-store columns with a wrong number of rows); for the round trip, the feed
+of a core that never stopped; and ``data/state_b062918.npz.gz``, the ``state.npz`` a
+fusion core of commit b062918 saved (``Persistence.save`` after 10 s of the regional
+scenario, seed 5, 2 targets, 3 radars; gzip-compressed here)."""
 
 from __future__ import annotations
 
+import gzip
 import io
 import json
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +29,8 @@ from skyfuse.services.fusion.pipeline import TrackPipeline
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.fusion.state_codec import REASONS, StateRejected, loads
 from skyfuse.services.fusion.state_store import StateStore, capture, restore
+
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +86,18 @@ def test_every_tracker_kind_round_trips_to_the_same_feed(kind, motion, scenario,
     again._next_full = ref._next_full = float("inf")
     a, b = _feed(again, batches[50:80]), _feed(ref, batches[50:80])
     assert len(a) == len(b) > 5 and a == b
+
+
+def test_a_state_before_the_first_batch_is_a_valid_snapshot(scenario, tmp_path):
+    """A standby receives snapshots before the first batch (no frame, no tracker yet):
+    they pass the check, and resuming one restores the sites and no tracks."""
+    core = _core(scenario[0], TrackerConfig())
+    store = StateStore(tmp_path / "s", "main", max_age=60, id_horizon=60)
+    saved = store.check(store.serialise(capture(core), 1))
+    assert saved["frame"] is None and saved["pipeline"] is None
+    fresh = _core([], TrackerConfig())
+    assert restore(fresh, saved) == "no tracker state saved yet"
+    assert sorted(fresh.radars) == sorted(s.radar_id for s in scenario[0])
 
 
 class _Exploit:
@@ -141,13 +160,14 @@ def _find(node, pred):
 
 
 def _set_unknown_type(manifest, _m):
-    node = _find(manifest, lambda n: n.get("$") == "obj")
-    node["t"] = "os._wrap_close"
+    node = _find(manifest, lambda n: n.get("$") == "dict")
+    node.update({"$": "obj", "t": "os._wrap_close"})
 
 
 def _function_eval(manifest, _m):
-    node = _find(manifest, lambda n: n.get("$") == "fn")
-    node["t"] = "builtins.eval"
+    node = _find(manifest, lambda n: n.get("$") == "dict")
+    node.clear()
+    node.update({"$": "fn", "t": "builtins.eval"})
 
 
 def _array_shape_lies(manifest, m):
@@ -155,9 +175,14 @@ def _array_shape_lies(manifest, m):
     m[f"a{node['i']}"] = np.zeros((node["shape"][0] + 1, node["shape"][1]))
 
 
-def _dangling_reference(manifest, _m):
-    node = _find(manifest, lambda n: n.get("$") == "list")
-    node["v"] = [{"$": "ref", "id": 10**9}]
+def _dict_without_a_mapping(manifest, _m):
+    node = _find(manifest, lambda n: n.get("$") == "dict")
+    node["v"] = [{"$": "array", "i": 0}]
+
+
+def _node_without_a_kind(manifest, _m):
+    node = _find(manifest, lambda n: n.get("$") == "dict")
+    node["v"] = {"x": {"i": 0, "dtype": "<f8", "shape": []}}
 
 
 @pytest.mark.parametrize(
@@ -166,8 +191,9 @@ def _dangling_reference(manifest, _m):
         (_set_unknown_type, "unknown type"),
         (_function_eval, "unknown type"),
         (_array_shape_lies, "bad array"),
-        (_dangling_reference, "malformed manifest"),
-        (lambda m, _: m.update(format=1), "format version"),
+        (_dict_without_a_mapping, "malformed manifest"),
+        (_node_without_a_kind, "malformed manifest"),
+        (lambda m, _: m.update(format=2), "format version"),
         (lambda m, _: m.update(root={"$": "obj", "t": "builtins.object", "v": {}}), "unknown type"),
         (lambda m, _: m.update(root={"$": "__reduce__", "v": []}), "unknown type"),
     ],
@@ -184,10 +210,10 @@ def test_compressed_deep_and_oversized_blobs_are_refused(scenario, tmp_path):
     bomb = _npz(_members(blob), compress=True)
     with pytest.raises(StateRejected, match="compressed member"):
         loads(bomb)
-    deep = {"$": "list", "v": [], "id": 0}
-    for i in range(1, 200):
-        deep = {"$": "list", "v": [deep], "id": i}
-    m = {"manifest": np.frombuffer(json.dumps({"format": 2, "root": deep}).encode(), np.uint8)}
+    deep = []
+    for _ in range(1, 200):
+        deep = [deep]
+    m = {"manifest": np.frombuffer(json.dumps({"format": 3, "root": deep}).encode(), np.uint8)}
     with pytest.raises(StateRejected, match="too deep"):
         loads(_npz(m))
     with pytest.raises(StateRejected, match="too large"):
@@ -199,8 +225,8 @@ def test_per_track_arrays_with_a_wrong_number_of_rows_are_inconsistent(scenario,
     n = len(core.pipeline.tracker.ids)
     assert n > 3
 
-    def more_rows(manifest, m):  # a consistent manifest: tracker.exist with n + 1 rows
-        node = _find(manifest, lambda d: d.get("t", "").endswith("tracker.Tracker"))
+    def more_rows(manifest, m):  # a well-formed manifest: the column exist with n + 1 rows
+        node = _find(manifest, lambda d: "exist" in d.get("v", {}) and "ids" in d["v"])
         ref = node["v"]["exist"]
         m[f"a{ref['i']}"] = np.zeros((n + 1, 2))
         ref["shape"] = [n + 1, 2]
@@ -208,9 +234,22 @@ def test_per_track_arrays_with_a_wrong_number_of_rows_are_inconsistent(scenario,
     store = StateStore(tmp_path / "s", "main", max_age=60, id_horizon=60)
     saved = store.check(_with_manifest(blob, more_rows))  # a well-formed blob ...
     fresh = _core(scenario[0], TrackerConfig())
-    why = restore(fresh, saved)  # ... whose state does not hold together
-    assert why is not None and why.startswith("state inconsistent: tracker.exist")
+    why = restore(fresh, saved)  # ... whose state does not fit its declaration
+    assert why == f"state inconsistent: exist: shape ({n + 1}, 2), declared ({n}, 2)"
     assert fresh.pipeline is None
+
+
+def test_a_snapshot_of_the_format_before_is_refused_naming_both_versions(tmp_path):
+    blob = gzip.decompress((DATA / "state_b062918.npz.gz").read_bytes())
+    store = StateStore(tmp_path / "s", "main", max_age=1e12, id_horizon=60)
+    with pytest.raises(StateRejected) as e:
+        store.check(blob)
+    assert e.value.reason == "format version"
+    assert str(e.value) == (
+        "format version: snapshot container format 2: this version of skyfuse reads format 3"
+    )
+    (tmp_path / "s" / "state.npz").write_bytes(blob)  # a state directory left by b062918
+    assert store.load() == (None, f"saved state refused ({e.value})")
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -232,8 +271,8 @@ def test_truncated_or_flipped_blobs_never_raise(data, scenario, tmp_path_factory
 
 
 def test_the_state_serialises_after_every_cycle(tmp_path):
-    """Every object the pipeline holds at any instant is of an allow-listed type (pending
-    track events, outputs, registration buffers …), not only at one chosen instant."""
+    """The state serialises at any instant (pending track rows, registration buffers …),
+    not only at one chosen instant."""
     sc = build_scenario("regional", seed=1, duration=20.0, targets=25, radars=4)
     events = list(Simulator(sc, seed=1).run(truth=False))
     batches = sorted((e.message for e in events if e.kind == "plots"), key=lambda b: b.time_end)

@@ -1,28 +1,37 @@
-"""Particle track density for IPF / LM-IPF (spec 04 A.2, spec 02 §6), over arrays of tracks.
+"""Particle track density of the IPF / LM-IPF trackers ([LM-IPF]; [thesis] §3.4-3.6, the
+IPF), over arrays of tracks.
 
-All clouds live in one array x (n_tracks, N, d) with weights w (n_tracks, N); row r is
-the tracker's track r. CV motion in the system plane: d = 2k for k = 2 or 3 position
+Every track's cloud is one row of the tracker's track store (:mod:`fusion.tracker.store`):
+``particles`` (n, N, d) with ``weights`` (n, N) ([LM-IPF] eq. 3-4), and its MMSE estimate
+``x`` (n, d), ``P`` (n, d, d). CV motion in the system plane: d = 2k for k = 2 or 3 position
 axes, state interleaved [x, vx, y, vy(, z, vz)] in metres and m/s, ``ConstantVelocity``
 F(dt) and Q(dt) = Γ q Γᵀ (q = acceleration variance, m²/s⁴).
 
 Recursion per scan (the tracker drives existence and association; this class does the
 state):
 
-* :meth:`predict` (A4): x^i ← F x^i + v^i, v^i ~ N(0, Q(dt)) per row's own dt; weights
-  unchanged. Returns the predicted clouds and their moment-matched Gaussian (x̄, P̄ by
-  A16), z_mean = H x̄ and S0 = H P̄ Hᵀ for gating boxes and clutter volumes. Pure: the
-  stored state advances only in :meth:`update`.
-* :meth:`likelihoods` (A5 [IMPL], A6, A7): gate on the moment-matched Gaussian,
+* :meth:`predict` ([LM-IPF] eq. 6): x^i ← F x^i + v^i, v^i ~ N(0, Q(dt)) per row's own dt;
+  weights unchanged. Returns the predicted clouds and their moment-matched Gaussian (x̄,
+  P̄, the weighted mean and covariance of the cloud), z_mean = H x̄ and S0 = H P̄ Hᵀ for
+  gating boxes and clutter volumes. Pure: the stored state advances only in :meth:`update`.
+* :meth:`likelihoods` ([LM-IPF] eq. 7-9): gate on the moment-matched Gaussian,
   d² = (z − ŷ)ᵀ (S0 + R_j)⁻¹ (z − ŷ) < g (``fusion.association.gating.gate``: box pre-gate,
-  then exact d²); for gated pairs the per-particle p^i_j (A6) against the plot's own R_j
-  and the track likelihood p_j = Σ_i w^i p^i_j (A7). Both are divided by P_G = P(χ²_k < g)
-  like the Gaussian trackers' p_j, so the tracker uses P_D P_G in (A11).
-* :meth:`update` (A14): w^i ∝ w^i (β_0 + Σ_j β_j p^i_j / p_j), normalised — the posterior
-  cloud is β_0 × the prior cloud plus Σ β_j × the cloud reweighted by plot j. MMSE mean
-  and covariance (A16) are stored *before* resampling (lower variance, spec 02 §6 [IMPL]);
-  then systematic resampling (A15) of all updated rows in one call, every scan
-  (``neff_threshold=None``) or only where N_eff < neff_threshold · N; optional roughening.
+  then exact d²; the paper's "two-tier measurement selection", its details unspecified
+  [IMPL]); for gated pairs the per-particle p^i_j (eq. 8, with the normalisation
+  1/(2π√|R|) of a 2-D Gaussian: the paper's 1/√(2π|R|) is a typo) against the plot's own
+  R_j and the track likelihood p_j = Σ_i w^i p^i_j (eq. 9). Both are divided by
+  P_G = P(χ²_k < g) like the Gaussian trackers' p_j ([thesis] 4.17), so the tracker uses
+  P_D P_G.
+* :meth:`update` ([LM-IPF] eq. 11): w^i ∝ w^i (β_0 + Σ_j β_j p^i_j / p_j), normalised — the
+  posterior cloud is β_0 × the prior cloud plus Σ β_j × the cloud reweighted by plot j.
+  MMSE mean and covariance are stored *before* resampling (lower variance [IMPL]); then
+  systematic resampling ([thesis] §3.4, the scheme of the IPF) of all updated rows in one
+  call, every scan (``neff_threshold=None``) or only where N_eff < neff_threshold · N;
+  optional roughening.
 * :meth:`estimate`: the stored MMSE x̂ (s, d), P (s, d, d).
+
+Late plots are applied at the track's current time (``late_plots = "current"``): the
+out-of-sequence retrodiction of a cloud is not implemented.
 
 No Python loop over tracks or particles: every step is a batched NumPy expression
 (numba is not needed: searchsorted/bincount/matmul express all of it).
@@ -31,17 +40,18 @@ No Python loop over tracks or particles: every step is a batched NumPy expressio
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from skyfuse.fusion.association.gating import gate, gate_probability
+from skyfuse.fusion.association.gating import gate
 from skyfuse.fusion.models import ConstantVelocity
-from skyfuse.fusion.tracker.density.base import GatedTable, Prediction
+from skyfuse.fusion.particles.likelihood import pair_likelihoods
+from skyfuse.fusion.particles.resampling import SCHEMES, resample, take
+from skyfuse.fusion.particles.roughening import roughen
+from skyfuse.fusion.particles.weights import effective_sample_size, normalise, weighted_moments
+from skyfuse.schemas.snapshot import SnapshotError, entry, mapping
 
-from .likelihood import pair_likelihoods
-from .resampling import SCHEMES, resample, take
-from .roughening import roughen
-from .weights import effective_sample_size, normalise, weighted_moments
+from ..store import Column, ColumnGroup
+from .base import GatedTable, Prediction, gate_probability_of
 
 
 @dataclass
@@ -59,19 +69,12 @@ class ParticlePrediction(Prediction):
 @dataclass
 class ParticleGatedTable(GatedTable):
     """Gated (track, plot) pairs (the tracker's :class:`GatedTable`): tp_track indexes the
-    prediction's rows, tp_plot the plots; p (pairs,) = p_j / P_G (A7); lik (pairs, N) =
-    p^i_j / P_G (A6); d2 (pairs,) the gate distance; p_gate = P_G."""
+    prediction's rows, tp_plot the plots; p (pairs,) = p_j / P_G ([LM-IPF] eq. 9); lik
+    (pairs, N) = p^i_j / P_G (eq. 8); d2 (pairs,) the gate distance; p_gate = P_G."""
 
     lik: np.ndarray
     d2: np.ndarray
     p_gate: float
-
-
-@lru_cache(maxsize=16)
-def _gate_probability(g: float, k: int) -> float:
-    """P_G of threshold g in k dimensions, computed once (scipy's chi² cdf per scan cost
-    ~3 % of a particle tracker's step)."""
-    return gate_probability(g, k)
 
 
 def _noise_factor(Q: np.ndarray) -> np.ndarray:
@@ -85,13 +88,15 @@ def _noise_factor(Q: np.ndarray) -> np.ndarray:
 
 
 class ParticleDensity:
-    """Particle clouds of all tracks (spec 04 A.2), rows aligned with the tracker's tracks.
+    """Particle clouds of all tracks (see the module docstring).
 
     model: ConstantVelocity (2 or 3 position axes); n_particles: N (source: 1000);
-    neff_threshold: None = resample every scan (A15), else resample a row only when
+    neff_threshold: None = resample every scan, else resample a row only when
     N_eff < neff_threshold · N; scheme: resampling scheme (source: systematic; any of
     ``fusion.particles.resampling.SCHEMES``); roughening: Gordon's K (0 = off); seed: RNG
     seed."""
+
+    late_plots = "current"
 
     def __init__(
         self,
@@ -116,11 +121,8 @@ class ParticleDensity:
         self.roughening = roughening
         self.rng = np.random.default_rng(seed)
         self.pos = np.asarray(model.position_index)
-        N, d = self.n_particles, self.dim
-        self.x = np.zeros((0, N, d))
-        self.w = np.zeros((0, N))
-        self.mean = np.zeros((0, d))
-        self.cov = np.zeros((0, d, d))
+        self.tracks = None
+        self.stats: dict[str, int] = {}
 
     @classmethod
     def from_config(cls, cfg) -> ParticleDensity:
@@ -136,36 +138,42 @@ class ParticleDensity:
             seed=cfg.particle_seed,
         )
 
-    def __len__(self) -> int:
-        return len(self.x)
+    def attach(self, tracks) -> None:
+        """Columns ``particles`` (n, N, d), ``weights`` (n, N), ``x`` (n, d), ``P``
+        (n, d, d); a new track's cloud is N draws of N(x, P) with weights 1/N."""
+        N, d = self.n_particles, self.dim
+        tracks.declare(
+            ColumnGroup(
+                "density",
+                (Column("particles", np.float64, (N, d), doc="cloud, [LM-IPF] eq. 3"),
+                 Column("weights", np.float64, (N,), fill=1.0 / N, doc="its weights, eq. 4"),
+                 Column("x", np.float64, (d,), doc="MMSE estimate of the cloud"),
+                 Column("P", np.float64, (d, d), doc="its covariance")),
+                init=self._new_clouds,
+            )
+        )  # fmt: skip
+        self.tracks = tracks
 
-    def add(self, x: np.ndarray, P: np.ndarray) -> None:
-        """Append tracks initiated as N(x, P): x (n, d), P (n, d, d) → N particles each."""
-        x, P = np.atleast_2d(x), np.asarray(P).reshape(-1, self.dim, self.dim)
-        n, N = len(x), self.n_particles
+    def _new_clouds(self, new) -> dict:
+        """Tracks initiated as N(x, P): x (n, d), P (n, d, d) → N particles each."""
+        x, P = np.atleast_2d(new.x), np.asarray(new.P).reshape(-1, self.dim, self.dim)
         G = _noise_factor(P)
-        e = self.rng.standard_normal((n, N, G.shape[2]))
-        cloud = x[:, None, :] + e @ np.swapaxes(G, 1, 2)
-        self.x = np.concatenate([self.x, cloud])
-        self.w = np.concatenate([self.w, np.full((n, N), 1.0 / N)])
-        self.mean = np.concatenate([self.mean, x])
-        self.cov = np.concatenate([self.cov, P])
+        e = self.rng.standard_normal((len(x), self.n_particles, G.shape[2]))
+        return {"particles": x[:, None, :] + e @ np.swapaxes(G, 1, 2), "x": x, "P": P}
 
-    def keep(self, mask: np.ndarray) -> None:
-        """Drop the tracks where ``mask`` is False."""
-        mask = np.asarray(mask, bool)
-        self.x, self.w = self.x[mask], self.w[mask]
-        self.mean, self.cov = self.mean[mask], self.cov[mask]
+    def __len__(self) -> int:
+        return len(self.tracks)
 
     def predict(self, rows: np.ndarray, dt: np.ndarray) -> ParticlePrediction:
-        """Predicted clouds of ``rows`` over dt (s,) seconds (A4) and their moments (A16)."""
+        """Predicted clouds of ``rows`` over dt (s,) seconds ([LM-IPF] eq. 6) and their
+        weighted moments."""
         rows = np.asarray(rows, np.int64)
         dt = np.broadcast_to(np.asarray(dt, float), rows.shape)
         F, Q = self.model.F(dt), self.model.Q(dt)
         G = _noise_factor(Q)
         noise = self.rng.standard_normal((len(rows), self.n_particles, G.shape[2]))
-        x = self.x[rows] @ np.swapaxes(F, 1, 2) + noise @ np.swapaxes(G, 1, 2)
-        w = self.w[rows]
+        x = self.tracks.particles[rows] @ np.swapaxes(F, 1, 2) + noise @ np.swapaxes(G, 1, 2)
+        w = self.tracks.weights[rows]
         mean, P = weighted_moments(x, w)
         pos = self.pos
         return ParticlePrediction(
@@ -175,11 +183,11 @@ class ParticleDensity:
     def likelihoods(
         self, pred: ParticlePrediction, z: np.ndarray, R: np.ndarray, g: float
     ) -> ParticleGatedTable:
-        """Gate plots z (m, k) with covariances R (m, k, k) at threshold g (A5) and
-        evaluate the per-particle and track likelihoods of the gated pairs (A6, A7)."""
+        """Gate plots z (m, k) with covariances R (m, k, k) at threshold g and evaluate the
+        per-particle and track likelihoods of the gated pairs ([LM-IPF] eq. 7-9)."""
         k = len(self.pos)
         pairs = gate(pred.z_mean, pred.S0, z, R, g)
-        p_gate = _gate_probability(float(g), k)
+        p_gate = gate_probability_of(float(g), k)
         zp = pred.x[..., self.pos]
         lik = pair_likelihoods(zp, z, R, pairs.state, pairs.plot) / p_gate
         p = np.einsum("pn,pn->p", pred.w[pairs.state], lik)
@@ -192,7 +200,7 @@ class ParticleDensity:
         beta0: np.ndarray,
         beta: np.ndarray,
     ) -> None:
-        """Weights by (A14), MMSE (A16) before resampling, then resampling (A15)."""
+        """Weights by [LM-IPF] eq. 11, the MMSE estimate before resampling, then resampling."""
         if len(pred.rows) == 0:
             return
         factor = np.repeat(np.asarray(beta0, float)[:, None], self.n_particles, axis=1)
@@ -202,9 +210,9 @@ class ParticleDensity:
             tracks, starts = np.unique(table.tp_track[order], return_index=True)
             factor[tracks] += np.add.reduceat(contrib[order], starts, axis=0)
         w = normalise(pred.w * factor)
-        self.mean[pred.rows], self.cov[pred.rows] = weighted_moments(pred.x, w)
-        x, w = self._resample(pred.x, w)
-        self.x[pred.rows], self.w[pred.rows] = x, w
+        t = self.tracks
+        t.x[pred.rows], t.P[pred.rows] = weighted_moments(pred.x, w)
+        t.particles[pred.rows], t.weights[pred.rows] = self._resample(pred.x, w)
 
     def _resample(self, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Resampling (systematic by default) of the rows due — all, or those with
@@ -224,6 +232,34 @@ class ParticleDensity:
         return x, w
 
     def estimate(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """MMSE estimate x̂ (s, d) and covariance P (s, d, d) of ``rows`` (A16)."""
+        """MMSE estimate x̂ (s, d) and covariance P (s, d, d) of ``rows``."""
         rows = np.asarray(rows, np.int64)
-        return self.mean[rows].copy(), self.cov[rows].copy()
+        return self.tracks.x[rows].copy(), self.tracks.P[rows].copy()
+
+    def estimates_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """x (n, dim), P (n, dim, dim) of all tracks, not copied: read only."""
+        return self.tracks.x, self.tracks.P
+
+    def component_counts(self) -> np.ndarray:
+        """One "component" (the cloud) per track."""
+        return np.ones(len(self), np.int64)
+
+    # ------------------------------------------------------------------ snapshots
+    def to_snapshot(self) -> dict:
+        """The random generator's state (the clouds are track-store columns): a restored
+        tracker draws the same noise as the one that went on."""
+        bits = self.rng.bit_generator
+        return {"bit_generator": type(bits).__name__, "state": bits.state}
+
+    def from_snapshot(self, snap) -> None:
+        snap = mapping(snap, "density")
+        name = entry(snap, "bit_generator", str)
+        bits = type(self.rng.bit_generator)
+        if name != bits.__name__:
+            raise SnapshotError(f"bit generator {name[:40]!r}, this density uses {bits.__name__}")
+        fresh = bits()
+        try:
+            fresh.state = mapping(snap.get("state"), "bit generator state")
+        except (ValueError, TypeError, KeyError) as e:
+            raise SnapshotError(f"{name} state: {e}") from None
+        self.rng = np.random.Generator(fresh)
