@@ -77,7 +77,7 @@ def sim_plot_rate(a, duration: float = 30.0) -> float:
 
 
 def skyfuse_cli(*args: str) -> None:
-    cmd = [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "--log-level", "WARNING"]
+    cmd = [sys.executable, "-m", "skyfuse.services.cli", "--log-level", "WARNING"]
     subprocess.run([*cmd, *args], check=True, env=python_env(), stdout=subprocess.DEVNULL)
 
 

@@ -18,9 +18,9 @@ from pathlib import Path
 
 from pydantic import BaseModel, Field
 from skyfuse.schemas import keys
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
 from skyfuse.services.cli.service_command import run_service
 from skyfuse.services.recording.mcap_io import check_mcap
+from skyfuse.services.runtime.config import ConfigError, add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK
 from skyfuse.services.runtime.transport import (
     add_transport_arguments,

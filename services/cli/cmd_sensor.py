@@ -20,8 +20,8 @@ from __future__ import annotations
 import argparse
 import logging
 
-from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK
 from skyfuse.services.runtime.transport import (
     declare_liveliness,

@@ -24,7 +24,7 @@ import time
 from pydantic import BaseModel, Field, ValidationError
 from pydantic_core import from_json
 from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPictures, TrackStatus, keys
-from skyfuse.services.cli.config import (
+from skyfuse.services.runtime.config import (
     ConfigError,
     add_json_argument,
     add_model_arguments,

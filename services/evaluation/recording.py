@@ -154,10 +154,10 @@ def _without_registration(path, ocfg, opts, sites, date) -> dict:
 def run_recording(args) -> int:
     """``skyfuse eval FILE``: tracker from ``--config`` [tracker] and the flags."""
     from skyfuse.fusion.tracker import TrackerConfig
-    from skyfuse.services.cli.config import ConfigError, build_config
     from skyfuse.services.evaluation.inputs import InputError
     from skyfuse.services.evaluation.report import write_summary
     from skyfuse.services.fusion.registration_link import registration_config
+    from skyfuse.services.runtime.config import ConfigError, build_config
 
     tcfg = build_config(
         TrackerConfig,

@@ -32,6 +32,7 @@ from skyfuse.fusion.registration import (
     observe_tracker_output,
 )
 from skyfuse.schemas import RadarKind, RegistrationStatus
+from skyfuse.services.runtime.config import add_model_arguments, build_config
 
 REGISTRATION_SECTION = "registration"
 """The TOML table of :class:`RegistrationConfig`."""
@@ -98,8 +99,6 @@ class RegistrationLink:
 def registration_config(args=None, *, toml_path=None) -> RegistrationConfig:
     """RegistrationConfig: defaults < TOML ``[registration]`` < ``SKYFUSE_REGISTRATION_*`` <
     the flags ``--registration MODE`` and ``--registration-reference A,B``."""
-    from skyfuse.services.cli.config import build_config
-
     over = {}
     if args is not None:
         if getattr(args, "registration", None) is not None:
@@ -132,8 +131,6 @@ class RegistrationFlags(BaseModel):
 
 def add_registration_arguments(parser) -> None:
     """``--registration on|frozen|off`` and ``--registration-reference A,B``."""
-    from skyfuse.services.cli.config import add_model_arguments
-
     g = parser.add_argument_group(
         "sensor registration",
         "Online estimation and correction of each radar's azimuth, range, range-gain and "

@@ -1,5 +1,5 @@
 """The fusion service core: input validation, radar registry, time-ordered reorder buffer,
-tracking, outputs and health counters. Network-free (the Zenoh side is ``cmd_fusion``),
+tracking, outputs and health counters. Network-free (the Zenoh side is ``server``),
 so it is tested directly.
 
 Data flow for one received plot batch::

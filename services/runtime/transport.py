@@ -39,7 +39,7 @@ from typing import Literal
 
 import zenoh
 from pydantic import BaseModel, Field, field_validator, model_validator
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError, add_model_arguments, build_config
 
 log = logging.getLogger(__name__)
 
@@ -479,8 +479,6 @@ def loopback_endpoint(port: int | None = None) -> str:
 
 def add_transport_arguments(parser) -> None:
     """Add ``--mode --listen --connect --multicast --zenoh-config`` to an argparse parser."""
-    from skyfuse.services.cli.config import add_model_arguments
-
     group = parser.add_argument_group("zenoh transport")
     add_model_arguments(group, TransportConfig)
 
@@ -488,8 +486,6 @@ def add_transport_arguments(parser) -> None:
 def transport_config(args=None, *, toml_path=None, section: str | None = "transport"):
     """The :class:`TransportConfig` from defaults < TOML ``[transport]`` < ``SKYFUSE_*``
     environment < flags."""
-    from skyfuse.services.cli.config import build_config
-
     return build_config(
         TransportConfig, args, toml_path=toml_path, section=section, env_prefix=ENV_PREFIX
     )

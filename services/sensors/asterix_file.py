@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import time
 
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
 from skyfuse.services.sensors.continuation import file_epoch
 from skyfuse.services.sensors.fleet import RadarFleet, asterix_sites, stats_text

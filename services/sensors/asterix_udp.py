@@ -15,7 +15,7 @@ import socket
 import time
 
 from skyfuse.schemas import PlotBatch, RadarSite
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.state_files import state_home
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, parse_host_port
 from skyfuse.services.sensors.continuation import SequenceCeiling

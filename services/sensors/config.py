@@ -16,7 +16,7 @@ from pathlib import Path
 
 from pydantic import Field, field_validator
 from skyfuse.schemas import keys
-from skyfuse.services.cli.scenario_config import ScenarioSelection
+from skyfuse.services.sensors.scenario_config import ScenarioSelection
 
 
 class SensorServiceConfig(ScenarioSelection):

@@ -8,7 +8,7 @@ import time
 from collections import Counter
 
 from skyfuse.schemas import PlotBatch, RadarSite, Status, keys
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import (
     declare_liveliness,
     declare_publisher,

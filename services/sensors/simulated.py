@@ -22,7 +22,7 @@ import logging
 import time
 
 from skyfuse.schemas import RadarSite, Status, keys
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import (
     declare_liveliness,
     declare_publisher,

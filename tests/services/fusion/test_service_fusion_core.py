@@ -140,7 +140,7 @@ def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
     17) and at an assumed altitude when the fusion configuration gives one; never
     rejected."""
     from skyfuse.fusion.tracker.config import TrackerConfig
-    from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
+    from skyfuse.services.fusion.server import make_pipeline_factory
 
     rng = np.random.default_rng(5)
     batch = make_batch("R1", 0, 0, 4, 6, rng)
