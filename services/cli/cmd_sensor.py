@@ -83,8 +83,9 @@ def _replay(session, cfg: SensorServiceConfig, stop) -> int:
             return EXIT_FAILED
         start = start_time_ns(cfg) / 1e9  # --start-at / --align, else now
         res = replay(
-            session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop, start_at=start
-        )
+            session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop, start_at=start,
+            cache=cfg.cache_batches,
+        )  # fmt: skip
     finally:
         ready.undeclare()
     log.info("radar %s: replayed %d plot batches", cfg.radar, res.plot_batches)

@@ -66,7 +66,7 @@ def serve(
     log.info("tracker kernels loaded in %.2f s", warm_up())
     inbox = Inbox(capacity=core.cfg.inbox)
     inbox.subscribe(session, keys.ALL_SITES, "site")
-    inbox.subscribe(session, keys.ALL_PLOTS, "plots")
+    inbox.subscribe(session, keys.ALL_PLOTS, "plots", recover=True)  # from the sensors' caches
     inbox.subscribe_liveliness(session, keys.ALL_ALIVE, "alive")
     election = Election(session, core.cfg.fusion_id)
     keep = 2 * (core.cfg.snapshot_interval or 0.0) + core.cfg.max_lateness + 5.0
@@ -101,9 +101,10 @@ def serve(
     finally:
         token.undeclare()
         inbox.close()
-        svc.shutdown(inbox, getattr(stop, "grace", 4.5))
-        if persist is not None:
+        if persist is not None:  # the state at the stop, whatever the drain below costs
             persist.save()
+        if svc.shutdown(inbox, getattr(stop, "grace", 4.5)) and persist is not None:
+            persist.save()  # and with what the drain applied, when it finished in time
         election.close()
 
 
@@ -135,7 +136,7 @@ def _loop(svc: _Service, inbox: Inbox, stop, duration, election, persist) -> int
             persist.tick(time.monotonic())
         if time.monotonic() >= next_status:
             next_status = time.monotonic() + core.cfg.status_interval
-            svc.publish_status()
+            svc.publish_status(inbox)
     return EXIT_OK
 
 
@@ -204,8 +205,11 @@ class _Service:
     def _answer_status(self, q) -> None:  # the last Status published (status_interval old)
         q.reply(self.status_key, self.last_status, encoding=payload_encoding(self.status_key))
 
-    def publish_status(self) -> None:
-        """The Status, and its registration part on its own key (once the pipeline runs)."""
+    def publish_status(self, inbox: Inbox | None = None) -> None:
+        """The Status, and its registration part on its own key (once the pipeline runs);
+        first the samples ``inbox`` reported missed since the last one."""
+        if inbox is not None:
+            self.core.note_missed(inbox.take_missed())
         st = self.core.status()
         self.last_status = st.to_json_bytes()
         self.pub_status.put(self.last_status)
@@ -251,10 +255,12 @@ class _Service:
             for key, payload in query(self.session, keys.radar_site(radar_id), 0.5):
                 self.core.on_site_payload(key, payload)
 
-    def shutdown(self, inbox: Inbox, grace: float) -> None:
+    def shutdown(self, inbox: Inbox, grace: float) -> bool:
         """Apply what was already received, but never past the shutdown deadline; then
-        the last Status and a summary line."""
+        the last Status and a summary line. Whether it applied anything within the
+        deadline (the caller saves the state again)."""
         core, late = self.core, "not processed: shutdown deadline"
+        cycles = core.counters["cycles"]
         deadline = time.monotonic() + max(0.5, grace - 1.5)
         left = inbox.drain(1_000_000)
         for i, item in enumerate(left):
@@ -272,9 +278,10 @@ class _Service:
             core.rejected["not processed: arrived after the stop"] += inbox.discarded
         if core.rejected.get(late):
             log.error("shutdown deadline: %d batches not processed", core.rejected[late])
-        self.publish_status()
+        self.publish_status(inbox)
         for q in self.queryables:
             q.undeclare()
+        applied = core.counters["cycles"] > cycles and time.monotonic() <= deadline
         st, c = core.status(), core.counters
         log.info(
             "fusion %s: %d batches (%d plots) in, %d cycles, %s confirmed tracks; latency "
@@ -283,6 +290,7 @@ class _Service:
             st.tracks_confirmed, _fmt(st.latency_ms.p50), _fmt(st.latency_ms.p99),
             dict(core.rejected) or "none",
         )  # fmt: skip
+        return applied
 
 
 def _arrival(recv_ns: int) -> float:

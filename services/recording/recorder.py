@@ -236,6 +236,10 @@ class Recorder:
         self._scan_plots: dict[str, list[PlotBatch]] = {}
         self._scan_count: dict[str, int] = {}
         self.seen = SeenBatches(max_radars=cfg.max_scan_radars)
+        """Plot batches recorded, by ``(radar, epoch, seq)``: repeats and sequence jumps
+        are refused, numbers never received counted (``services.runtime.seen_batches``)."""
+        self.missed: dict[str, int] = {}
+        """Samples Zenoh reported missed, by key (not recoverable from the sender's cache)."""
         self.skipped = 0
         """Fusion state snapshots received (``fusion/*/state``, for standbys): not recorded."""
         self.limits: Counter[str] = Counter()
@@ -320,7 +324,13 @@ class Recorder:
                     log.warning("foxglove plots of %s not written: %s", radar_id, e)
             self._writer.add_metadata(
                 "skyfuse.recorder",
-                {"messages": self.messages, **{f"count:{k}": v for k, v in self.counts.items()}},
+                {
+                    "messages": self.messages,
+                    **{f"count:{k}": v for k, v in self.counts.items()},
+                    **{f"rejected:{k}": v for k, v in self.rejected.items()},
+                    **{f"lost:{k}": v for k, v in self.lost().items()},
+                    **{f"missed:{k}": v for k, v in self.missed.items()},
+                },
             )
             self._close_writer()
             self._writer = None
@@ -378,9 +388,12 @@ class Recorder:
                 "rejected %s on %s: %s", model.__name__, item.key[:80], rejection_detail(exc)
             )
             return False
-        if isinstance(msg, PlotBatch) and self._duplicate(msg):
-            self.rejected["duplicate batch"] += 1
-            return False
+        if isinstance(msg, PlotBatch):
+            refused = self.seen.check(msg)
+            if refused is not None:  # a repeat, or a number the sensor cannot have reached
+                self.rejected[refused] += 1
+                return False
+            self.seen.add(msg)
         pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
         self._write(item.key, item.payload, item.recv_ns, pub_time, model)
         if self.cfg.foxglove:
@@ -395,15 +408,17 @@ class Recorder:
         self.maybe_flush()
         return True
 
-    def _duplicate(self, msg: PlotBatch) -> bool:
-        """Whether this batch was recorded already: same ``(radar, epoch, seq)`` (a
-        restarted sensor's repeats, a file published again; without an epoch: same
-        ``(seq, time_end, scan)`` among the radar's last 256), bounded memory
-        (``services.runtime.seen_batches``, at most ``max_scan_radars`` radars)."""
-        if self.seen.duplicate(msg):
-            return True
-        self.seen.add(msg)
-        return False
+    def lost(self) -> dict[str, int]:
+        """Per radar, batch numbers never received (gaps in ``(epoch, seq)``; radars with
+        none left out: ``services.runtime.seen_batches``)."""
+        out = {rid: self.seen.lost(rid) for rid in self.seen.radars}
+        return {rid: n for rid, n in sorted(out.items()) if n}
+
+    def note_missed(self, missed: dict[str, int]) -> None:
+        """Samples Zenoh reported missed, by key (``Inbox.take_missed``)."""
+        for key, n in missed.items():
+            name = key if key in self.missed or len(self.missed) < _MAX_FEEDS * 16 else ""
+            self.missed[name] = self.missed.get(name, 0) + n
 
     def _buffer_plots(self, msg: PlotBatch, log_time: int) -> None:
         """Hold ``msg`` for its radar's scan message, within the bounds
@@ -489,4 +504,6 @@ class Recorder:
             "rejected": dict(self.rejected),
             "limits": dict(self.limits),
             "skipped_fusion_state": self.skipped,
+            "batches_lost": self.lost(),
+            "samples_missed": dict(self.missed),
         }

@@ -1,28 +1,45 @@
-"""Which plot batches were already received: duplicates by ``(radar, epoch, seq)``
-(issue 14 §3), with bounded memory. One mechanism for the fusion service's reorder
-buffer and the recorder.
+"""Which plot batches were already received, which numbers never came, and which numbers
+no sensor could have sent: one mechanism, by ``(radar, epoch, seq)``, for the fusion
+service's reorder buffer and the recorder, with bounded memory.
 
 A sensor announces the **epoch** of its numbering in every ``PlotBatch`` (``epoch``,
 ``services.sensors``): within one epoch of one radar, ``seq`` increases by one per batch
-and is never given to two different batches — a batch seen again with the same
-``(radar, epoch, seq)`` is a repeat (a restarted sensor publishing again what it
-published before, a file published twice). Per radar and epoch this keeps the highest
-``seq`` seen and the set of numbers seen in the ``window`` below it:
+and is never given to two different batches; a new epoch is the only way to start the
+numbering again. Per radar and epoch this keeps the highest ``seq`` accepted, the
+``time_end`` of that batch, and the numbers accepted in the ``window`` below it.
 
-* ``seq`` above the highest: new;
-* within the window: new unless in the set (batches may arrive out of order by up to
-  ``window`` numbers);
-* ``window`` or more below the highest: a repeat — a sensor publishes its numbers in
-  increasing order, so a number that old can only have been published already.
+**Duplicates.** A batch seen again with the same ``(radar, epoch, seq)`` is a repeat (a
+restarted sensor publishing again what it published before, a file published twice):
 
-So a whole file published again is refused, batch by batch, with memory
-``O(window)`` per radar and epoch; at most ``epochs`` epochs per radar (the least
-recently used forgotten) and ``max_radars`` radars (the least recently used forgotten)
-are kept.
+* within the window: a repeat if its number is in the set;
+* ``window`` or more below the highest: a repeat if its ``time_end`` is not after the
+  highest one's — a sensor's numbers and times increase together, so an old number with
+  an old time can only have been published already. An old number with a *newer* time
+  shows the highest number was not the sensor's (a forged one, or one kept from an
+  earlier version's state): the radar's numbering state starts again from this batch
+  (``resets``), so nothing received or persisted can lock a radar out.
+
+**Sequence jumps.** A number ahead of the highest by more than the radar could have
+published is refused (``sequence jump``) and never becomes the highest: the allowance is
+``max_jump`` plus twice the radar's own rate (numbers per second of data time, measured
+over the epoch) times the data time since the highest number. A real gap larger than
+that (batches lost beyond the publisher's cache while the rate was unknown) costs one
+batch: the next batch that continues the refused one's numbering (within 4, time not
+going back) is accepted — one message alone cannot do that.
+
+**Gaps** (``lost``). Numbers of an epoch between the lowest and the highest one received
+(accepted or refused by another check, not jumps or repeats) that never arrived are lost;
+a number that arrives later (recovered from the publisher's cache, reordered) is no longer
+counted. Numbers published before the first one received are not counted (the receiver
+was not there). Counts of epochs forgotten (at most ``epochs`` per radar, least recently
+used) are kept per radar.
 
 **Epoch 0** is "not announced" (recordings and sensors from before the field): numbers
 may start again at 0 after a restart, so only an exact repeat of one of the last
-``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate.
+``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate; no
+jumps or gaps are judged.
+
+At most ``max_radars`` radars are kept (the least recently used forgotten).
 """
 
 from __future__ import annotations
@@ -31,57 +48,193 @@ from collections import deque
 
 LEGACY_RECENT = 256
 """Batches remembered per radar for epoch 0 (no epoch announced)."""
+RESYNC = 4
+"""A refused jump is confirmed by a next batch at most this many numbers after it."""
+DUPLICATE, JUMP = "duplicate batch", "sequence jump"
+"""The reasons :meth:`SeenBatches.check` returns."""
+
+
+def _state(seq: int, time_end: int) -> dict:
+    """The state of one epoch, starting at one batch (plain types: saved as they are)."""
+    return {
+        "high": seq,  # highest number accepted
+        "t_high": time_end,  # its time_end, ns
+        "recent": set(),  # numbers accepted within the window below `high`
+        "s0": seq,  # first number accepted, and its time_end: the rate
+        "t0": time_end,
+        "first": seq,  # lowest and highest number received (accepted or refused)
+        "top": seq,
+        "n": 0,  # distinct numbers received in first..top
+        "got": set(),  # numbers received within the window below `top`
+        "pending": None,  # [seq, time_end] of the last refused jump
+    }
 
 
 class SeenBatches:
-    """The ``(radar, epoch, seq)`` seen (module docstring). :meth:`duplicate` tests,
-    :meth:`add` records (call it only for a batch accepted)."""
+    """The ``(radar, epoch, seq)`` seen (module docstring). :meth:`check` tests a batch
+    (``None``, :data:`DUPLICATE` or :data:`JUMP`), :meth:`add` records one accepted,
+    :meth:`received` one refused by another check (for the gaps only)."""
 
-    def __init__(self, max_radars: int = 1000, window: int = 4096, epochs: int = 4) -> None:
+    def __init__(
+        self, max_radars: int = 1000, window: int = 4096, epochs: int = 4, max_jump: int = 64
+    ) -> None:
         self.max_radars, self.window, self.epochs = max_radars, window, epochs
+        self.max_jump = max_jump
         self.radars: dict[str, dict] = {}
-        """radar → epoch → ``[highest seq, set of seqs within the window]``; epoch 0 →
-        a deque of the last ``(seq, time_end, scan)``. Plain dicts in least recently
-        used order (the state snapshot saves them as they are)."""
+        """radar → epoch → the epoch's state (:func:`_state`); epoch 0 → a deque of the
+        last ``(seq, time_end, scan)``. Plain dicts in least recently used order (the
+        state snapshot saves them as they are)."""
+        self.lost_forgotten: dict[str, int] = {}
+        """Per radar: numbers lost in epochs no longer kept."""
+        self.resets = 0
+        """Numbering states started again by an old number with a newer time."""
 
+    # --- state ---------------------------------------------------------------------
     def _epochs(self, radar_id: str) -> dict:
         per = self.radars.pop(radar_id, None)
         if per is None:
             per = {}
         self.radars[radar_id] = per  # most recently used last
         while len(self.radars) > self.max_radars:
-            del self.radars[next(iter(self.radars))]
+            gone = next(iter(self.radars))
+            del self.radars[gone]
+            self._lost_forgotten().pop(gone, None)
         return per
 
-    def duplicate(self, batch) -> bool:
-        """Whether ``batch`` (a PlotBatch) repeats one already added."""
+    def _lost_forgotten(self) -> dict[str, int]:
+        if not hasattr(self, "lost_forgotten"):  # a snapshot of an earlier version
+            self.lost_forgotten = {}
+        return self.lost_forgotten
+
+    @staticmethod
+    def _epoch_state(per: dict | None, epoch: int):
+        """The state of ``epoch`` (an earlier version's ``[high, set]`` converted: its
+        time unknown, so an old number is taken as new and starts the numbering again)."""
+        seen = None if per is None else per.get(epoch)
+        if isinstance(seen, list):
+            st = _state(seen[0], None)
+            st["recent"], st["n"], st["got"] = set(seen[1]), 0, set()
+            st["first"] = st["top"] = None
+            per[epoch] = seen = st
+        return seen
+
+    # --- queries -------------------------------------------------------------------
+    def check(self, batch, horizon_ns: int | None = None) -> str | None:
+        """Why ``batch`` must be refused (:data:`DUPLICATE`, :data:`JUMP`), or ``None``.
+        ``horizon_ns``: the latest time_end the receiver believes (its clock plus a
+        tolerance), which bounds the data time a jump may claim."""
         per = self.radars.get(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
-        seen = None if per is None else per.get(epoch)
-        if seen is None:
-            return False
+        st = self._epoch_state(per, epoch)
+        if st is None:
+            return None
         if epoch == 0:
-            return (batch.seq, batch.time_end, batch.scan) in seen
-        high, recent = seen
-        if batch.seq > high:
-            return False
-        return batch.seq <= high - self.window or batch.seq in recent
+            return DUPLICATE if (batch.seq, batch.time_end, batch.scan) in st else None
+        seq, high = batch.seq, st["high"]
+        if seq <= high:
+            if seq in st["recent"]:
+                return DUPLICATE
+            old = seq <= high - self.window
+            return DUPLICATE if old and self._not_newer(st, batch.time_end) else None
+        if seq - high <= self._allowance(st, batch.time_end, horizon_ns):
+            return None
+        p = st["pending"]
+        if p is not None and 0 < seq - p[0] <= RESYNC and batch.time_end >= p[1]:
+            return None  # continues a refused jump: the sensor's numbering moved
+        st["pending"] = [seq, batch.time_end]
+        return JUMP
 
+    def duplicate(self, batch) -> bool:
+        """Whether ``batch`` repeats one already added."""
+        return self.check(batch) == DUPLICATE
+
+    @staticmethod
+    def _not_newer(st: dict, time_end: int) -> bool:
+        return st["t_high"] is not None and time_end <= st["t_high"]
+
+    def _allowance(self, st: dict, time_end: int, horizon_ns: int | None) -> float:
+        """How far past the highest number the next one may be (module docstring)."""
+        t_high = st["t_high"]
+        if t_high is None or st["t0"] is None:
+            return self.max_jump
+        t = time_end if horizon_ns is None else min(time_end, horizon_ns)
+        span_t, span_n = (t_high - st["t0"]) * 1e-9, st["high"] - st["s0"]
+        rate = span_n / span_t if span_t > 0 and span_n > 0 else 0.0
+        return self.max_jump + 2.0 * rate * max(0.0, (t - t_high) * 1e-9)
+
+    def lost(self, radar_id: str) -> int:
+        """Numbers of ``radar_id`` that never arrived (module docstring, *Gaps*)."""
+        total = self._lost_forgotten().get(radar_id, 0)
+        for epoch, st in self.radars.get(radar_id, {}).items():
+            if epoch != 0 and isinstance(st, dict) and st["first"] is not None:
+                total += st["top"] - st["first"] + 1 - st["n"]
+        return total
+
+    # --- records -------------------------------------------------------------------
     def add(self, batch) -> None:
-        """Record ``batch`` as seen."""
+        """Record ``batch`` as accepted (and received)."""
         per = self._epochs(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
-        seen = per.pop(epoch, None)
-        if seen is None:
-            seen = deque(maxlen=LEGACY_RECENT) if epoch == 0 else [batch.seq, set()]
-        per[epoch] = seen  # most recently used last
-        while len(per) > self.epochs:
-            del per[next(iter(per))]
+        seen = self._epoch_state(per, epoch)
+        per.pop(epoch, None)
         if epoch == 0:
+            seen = seen if seen is not None else deque(maxlen=LEGACY_RECENT)
+            per[epoch] = seen  # most recently used last
             seen.append((batch.seq, batch.time_end, batch.scan))
+            self._forget_epochs(batch.radar_id, per)
             return
-        seen[0] = max(seen[0], batch.seq)
-        seen[1].add(batch.seq)
-        if len(seen[1]) > 2 * self.window:  # forget what fell below the window
-            floor = seen[0] - self.window
-            seen[1] = {s for s in seen[1] if s > floor}
+        seq, t = batch.seq, batch.time_end
+        if seen is None:
+            seen = _state(seq, t)
+        elif seq <= seen["high"] - self.window and not self._not_newer(seen, t):
+            self.resets += 1  # the highest number was not the sensor's: start again here
+            seen.update(high=seq, t_high=t, recent=set(), s0=seq, t0=t)
+        per[epoch] = seen
+        if seq > seen["high"] or seen["t_high"] is None:
+            seen["high"], seen["t_high"] = max(seq, seen["high"]), t
+        if seen["t0"] is None:
+            seen["s0"], seen["t0"] = seq, t
+        p = seen["pending"]
+        if p is not None and 0 < seq - p[0] <= RESYNC:
+            self._count(seen, p[0])  # the refused batch the numbering moved with: not lost
+        seen["pending"] = None
+        seen["recent"].add(seq)
+        if len(seen["recent"]) > 2 * self.window:  # forget what fell below the window
+            floor = seen["high"] - self.window
+            seen["recent"] = {s for s in seen["recent"] if s > floor}
+        self._count(seen, seq)
+        self._forget_epochs(batch.radar_id, per)
+
+    def received(self, batch) -> None:
+        """Record ``batch`` as received but refused by another check (a time check): its
+        number is not lost. Not for batches :meth:`check` refused."""
+        epoch = getattr(batch, "epoch", 0)
+        if epoch == 0:
+            return
+        per = self._epochs(batch.radar_id)
+        seen = self._epoch_state(per, epoch)
+        if seen is None:  # nothing accepted yet: a state for the count only
+            seen = per[epoch] = _state(batch.seq, None)
+            seen["high"] = batch.seq - 1
+        self._count(seen, batch.seq)
+        self._forget_epochs(batch.radar_id, per)
+
+    def _count(self, st: dict, seq: int) -> None:
+        if st["first"] is None:
+            st["first"] = st["top"] = seq
+        if seq in st["got"] or seq <= st["top"] - self.window:
+            return
+        st["got"].add(seq)
+        st["n"] += 1
+        st["first"], st["top"] = min(st["first"], seq), max(st["top"], seq)
+        if len(st["got"]) > 2 * self.window:
+            floor = st["top"] - self.window
+            st["got"] = {s for s in st["got"] if s > floor}
+
+    def _forget_epochs(self, radar_id: str, per: dict) -> None:
+        while len(per) > self.epochs:
+            old = per.pop(next(iter(per)))
+            if isinstance(old, dict) and old["first"] is not None:
+                lost = old["top"] - old["first"] + 1 - old["n"]
+                book = self._lost_forgotten()
+                book[radar_id] = book.get(radar_id, 0) + lost

@@ -57,7 +57,7 @@ class AsterixRecordingSensor:
             for b in self.result.batches
             if b.radar_id in radars
         ]
-        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}")
+        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}", cfg.cache_batches)
 
     def run(self, stop) -> SensorStats:
         cfg, res, fleet = self.cfg, self.result, self.fleet

@@ -66,7 +66,7 @@ class AsterixUdpSensor:
         self._new_site_check = -1e9
         self._published: dict[str, RadarSite] = {}
         self._clock_warned = False
-        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}")
+        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}", cfg.cache_batches)
         self.sequence = SequenceCeiling(
             cfg.state_dir or state_home() / f"sensor-{cfg.radar or 'asterix-udp'}"
         )
