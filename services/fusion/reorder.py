@@ -26,6 +26,11 @@ service's time:
   (radar clock ahead = positive, including the network delay); the per-radar estimate
   :meth:`clock_offset` is the median of the last ``offset_samples`` samples, in seconds.
 
+* **One batch cannot carry the service time away.** A batch that would move the service
+  time ahead by more than ``max_lateness`` is released only once a batch received after
+  it (any radar's) is that far on too; else it waits, and is settled at ``max_hold``
+  (below). The clock check cannot see such a batch when the data is older than the
+  receiver's clock (a replay), nor can a radar's own numbering when the radar is new.
 * **Every batch leaves within** ``max_hold``. Batches are released in time order, so a
   batch whose time is ahead of the others waits for them; when batches earlier than it
   keep arriving (a radar far ahead of the others, or one message dated just inside the
@@ -88,12 +93,17 @@ class ReorderBuffer:
         offset_samples: int = 32,
         max_hold: float = 3.0,
         on_refused=None,
+        moves_time=None,
     ) -> None:
         self.wait = wait
         self.future_tolerance = future_tolerance
         self.max_lateness = max_lateness
         self.max_hold = max(max_hold, wait)
         self.on_refused = on_refused
+        self.moves_time = moves_time
+        """``moves_time(radar_id)``: whether that radar's batches count for the service
+        time and confirm other batches' times (the service: radars with a site, whose
+        batches are applied; ``None``: every radar)."""
         self._heap: list[_Pending] = []
         self._late: deque[_Pending] = deque()
         self._arrivals: deque[_Pending] = deque()
@@ -145,7 +155,8 @@ class ReorderBuffer:
         else:
             heapq.heappush(self._heap, p)
             self._arrivals.append(p)
-        self._pushed.append((arrival, p.order, p.time_end))
+        if self.moves_time is None or self.moves_time(rid):
+            self._pushed.append((arrival, p.order, p.time_end))
         while self._pushed and self._pushed[0][0] < arrival - 2 * self.max_hold:
             self._pushed.popleft()
         return None
@@ -184,13 +195,26 @@ class ReorderBuffer:
         overdue = self._overdue(now)
         while self._heap and (limit is None or len(out) < limit):
             head = self._heap[0]
-            due = now - head.arrival >= self.wait
+            due = now - head.arrival >= self.wait and not self._unconfirmed_leap(head)
             if overdue is None and not (due and (wall_ns is None or head.time_end <= wall_ns)):
                 break
             out.append(self._release(heapq.heappop(self._heap)))
             if head is overdue:
                 overdue = self._overdue(now)
         return out
+
+    def _unconfirmed_leap(self, p: _Pending) -> bool:
+        """Whether releasing ``p`` would move the service time ahead by more than
+        ``max_lateness`` while nothing received after it is that far on: one batch (a
+        radar first heard far ahead, a message dated later than the data) does not carry
+        the service time away alone; it waits for data that confirms its time, else it is
+        refused at ``max_hold`` (:meth:`_overdue`)."""
+        lead = self.max_lateness * 1e9
+        if self.last_time is None or p.time_end - self.last_time <= lead:
+            return False
+        if self.moves_time is not None and not self.moves_time(p.batch.radar_id):
+            return False
+        return not any(order > p.order and t >= p.time_end - lead for _, order, t in self._pushed)
 
     def _overdue(self, now: float) -> _Pending | None:
         """The oldest queued batch if it has been held ``max_hold``, once settled: refused
@@ -235,6 +259,8 @@ class ReorderBuffer:
         if self.last_time is not None and p.time_end < self.last_time:
             p.late = True
         self.late_released += p.late
+        if self.moves_time is not None and not self.moves_time(rid):
+            return p  # dropped by the service (no site): its time moves nothing
         self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
         self.radar_time[rid] = max(self.radar_time.get(rid, p.time_end), p.time_end)
         return p

@@ -87,6 +87,7 @@ def serve(
     core.role = "active"
     if persist is not None:
         persist.start(standby.state())
+        core.buffer.seen.max_jump = core.cfg.max_seq_jump  # the configured one, not the saved
     svc = _Service(session, core, cat062, persist)
     for item in follower.newer_than_state(core):  # received while in standby
         svc.handle(item)

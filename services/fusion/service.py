@@ -358,6 +358,7 @@ class FusionCore:
             max_lateness=cfg.max_lateness,
             max_hold=cfg.max_hold,
             on_refused=self._refused_in_buffer,
+            moves_time=self._applies,
         )
         self.buffer.seen.max_jump = cfg.max_seq_jump
         self.radars: dict[str, _Radar] = {}
@@ -660,6 +661,12 @@ class FusionCore:
 
     def _left_buffer(self, p: _Pending) -> None:
         self._waiting.pop(id(p.batch), None)
+
+    def _applies(self, radar_id: str) -> bool:
+        """Whether batches of ``radar_id`` are applied now (a known radar with a site):
+        only they move the service time (``ReorderBuffer.moves_time``)."""
+        r = self.radars.get(radar_id)
+        return r is not None and r.site is not None
 
     def _refused_in_buffer(self, p: _Pending, reason: str) -> None:
         """A queued batch refused by the reorder buffer (``ahead of the data``)."""

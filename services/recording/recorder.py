@@ -27,7 +27,8 @@ and listed in the summary (``files``).
 
 **Bounded buffers**: the Foxglove plot channel holds one scan of plots per radar; at
 ``max_scan_plots`` plots the scan is written early, and at most ``max_scan_radars``
-radars are held (``limits`` in the summary counts both).
+radars are held (``limits`` in the summary counts both); at most ``max_topics`` distinct
+keys (MCAP channels) are recorded, messages on further keys counted (``too many keys``).
 
 The recorder never crashes on bad input: a payload that does not validate against the
 model of its key, or a key outside the v1 key space, is counted by reason and skipped.
@@ -116,6 +117,13 @@ class RecorderConfig(BaseModel):
         le=100_000_000,
         description="Plots of one radar held for its Foxglove scan message, at most; "
         "beyond it the scan is written early",
+    )
+    max_topics: int = Field(
+        2_000,
+        ge=10,
+        le=1_000_000,
+        description="Distinct keys recorded (MCAP channels), at most; messages on further "
+        "keys (e.g. invented radar ids) are counted ('too many keys'), not recorded",
     )
     max_scan_radars: int = Field(
         1_000,
@@ -380,6 +388,9 @@ class Recorder:
             return False
         if len(item.payload) > self.cfg.max_message_bytes:
             self.rejected["message too large"] += 1
+            return False
+        if item.key not in self.counts and len(self.counts) >= self.cfg.max_topics:
+            self.rejected["too many keys"] += 1  # bounded channels and per-key counts
             return False
         msg, exc = decode(model, item.payload)
         if msg is None:  # any decoding exception is a counted rejection, never a crash

@@ -19,13 +19,20 @@ restarted sensor publishing again what it published before, a file published twi
   earlier version's state): the radar's numbering state starts again from this batch
   (``resets``), so nothing received or persisted can lock a radar out.
 
-**Sequence jumps.** A number ahead of the highest by more than the radar could have
-published is refused (``sequence jump``) and never becomes the highest: the allowance is
-``max_jump`` plus twice the radar's own rate (numbers per second of data time, measured
-over the epoch) times the data time since the highest number. A real gap larger than
-that (batches lost beyond the publisher's cache while the rate was unknown) costs one
-batch: the next batch that continues the refused one's numbering (within 4, time not
-going back) is accepted — one message alone cannot do that.
+**Sequence and time jumps.** A radar's numbers and times advance together, at its own
+rate (numbers per second of data time, measured over the epoch). A number ahead of the
+highest by more than the radar could have published since is refused (``sequence
+jump``) and never becomes the highest: the allowance is ``max_jump`` plus twice the rate
+times the data time since the highest number. A time ahead of the highest number's by
+more than twice the time the numbers in between take (plus ``max_jump`` numbers) is
+refused too (``time jump``): one message dated an hour later, of a radar replaying old
+data, cannot carry the radar's time (and the service time) away — which no clock check
+can see, the data being older than the clock. A real jump (batches lost beyond the
+publisher's cache while the rate was unknown, a radar switched off for a while) costs one
+batch: the next batch that continues the refused one's numbering at the radar's rate
+(within 4 numbers, its time after the refused one's by at most what that many numbers
+take), before any other batch of the radar is accepted, is accepted — one message alone
+cannot do that.
 
 **Gaps** (``lost``). Numbers of an epoch between the lowest and the highest one received
 (accepted or refused by another check, not jumps or repeats) that never arrived are lost;
@@ -36,8 +43,9 @@ used) are kept per radar.
 
 **Epoch 0** is "not announced" (recordings and sensors from before the field): numbers
 may start again at 0 after a restart, so only an exact repeat of one of the last
-``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate; no
-jumps or gaps are judged.
+``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate;
+jumps are judged from the latest batch in time (a number going back is a restart), gaps
+are not counted.
 
 At most ``max_radars`` radars are kept (the least recently used forgotten).
 """
@@ -50,8 +58,17 @@ LEGACY_RECENT = 256
 """Batches remembered per radar for epoch 0 (no epoch announced)."""
 RESYNC = 4
 """A refused jump is confirmed by a next batch at most this many numbers after it."""
-DUPLICATE, JUMP = "duplicate batch", "sequence jump"
+MAX_GAP_S = 60.0
+"""Data time a radar's next batch may be ahead of its last one while its rate is not
+known yet (its first batches), s."""
+DUPLICATE, JUMP, TIME_JUMP = "duplicate batch", "sequence jump", "time jump"
 """The reasons :meth:`SeenBatches.check` returns."""
+
+
+def _legacy(ring: deque | None = None) -> dict:
+    """The state of epoch 0: the last batches' identities and the jump guard's numbers."""
+    ring = deque(maxlen=LEGACY_RECENT) if ring is None else ring
+    return {"ring": ring, "high": None, "t_high": None, "s0": None, "t0": None, "pending": None}
 
 
 def _state(seq: int, time_end: int) -> dict:
@@ -74,6 +91,10 @@ class SeenBatches:
     """The ``(radar, epoch, seq)`` seen (module docstring). :meth:`check` tests a batch
     (``None``, :data:`DUPLICATE` or :data:`JUMP`), :meth:`add` records one accepted,
     :meth:`received` one refused by another check (for the gaps only)."""
+
+    max_jump: int = 64
+    resets: int = 0
+    """(Class defaults: a state saved by an earlier version has neither.)"""
 
     def __init__(
         self, max_radars: int = 1000, window: int = 4096, epochs: int = 4, max_jump: int = 64
@@ -109,8 +130,11 @@ class SeenBatches:
     @staticmethod
     def _epoch_state(per: dict | None, epoch: int):
         """The state of ``epoch`` (an earlier version's ``[high, set]`` converted: its
-        time unknown, so an old number is taken as new and starts the numbering again)."""
+        time unknown, so an old number is taken as new and starts the numbering again;
+        its epoch-0 deque: no jump judged before the next batch)."""
         seen = None if per is None else per.get(epoch)
+        if isinstance(seen, deque):
+            per[epoch] = seen = _legacy(seen)
         if isinstance(seen, list):
             st = _state(seen[0], None)
             st["recent"], st["n"], st["got"] = set(seen[1]), 0, set()
@@ -128,21 +152,47 @@ class SeenBatches:
         st = self._epoch_state(per, epoch)
         if st is None:
             return None
+        seq = batch.seq
         if epoch == 0:
-            return DUPLICATE if (batch.seq, batch.time_end, batch.scan) in st else None
-        seq, high = batch.seq, st["high"]
-        if seq <= high:
+            if (seq, batch.time_end, batch.scan) in st["ring"]:
+                return DUPLICATE
+        elif seq <= st["high"]:
             if seq in st["recent"]:
                 return DUPLICATE
-            old = seq <= high - self.window
-            return DUPLICATE if old and self._not_newer(st, batch.time_end) else None
-        if seq - high <= self._allowance(st, batch.time_end, horizon_ns):
+            old = seq <= st["high"] - self.window
+            if old and self._not_newer(st, batch.time_end):
+                return DUPLICATE
+        return self._jump(st, seq, batch.time_end, horizon_ns)
+
+    def _jump(self, st: dict, seq: int, time_end: int, horizon_ns: int | None) -> str | None:
+        """:data:`JUMP` or :data:`TIME_JUMP` (module docstring), or ``None``."""
+        if st["high"] is None or st["t_high"] is None:
+            return None
+        ahead = seq - st["high"]
+        rate = self._rate(st)
+        # without a measured rate yet, a time more than MAX_GAP_S ahead is a jump too
+        gap_s = 2.0 * (max(ahead, 0) + self.max_jump) / rate if rate > 0 else MAX_GAP_S
+        if ahead > 0 and ahead > self._allowance(st, time_end, horizon_ns):
+            problem = JUMP
+        elif time_end - st["t_high"] > gap_s * 1e9:
+            problem = TIME_JUMP
+        else:
             return None
         p = st["pending"]
-        if p is not None and 0 < seq - p[0] <= RESYNC and batch.time_end >= p[1]:
-            return None  # continues a refused jump: the sensor's numbering moved
-        st["pending"] = [seq, batch.time_end]
-        return JUMP
+        if p is not None and 0 < seq - p[0] <= RESYNC:
+            step_s = 2.0 * (seq - p[0] + 1) / rate if rate > 0 else MAX_GAP_S
+            if 0 <= time_end - p[1] <= step_s * 1e9:
+                return None  # continues a refused jump at the radar's rate: it moved
+        st["pending"] = [seq, time_end]
+        return problem
+
+    @staticmethod
+    def _rate(st: dict) -> float:
+        """The radar's numbers per second of data time over the epoch (0: not known)."""
+        if st["t0"] is None or st["t_high"] is None:
+            return 0.0
+        span_t, span_n = (st["t_high"] - st["t0"]) * 1e-9, st["high"] - st["s0"]
+        return span_n / span_t if span_t > 0 and span_n > 0 else 0.0
 
     def duplicate(self, batch) -> bool:
         """Whether ``batch`` repeats one already added."""
@@ -158,9 +208,7 @@ class SeenBatches:
         if t_high is None or st["t0"] is None:
             return self.max_jump
         t = time_end if horizon_ns is None else min(time_end, horizon_ns)
-        span_t, span_n = (t_high - st["t0"]) * 1e-9, st["high"] - st["s0"]
-        rate = span_n / span_t if span_t > 0 and span_n > 0 else 0.0
-        return self.max_jump + 2.0 * rate * max(0.0, (t - t_high) * 1e-9)
+        return self.max_jump + 2.0 * self._rate(st) * max(0.0, (t - t_high) * 1e-9)
 
     def lost(self, radar_id: str) -> int:
         """Numbers of ``radar_id`` that never arrived (module docstring, *Gaps*)."""
@@ -178,9 +226,10 @@ class SeenBatches:
         seen = self._epoch_state(per, epoch)
         per.pop(epoch, None)
         if epoch == 0:
-            seen = seen if seen is not None else deque(maxlen=LEGACY_RECENT)
+            seen = seen if seen is not None else _legacy()
             per[epoch] = seen  # most recently used last
-            seen.append((batch.seq, batch.time_end, batch.scan))
+            seen["ring"].append((batch.seq, batch.time_end, batch.scan))
+            self._latest(seen, batch.seq, batch.time_end)
             self._forget_epochs(batch.radar_id, per)
             return
         seq, t = batch.seq, batch.time_end
@@ -204,6 +253,16 @@ class SeenBatches:
             seen["recent"] = {s for s in seen["recent"] if s > floor}
         self._count(seen, seq)
         self._forget_epochs(batch.radar_id, per)
+
+    @staticmethod
+    def _latest(st: dict, seq: int, t: int) -> None:
+        """Epoch 0: the jump guard follows the latest batch in time; a number going back
+        is a restart of the numbering (the rate is measured again from it)."""
+        if st["t_high"] is None or t >= st["t_high"]:
+            if st["high"] is None or seq < st["high"]:
+                st["s0"], st["t0"] = seq, t
+            st["high"], st["t_high"] = seq, t
+        st["pending"] = None  # any batch accepted ends a refused jump's claim
 
     def received(self, batch) -> None:
         """Record ``batch`` as received but refused by another check (a time check): its
@@ -234,7 +293,7 @@ class SeenBatches:
     def _forget_epochs(self, radar_id: str, per: dict) -> None:
         while len(per) > self.epochs:
             old = per.pop(next(iter(per)))
-            if isinstance(old, dict) and old["first"] is not None:
+            if isinstance(old, dict) and old.get("first") is not None:
                 lost = old["top"] - old["first"] + 1 - old["n"]
                 book = self._lost_forgotten()
                 book[radar_id] = book.get(radar_id, 0) + lost

@@ -97,7 +97,7 @@ def test_core_applies_in_time_order_and_counts_rejects():
     assert c.on_plots_payload(keys.radar_plots("R2"), json.dumps(bad).encode(), 11.0) is None
     assert c.on_plots_payload(keys.radar_plots("R9"), good.to_json_bytes(), 11.0) is None
     assert c.on_plots_payload(keys.radar_plots("R2"), good.to_json_bytes(), 11.0) is None
-    early = make_batch("R1", 0, 0, 4, 5, rng).model_copy(update={"seq": 99})
+    early = make_batch("R1", 0, 0, 4, 5, rng).model_copy(update={"seq": 8})  # new, but old
     assert c.on_plots_payload(keys.radar_plots("R1"), early.to_json_bytes(), 11.0) is None
     assert c.rejected == {
         "invalid PlotBatch: not JSON": 1,

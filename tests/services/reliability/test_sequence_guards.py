@@ -148,3 +148,39 @@ def test_numbers_refused_by_a_time_check_are_not_lost():
     seen.received(bs[4])  # e.g. too late: refused, but it arrived
     _stream(seen, bs[5:])
     assert seen.lost("R1") == 0
+
+
+HOUR = 3_600_000_000_000
+
+
+def later(b: PlotBatch, ns: int = HOUR) -> PlotBatch:
+    """The next number with every time ``ns`` later (one message of a radar replaying old
+    data, dated an hour ahead: the clock check passes it, the data being older)."""
+    return b.model_copy(update={
+        "seq": b.seq + 1, "time_start": b.time_start + ns, "time_end": b.time_end + ns,
+        "time": [t + ns for t in b.time],
+    })  # fmt: skip
+
+
+def test_a_time_jump_is_refused_and_cannot_carry_the_radar_away(tmp_path):
+    for epoch in (EPOCH, 0):  # announced or not
+        core = make_core(tmp_path / str(epoch))
+        core.cfg.future_tolerance = 1.0
+        bs = real_batches(12, epoch=epoch)
+        assert all(core.on_plots(b, 0.0) for b in bs[:10])
+        assert not core.on_plots(later(bs[9]), 0.0)
+        assert core.rejected == {"time jump": 1}
+        assert all(core.on_plots(b, 0.0) for b in bs[10:])
+        for out in core.poll(10.0):  # released: the radar's time is its real one
+            core.published(out)
+        assert core.buffer.radar_time["R1"] == bs[-1].time_end
+    rec = Recorder(RecorderConfig(out=tmp_path / "r.mcap", foxglove=False))
+    key, bs = keys.radar_plots("R1"), real_batches(12)
+    handle = lambda b: rec.handle(Received("data", key, b.to_json_bytes(), True, 0))  # noqa: E731
+    assert all(handle(b) for b in bs[:10]) and not handle(later(bs[9]))
+    assert all(handle(b) for b in bs[10:]) and rec.rejected == {"time jump": 1}
+    rec.close()
+    # a radar switched off for an hour (same numbering): one batch refused, then taken
+    seen = SeenBatches()
+    resumed = [later(b) for b in real_batches(3, 9)]
+    assert _stream(seen, real_batches(10) + resumed) == [None] * 10 + ["time jump", None, None]
