@@ -400,7 +400,7 @@ class Recorder:
             )
             return False
         if isinstance(msg, PlotBatch):
-            refused = self.seen.check(msg)
+            refused = self.seen.check(msg, recv_ns=item.recv_ns)
             if refused is not None:  # a repeat, or a number the sensor cannot have reached
                 self.rejected[refused] += 1
                 return False

@@ -28,11 +28,12 @@ more than twice the time the numbers in between take (plus ``max_jump`` numbers)
 refused too (``time jump``): one message dated an hour later, of a radar replaying old
 data, cannot carry the radar's time (and the service time) away — which no clock check
 can see, the data being older than the clock. A real jump (batches lost beyond the
-publisher's cache while the rate was unknown, a radar switched off for a while) costs one
-batch: the next batch that continues the refused one's numbering at the radar's rate
-(within 4 numbers, its time after the refused one's by at most what that many numbers
-take), before any other batch of the radar is accepted, is accepted — one message alone
-cannot do that.
+publisher's cache while the rate was unknown, a radar switched off for a while) costs
+``RESYNC_S`` seconds of that radar's batches: the refused batches that continue each
+other's numbering at the radar's rate (within 4 numbers, the time after the previous
+one's by at most what that many numbers take) are taken once they have done so for
+``RESYNC_S`` seconds of arrival time with no batch of the old numbering accepted in
+between — forged messages cannot do that beside a live radar.
 
 **Gaps** (``lost``). Numbers of an epoch between the lowest and the highest one received
 (accepted or refused by another check, not jumps or repeats) that never arrived are lost;
@@ -58,6 +59,8 @@ LEGACY_RECENT = 256
 """Batches remembered per radar for epoch 0 (no epoch announced)."""
 RESYNC = 4
 """A refused jump is confirmed by a next batch at most this many numbers after it."""
+RESYNC_S = 2.0
+"""Arrival time a refused jump's continuation must last before it is taken, s."""
 MAX_GAP_S = 60.0
 """Data time a radar's next batch may be ahead of its last one while its rate is not
 known yet (its first batches), s."""
@@ -143,10 +146,12 @@ class SeenBatches:
         return seen
 
     # --- queries -------------------------------------------------------------------
-    def check(self, batch, horizon_ns: int | None = None) -> str | None:
-        """Why ``batch`` must be refused (:data:`DUPLICATE`, :data:`JUMP`), or ``None``.
-        ``horizon_ns``: the latest time_end the receiver believes (its clock plus a
-        tolerance), which bounds the data time a jump may claim."""
+    def check(self, batch, horizon_ns: int | None = None, recv_ns: int | None = None) -> str | None:
+        """Why ``batch`` must be refused (:data:`DUPLICATE`, :data:`JUMP`,
+        :data:`TIME_JUMP`), or ``None``. ``horizon_ns``: the latest time_end the receiver
+        believes (its clock plus a tolerance), which bounds the data time a jump may
+        claim; ``recv_ns``: its arrival (wall clock), which times a jump's continuation
+        (``None``: taken at the first continuation)."""
         per = self.radars.get(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
         st = self._epoch_state(per, epoch)
@@ -162,9 +167,11 @@ class SeenBatches:
             old = seq <= st["high"] - self.window
             if old and self._not_newer(st, batch.time_end):
                 return DUPLICATE
-        return self._jump(st, seq, batch.time_end, horizon_ns)
+        return self._jump(st, seq, batch.time_end, horizon_ns, recv_ns)
 
-    def _jump(self, st: dict, seq: int, time_end: int, horizon_ns: int | None) -> str | None:
+    def _jump(
+        self, st: dict, seq: int, time_end: int, horizon_ns: int | None, recv_ns: int | None
+    ) -> str | None:
         """:data:`JUMP` or :data:`TIME_JUMP` (module docstring), or ``None``."""
         if st["high"] is None or st["t_high"] is None:
             return None
@@ -179,11 +186,14 @@ class SeenBatches:
         else:
             return None
         p = st["pending"]
+        since = recv_ns
         if p is not None and 0 < seq - p[0] <= RESYNC:
             step_s = 2.0 * (seq - p[0] + 1) / rate if rate > 0 else MAX_GAP_S
-            if 0 <= time_end - p[1] <= step_s * 1e9:
-                return None  # continues a refused jump at the radar's rate: it moved
-        st["pending"] = [seq, time_end]
+            if 0 <= time_end - p[1] <= step_s * 1e9:  # continues the refused jump
+                since = p[2] if len(p) > 2 else None
+                if recv_ns is None or since is None or recv_ns - since >= RESYNC_S * 1e9:
+                    return None  # the radar's numbering moved: take it
+        st["pending"] = [seq, time_end, since]
         return problem
 
     @staticmethod
@@ -229,7 +239,10 @@ class SeenBatches:
             seen = seen if seen is not None else _legacy()
             per[epoch] = seen  # most recently used last
             seen["ring"].append((batch.seq, batch.time_end, batch.scan))
+            moved = self._continues(seen, batch.seq)
             self._latest(seen, batch.seq, batch.time_end)
+            if moved:  # the numbering moved: its rate is measured again from here
+                seen["s0"], seen["t0"] = batch.seq, batch.time_end
             self._forget_epochs(batch.radar_id, per)
             return
         seq, t = batch.seq, batch.time_end
@@ -243,9 +256,9 @@ class SeenBatches:
             seen["high"], seen["t_high"] = max(seq, seen["high"]), t
         if seen["t0"] is None:
             seen["s0"], seen["t0"] = seq, t
-        p = seen["pending"]
-        if p is not None and 0 < seq - p[0] <= RESYNC:
-            self._count(seen, p[0])  # the refused batch the numbering moved with: not lost
+        if self._continues(seen, seq):  # the numbering moved (a refused jump taken)
+            self._count(seen, seen["pending"][0])  # the refused batch before: not lost
+            seen["s0"], seen["t0"] = seq, t  # its rate measured again from here
         seen["pending"] = None
         seen["recent"].add(seq)
         if len(seen["recent"]) > 2 * self.window:  # forget what fell below the window
@@ -253,6 +266,11 @@ class SeenBatches:
             seen["recent"] = {s for s in seen["recent"] if s > floor}
         self._count(seen, seq)
         self._forget_epochs(batch.radar_id, per)
+
+    @staticmethod
+    def _continues(st: dict, seq: int) -> bool:
+        p = st["pending"]
+        return p is not None and 0 < seq - p[0] <= RESYNC
 
     @staticmethod
     def _latest(st: dict, seq: int, t: int) -> None:

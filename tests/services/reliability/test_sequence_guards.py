@@ -184,3 +184,31 @@ def test_a_time_jump_is_refused_and_cannot_carry_the_radar_away(tmp_path):
     seen = SeenBatches()
     resumed = [later(b) for b in real_batches(3, 9)]
     assert _stream(seen, real_batches(10) + resumed) == [None] * 10 + ["time jump", None, None]
+
+
+def test_a_jump_is_taken_only_after_its_continuation_lasted_and_the_old_numbering_is_silent():
+    """With arrival times: a refused jump's continuation is taken after 2 s of it; a real
+    batch of the old numbering in between ends the claim (forged copies racing a live
+    radar never get through)."""
+    S = 1_000_000_000
+    seen = SeenBatches()
+    old = real_batches(10)  # then the numbering moves on by 5,000 with the time going on
+    moved = [b.model_copy(update={"seq": b.seq + 5000}) for b in real_batches(12, 10)]
+    for k, b in enumerate(old):
+        assert seen.check(b, recv_ns=k * S // 4) is None
+        seen.add(b)
+    got = []
+    for k, b in enumerate(moved):  # 4 per second, the old numbering silent
+        r = seen.check(b, recv_ns=(10 + k) * S // 4)
+        got.append(r)
+        if r is None:
+            seen.add(b)
+    assert got == ["sequence jump"] * 8 + [None] * 4  # 2 s of refusals, then taken
+    live = SeenBatches()
+    stream = real_batches(40)
+    for k, b in enumerate(stream):
+        assert live.check(b, recv_ns=k * S // 4) is None
+        live.add(b)
+        if k >= 10:  # a forged continuation of a jump between every two real batches
+            f = b.model_copy(update={"seq": b.seq + 10**6})
+            assert live.check(f, recv_ns=k * S // 4 + 1) == "sequence jump"
