@@ -141,7 +141,7 @@ def write_recording(sc, seed: int, path: Path) -> None:
 
 
 def skyfuse_cli(*args: str) -> None:
-    cmd = [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "--log-level", "WARNING"]
+    cmd = [sys.executable, "-m", "skyfuse.services.cli", "--log-level", "WARNING"]
     subprocess.run([*cmd, *args], check=True, env=python_env(), stdout=subprocess.DEVNULL)
 
 
@@ -276,7 +276,11 @@ class Follower:
             if item.key.endswith("/tracks"):
                 self.feed["full" if b'"kind":"full"' in item.payload[:80] else "delta"] += 1
             elif item.key.endswith("/status"):
-                st = Status.from_json_bytes(item.payload)
+                try:
+                    st = Status.from_json_bytes(item.payload)
+                except ValueError:  # not a service's (benchmarks/hostile_soak.py's fuzzer)
+                    item = self.inbox.get(0) if self.inbox.qsize() else None
+                    continue
                 self.status[st.service_id] = st
                 if st.service_id == "bench" and st.backlog is not None:
                     self.max_backlog = max(self.max_backlog, st.backlog.batches)

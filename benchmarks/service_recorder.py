@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-LIFECYCLE = "skyfuse.services.runtime.lifecycle"
+CLI = "skyfuse.services.cli"
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -65,7 +65,7 @@ def run_once(payloads: list[bytes], plots: int, foxglove: bool, tmp: Path) -> di
     args += ["--status-interval", "0.1"]
     args.append("--foxglove" if foxglove else "--no-foxglove")
     proc = subprocess.Popen(
-        [sys.executable, "-m", LIFECYCLE, "--log-level", "WARNING", *args],
+        [sys.executable, "-m", CLI, "--log-level", "WARNING", *args],
         cwd=ROOT,
         stderr=open(tmp / f"rec-{foxglove}.log", "wb"),
     )

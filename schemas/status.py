@@ -25,18 +25,50 @@ class RadarHealth(WireModel):
         "time, s (positive: the radar's clock is ahead; includes the network delay)",
     )
     site_held: bool = Field(
-        False, description="A site change beyond the fusion's site_tolerance is held, not applied"
+        False,
+        description="A site change beyond the fusion's site_tolerance of the radar's accepted "
+        "site is held, not applied (until the operator accepts it: accept_sites)",
+    )
+    batches_refused: int = Field(
+        0,
+        ge=0,
+        description="Valid batches of this radar refused, any reason (duplicate, sequence "
+        "jump, time checks, no site, ahead of the data; counted by reason in 'rejected')",
+    )
+    batches_lost: int = Field(
+        0,
+        ge=0,
+        description="Batch numbers of this radar never received: gaps in its (epoch, seq) "
+        "numbering between the first and the last received, per epoch; a number recovered "
+        "later is no longer counted",
+    )
+    samples_missed: int = Field(
+        0,
+        ge=0,
+        description="Samples the transport reported missed from this radar's publisher and "
+        "not recoverable from its cache (Zenoh advanced subscriber miss detection)",
     )
 
 
 class LatencyStats(WireModel):
-    """Latency from plot time (batch time_end) to track publication, milliseconds."""
+    """Latency from the sender's wall-clock stamp (the end of the sector sweep) to track
+    publication, milliseconds; batches without a plausible stamp are counted, not
+    included."""
 
     count: int = Field(0, ge=0)
     p50: float | None = None
     p90: float | None = None
     p99: float | None = None
     max: float | None = None
+    unstamped: int = Field(
+        0, ge=0, description="Batches applied without the sender's wall-clock stamp: not included"
+    )
+    implausible: int = Field(
+        0,
+        ge=0,
+        description="Batches whose stamp no clock could give (ahead of this host's clock beyond "
+        "the tolerance, or more than an hour old): not included",
+    )
 
 
 class Backlog(WireModel):

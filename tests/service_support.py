@@ -98,16 +98,13 @@ def synthetic_recording(
     return counts
 
 
-def skyfuse(
-    *args: str, log_path: Path | None = None, env: dict | None = None, full_cli: bool = False
-) -> subprocess.Popen:
-    """Start a ``skyfuse`` command as a process (stderr to ``log_path``): through
-    ``services.lifecycle`` (only that command's module is imported: a faster start), or
-    with ``full_cli`` through ``services.cli`` (the ``skyfuse`` entry point itself)."""
+def skyfuse(*args: str, log_path: Path | None = None, env: dict | None = None) -> subprocess.Popen:
+    """Start a ``skyfuse`` command as a process (stderr to ``log_path``) through
+    ``python -m skyfuse.services.cli``, the ``skyfuse`` entry point (which imports only the
+    named command's module)."""
     err = open(log_path, "wb") if log_path else subprocess.DEVNULL
-    entry = "skyfuse.services.cli" if full_cli else "skyfuse.services.runtime.lifecycle"
     return subprocess.Popen(
-        [sys.executable, "-m", entry, *args],
+        [sys.executable, "-m", "skyfuse.services.cli", *args],
         stdout=subprocess.PIPE,
         stderr=err,
         env={**os.environ, **(env or {})},

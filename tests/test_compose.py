@@ -13,8 +13,8 @@ import re
 from pathlib import Path
 
 import pytest
-from skyfuse.services.cli.config import build_config
 from skyfuse.services.cli.main import build_parser
+from skyfuse.services.runtime.config import build_config
 from skyfuse.services.runtime.transport import ENDPOINT_RE, transport_config
 
 yaml = pytest.importorskip("yaml")

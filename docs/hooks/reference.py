@@ -101,6 +101,20 @@ TABLES = (
         "The CAT062 bridge (fused tracks out as ASTERIX).",
     ),
     Table(
+        "tracks",
+        "skyfuse.services.cli.cmd_tracks:TracksConfig",
+        "SKYFUSE_TRACKS_",
+        ("tracks",),
+        "`skyfuse tracks`: the live table or JSON lines of the fused feed.",
+    ),
+    Table(
+        "replay",
+        "skyfuse.services.cli.cmd_replay:ReplayConfig",
+        "SKYFUSE_REPLAY_",
+        ("replay",),
+        "`skyfuse replay`: re-publish recorded sites and plots.",
+    ),
+    Table(
         "simulate",
         "skyfuse.services.cli.cmd_simulate:SimulateConfig",
         None,

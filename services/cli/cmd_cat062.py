@@ -24,8 +24,8 @@ from collections import Counter
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 from skyfuse.schemas import TrackBatch, TrackEvent, TrackEventKind, TrackStatus, keys
-from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.cli.service_command import add_service_parser, service_config
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.startup_heap import freeze_startup_heap
 from skyfuse.services.runtime.transport import (

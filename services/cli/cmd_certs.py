@@ -22,7 +22,7 @@ import logging
 from pathlib import Path
 
 from pydantic import BaseModel, Field, field_validator
-from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.runtime.config import add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_OK
 from skyfuse.services.runtime.transport import check_endpoint
 

@@ -23,8 +23,6 @@ from pathlib import Path
 
 from pydantic import ValidationError
 from skyfuse.schemas import Status, TrackBatch, TrackPicture, TrackStatus, keys
-from skyfuse.services.cli.cmd_warmup import timed_load
-from skyfuse.services.cli.config import ConfigError, add_json_argument, build_config
 from skyfuse.services.cli.service_command import add_service_parser
 from skyfuse.services.evaluation.demo import (
     Child,
@@ -33,6 +31,8 @@ from skyfuse.services.evaluation.demo import (
     plot_tracks_vs_truth,
     report_recording,
 )
+from skyfuse.services.fusion.kernel_cache import timed_load
+from skyfuse.services.runtime.config import ConfigError, add_json_argument, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, StopFlag
 from skyfuse.services.runtime.transport import (
     Inbox,

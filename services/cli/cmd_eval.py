@@ -55,18 +55,18 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from skyfuse.services.cli.config import (
-    ConfigError,
-    add_json_argument,
-    add_model_arguments,
-    build_config,
-)
 from skyfuse.services.evaluation.crossing import (
     CrossingEvalConfig,
     evaluate_crossing,
     markdown_table,
     scenario_params,
     write_figures,
+)
+from skyfuse.services.runtime.config import (
+    ConfigError,
+    add_json_argument,
+    add_model_arguments,
+    build_config,
 )
 
 EVALUATORS: dict[str, Callable[[argparse.Namespace], int]] = {}

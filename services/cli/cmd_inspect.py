@@ -16,7 +16,6 @@ from pydantic import BaseModel, Field
 from rich.console import Console
 from rich.table import Table
 from skyfuse import schemas
-from skyfuse.services.cli.config import add_json_argument, add_model_arguments, build_config
 from skyfuse.services.recording.mcap_io import (
     NotMcapError,
     ReadStats,
@@ -24,6 +23,7 @@ from skyfuse.services.recording.mcap_io import (
     iter_recording,
     read_metadata,
 )
+from skyfuse.services.runtime.config import add_json_argument, add_model_arguments, build_config
 
 
 class InspectConfig(BaseModel):

@@ -51,7 +51,8 @@ def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
     # instead of piling up messages it could not write before a shutdown deadline
     inbox = Inbox(capacity=cfg.queue)
     # remote only: our own Status is written directly (see below), never through the inbox
-    inbox.subscribe(session, cfg.key_expr, "data", remote_only=True)
+    # advanced: plots missed (a stall, a cut link) come back from the sensors' caches
+    inbox.subscribe(session, cfg.key_expr, "data", remote_only=True, recover=True)
     status_key = keys.service_status(cfg.name)
     status_pub = declare_publisher(session, status_key)
     token = declare_liveliness(session, service_alive_key(cfg.name))
@@ -72,6 +73,7 @@ def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
             rec.maybe_flush()
             if now >= next_status:
                 next_status = now + cfg.status_interval
+                rec.note_missed(inbox.take_missed())
                 st = Status(
                     service="recorder",
                     service_id=cfg.name,
@@ -81,6 +83,8 @@ def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
                         "messages": rec.messages,
                         "bytes": rec.bytes,
                         "files": len(rec.files),
+                        "batches_lost": sum(rec.lost().values()),
+                        "samples_missed": sum(rec.missed.values()),
                     },
                     rejected=dict(rec.rejected),
                 )
@@ -101,6 +105,7 @@ def record(session, cfg: RecorderConfig, stop: StopFlag) -> int:
             rec.handle(item)
         if inbox.discarded:
             rec.rejected["not written: arrived after the stop"] += inbox.discarded
+        rec.note_missed(inbox.take_missed())
         files = rec.close()
         summary = rec.summary()
         log.info(

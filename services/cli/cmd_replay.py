@@ -18,11 +18,12 @@ from pathlib import Path
 
 from pydantic import BaseModel, Field
 from skyfuse.schemas import keys
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
 from skyfuse.services.cli.service_command import run_service
 from skyfuse.services.recording.mcap_io import check_mcap
+from skyfuse.services.runtime.config import ConfigError, add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK
 from skyfuse.services.runtime.transport import (
+    PLOT_CACHE,
     add_transport_arguments,
     declare_publisher,
     service_alive_key,
@@ -58,6 +59,12 @@ class ReplayConfig(BaseModel):
     linger: float = Field(
         0.5, ge=0, le=30, description="Seconds to stay connected after the last message"
     )
+    cache_batches: int = Field(
+        PLOT_CACHE,
+        ge=1,
+        le=1_000_000,
+        description="Plot batches each radar's publisher keeps for receivers that missed them",
+    )
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -67,6 +74,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument("--config", default=None, help="TOML file ([replay] and [transport] tables)")
     add_model_arguments(p, ReplayConfig, positional=("file",))
     add_transport_arguments(p)
     p.set_defaults(func=run)
@@ -129,7 +137,7 @@ def _replay(session, cfg: ReplayConfig, path: Path, topics: list[str], stop) -> 
     radars = set(cfg.radars) if cfg.radars else None
     result = replay(
         session, path, speed=cfg.speed, fast=cfg.fast, radars=radars, truth=cfg.truth, stop=stop,
-        start_at=cfg.start_at,
+        start_at=cfg.start_at, cache=cfg.cache_batches,
     )  # fmt: skip
     if not stop.is_set():
         stop.wait(cfg.linger)
@@ -149,7 +157,10 @@ def _replay(session, cfg: ReplayConfig, path: Path, topics: list[str], stop) -> 
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = build_config(ReplayConfig, args)
+    toml = getattr(args, "config", None)
+    cfg = build_config(
+        ReplayConfig, args, toml_path=toml, section="replay", env_prefix="SKYFUSE_REPLAY_"
+    )
     path = recording_to_replay(cfg)
     radars = set(cfg.radars) if cfg.radars else None
     topics = replay_topics(path, REPLAYED_KINDS, radars) or _topics_linear(path, radars)
@@ -160,5 +171,5 @@ def run(args: argparse.Namespace) -> int:
             f" for radars {', '.join(sorted(radars))}" if radars else "",
         )
         return EXIT_FAILED
-    tcfg = transport_config(args)
+    tcfg = transport_config(args, toml_path=toml)
     return run_service(tcfg, lambda session, stop: _replay(session, cfg, path, topics, stop))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, Field
 from skyfuse import schemas
-from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.runtime.config import add_model_arguments, build_config
 
 
 class SchemasConfig(BaseModel):

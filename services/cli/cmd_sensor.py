@@ -20,8 +20,8 @@ from __future__ import annotations
 import argparse
 import logging
 
-from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.cli.service_command import add_service_parser, run_service, service_config
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, EXIT_OK
 from skyfuse.services.runtime.transport import (
     declare_liveliness,
@@ -83,8 +83,9 @@ def _replay(session, cfg: SensorServiceConfig, stop) -> int:
             return EXIT_FAILED
         start = start_time_ns(cfg) / 1e9  # --start-at / --align, else now
         res = replay(
-            session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop, start_at=start
-        )
+            session, cfg.replay, speed=cfg.speed, radars={cfg.radar}, stop=stop, start_at=start,
+            cache=cfg.cache_batches,
+        )  # fmt: skip
     finally:
         ready.undeclare()
     log.info("radar %s: replayed %d plot batches", cfg.radar, res.plot_batches)

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field
-from skyfuse.services.cli.config import ConfigError, add_model_arguments, build_config
-from skyfuse.services.cli.progress import progress_bar
-from skyfuse.services.cli.scenario_config import ScenarioSelection
+from skyfuse.services.runtime.config import ConfigError, add_model_arguments, build_config
+from skyfuse.services.runtime.progress import progress_bar
+from skyfuse.services.sensors.scenario_config import ScenarioSelection
 
 log = logging.getLogger(__name__)
 

@@ -46,17 +46,17 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 from skyfuse.schemas import FrameKind, PlotBatch, keys
-from skyfuse.services.cli.config import (
+from skyfuse.services.fusion.registration_link import (
+    add_registration_arguments,
+    registration_config,
+)
+from skyfuse.services.runtime.config import (
     ConfigError,
     add_json_argument,
     add_model_arguments,
     build_config,
 )
-from skyfuse.services.cli.progress import progress_bar
-from skyfuse.services.fusion.registration_link import (
-    add_registration_arguments,
-    registration_config,
-)
+from skyfuse.services.runtime.progress import progress_bar
 
 log = logging.getLogger(__name__)
 

@@ -12,7 +12,9 @@ payload text is copied, not re-encoded (5× less CPU for a 1,000-track delta), a
 SIGINT/SIGTERM the messages already received are still written (at most 2 s).
 ``--snapshot`` asks the fusion service's queryable for the current tracks once and
 prints them. Works from any host that can reach a Zenoh endpoint of the network
-(``--connect tcp/HOST:PORT``, peer or client mode)."""
+(``--connect tcp/HOST:PORT``, peer or client mode; ``--config client-NAME.toml``, as
+written by ``skyfuse certs``, for the secure deployment). TOML: ``[tracks]``,
+``[transport]``; environment ``SKYFUSE_TRACKS_*``, ``SKYFUSE_*`` (transport)."""
 
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from pydantic import BaseModel, Field, ValidationError
 from pydantic_core import from_json
 from skyfuse.schemas import FeedKind, TrackBatch, TrackEvent, TrackPictures, TrackStatus, keys
 from skyfuse.schemas.identity import mode_3a_text
-from skyfuse.services.cli.config import (
+from skyfuse.services.runtime.config import (
     ConfigError,
     add_json_argument,
     add_model_arguments,
@@ -62,6 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument("--config", default=None, help="TOML file ([tracks] and [transport] tables)")
     add_model_arguments(p, TracksConfig, skip=("json_lines",))
     add_json_argument(
         p, "JSON lines (one message each) to FILE; --json alone (or FILE -) to stdout", None
@@ -156,8 +159,11 @@ def plain_table(batch: TrackBatch | None, all_tracks: bool) -> str:
 def run(args: argparse.Namespace) -> int:
     json_out = getattr(args, "json_out", None)
     args.json_lines = json_out is not None
-    cfg = build_config(TracksConfig, args)
-    tcfg = _transport_config(args)
+    toml = getattr(args, "config", None)
+    cfg = build_config(
+        TracksConfig, args, toml_path=toml, section="tracks", env_prefix="SKYFUSE_TRACKS_"
+    )
+    tcfg = _transport_config(args, toml_path=toml)
     try:  # JSON lines into a file: what stdout would have had
         out = sys.stdout if json_out in (None, "-") else open(json_out, "w", encoding="utf-8")
     except OSError as e:

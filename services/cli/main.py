@@ -14,7 +14,7 @@ import logging
 import sys
 from pathlib import Path
 
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 
 
 def command_modules() -> list[str]:

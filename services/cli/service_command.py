@@ -12,7 +12,7 @@ import logging
 from collections.abc import Callable
 
 from pydantic import BaseModel
-from skyfuse.services.cli.config import add_model_arguments, build_config
+from skyfuse.services.runtime.config import add_model_arguments, build_config
 from skyfuse.services.runtime.lifecycle import EXIT_FAILED, StopFlag
 
 log = logging.getLogger(__name__)

@@ -222,7 +222,7 @@ def _stepper(name: str, cfg: CrossingEvalConfig, site):
         kind, _, motion = name.partition(":")
         settings = {}
         if cfg.tracker_config is not None:
-            from skyfuse.services.cli.config import load_toml
+            from skyfuse.services.runtime.config import load_toml
 
             settings = load_toml(cfg.tracker_config, "tracker")
         settings.update(tracker=kind, motion=motion, p_gate=cfg.p_gate)

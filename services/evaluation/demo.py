@@ -92,7 +92,7 @@ class Child:
         if state_home is not None:
             env["XDG_STATE_HOME"] = str(state_home)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", *self.args],
+            [sys.executable, "-m", "skyfuse.services.cli", *self.args],
             stdin=subprocess.DEVNULL,
             stdout=self._log,
             stderr=subprocess.STDOUT,

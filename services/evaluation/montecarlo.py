@@ -597,7 +597,7 @@ def _tracker_settings(args) -> tuple[dict, float | None]:
     """TrackerConfig fields given as flags (or in the --config [tracker] table), minus the
     ones the experiment sets per variant; and ψ_init if given (the default ψ_init)."""
     from skyfuse.fusion.tracker import TrackerConfig
-    from skyfuse.services.cli.config import load_toml
+    from skyfuse.services.runtime.config import load_toml
 
     given: dict = {}
     if getattr(args, "config", None) is not None:
@@ -612,7 +612,7 @@ def _tracker_settings(args) -> tuple[dict, float | None]:
 def run_tracker_eval(args) -> int:
     """``skyfuse eval SCENARIO --trackers ...`` (see :mod:`services.cmd_eval`): one engine
     (process pool or Dask cluster) for the calibration and the runs."""
-    from skyfuse.services.cli.config import ConfigError, build_config
+    from skyfuse.services.runtime.config import ConfigError, build_config
 
     cfg = build_config(TrackerEvalConfig, args)
     try:
@@ -646,8 +646,8 @@ def _calibration(
     """ψ_init per variant key: calibrated (``--calibrate``, each variant saved to
     ``cal_path`` as it finishes, starting from the ψ_init already there), read from
     ``cal_path`` if it exists, else empty (the experiment's ψ_init)."""
-    from skyfuse.services.cli.config import ConfigError
-    from skyfuse.services.cli.progress import progress_bar
+    from skyfuse.services.runtime.config import ConfigError
+    from skyfuse.services.runtime.progress import progress_bar
 
     variants = exp.variants()
     calibration: dict[str, dict] = {}
@@ -692,12 +692,12 @@ def _calibration(
 def _tracker_eval(args, cfg: TrackerEvalConfig, engine: Engine) -> int:
     from pydantic import ValidationError
     from skyfuse.fusion.sim import build_scenario
-    from skyfuse.services.cli.config import (
+    from skyfuse.services.runtime.config import (
         ConfigError,
         format_validation_error,
         parse_key_values,
     )
-    from skyfuse.services.cli.progress import progress_bar
+    from skyfuse.services.runtime.progress import progress_bar
 
     settings, psi = _tracker_settings(args)
     try:

@@ -164,11 +164,11 @@ def _without_registration(path, ocfg, opts, sites, date) -> dict:
 def run_recording(args) -> int:
     """``skyfuse eval FILE``: tracker from ``--config`` [tracker] and the flags."""
     from skyfuse.fusion.tracker import TrackerConfig
-    from skyfuse.services.cli.config import ConfigError, build_config
     from skyfuse.services.evaluation.inputs import InputError
     from skyfuse.services.evaluation.reference_eval import print_table
     from skyfuse.services.evaluation.report import STDOUT, write_summary
     from skyfuse.services.fusion.registration_link import registration_config
+    from skyfuse.services.runtime.config import ConfigError, build_config
 
     tcfg = build_config(
         TrackerConfig,
@@ -204,13 +204,13 @@ def run_recording(args) -> int:
 def _reference_observer(args):
     """The ReferenceObserver of ``--reference`` (None without it); InputError."""
     from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
-    from skyfuse.services.cli.config import build_config
     from skyfuse.services.evaluation.observers import ReferenceObserver
     from skyfuse.services.evaluation.reference_eval import (
         ReferenceEvalOptions,
         load_site_map,
         open_reference,
     )
+    from skyfuse.services.runtime.config import build_config
 
     opts = build_config(ReferenceEvalOptions, args)
     if opts.reference is None:

@@ -362,9 +362,9 @@ def evaluate_sensor_tracks(path, reference, sites: dict, cfg, offset, *, date=No
 
 def run_reference(args) -> int:
     """``skyfuse eval --tracks T.mcap | --sensor-tracks S.ast --reference REF``."""
-    from skyfuse.services.cli.config import ConfigError, build_config
     from skyfuse.services.evaluation.inputs import InputError
     from skyfuse.services.evaluation.report import STDOUT, write_summary
+    from skyfuse.services.runtime.config import ConfigError, build_config
 
     opts = build_config(ReferenceEvalOptions, args)
     cfg = build_config(ReferenceScoreConfig, args)

@@ -33,6 +33,7 @@ from skyfuse.fusion.registration import (
 )
 from skyfuse.schemas import RadarKind, RegistrationStatus
 from skyfuse.schemas.snapshot import entry, mapping
+from skyfuse.services.runtime.config import add_model_arguments, build_config
 
 REGISTRATION_SECTION = "registration"
 """The TOML table of :class:`RegistrationConfig`."""
@@ -116,8 +117,6 @@ class RegistrationLink:
 def registration_config(args=None, *, toml_path=None) -> RegistrationConfig:
     """RegistrationConfig: defaults < TOML ``[registration]`` < ``SKYFUSE_REGISTRATION_*`` <
     the flags ``--registration MODE`` and ``--registration-reference A,B``."""
-    from skyfuse.services.cli.config import build_config
-
     over = {}
     if args is not None:
         if getattr(args, "registration", None) is not None:
@@ -150,8 +149,6 @@ class RegistrationFlags(BaseModel):
 
 def add_registration_arguments(parser) -> None:
     """``--registration on|frozen|off`` and ``--registration-reference A,B``."""
-    from skyfuse.services.cli.config import add_model_arguments
-
     g = parser.add_argument_group(
         "sensor registration",
         "Online estimation and correction of each radar's azimuth, range, range-gain and "

@@ -26,11 +26,28 @@ service's time:
   (radar clock ahead = positive, including the network delay); the per-radar estimate
   :meth:`clock_offset` is the median of the last ``offset_samples`` samples, in seconds.
 
+* **One batch cannot carry the service time away.** A batch that would move the service
+  time ahead by more than ``max_lateness`` is released only once a batch received after
+  it (any radar's) is that far on too; else it waits, and is settled at ``max_hold``
+  (below). The clock check cannot see such a batch when the data is older than the
+  receiver's clock (a replay), nor can a radar's own numbering when the radar is new.
+* **Every batch leaves within** ``max_hold``. Batches are released in time order, so a
+  batch whose time is ahead of the others waits for them; when batches earlier than it
+  keep arriving (a radar far ahead of the others, or one message dated just inside the
+  clock tolerance while the radars' data lags the wall clock) it would wait forever and
+  hold every later batch with it. A batch still queued ``max_hold`` seconds after its
+  arrival is settled: if the batches received since it arrived are all more than
+  ``max_lateness`` behind it, it is ahead of every source and refused (``ahead of the
+  data``; it never moves the service time); otherwise it is released with the batches
+  in front of it (a radar lagging behind the others never holds them: its batches then
+  come late or too late, as above).
+
 A batch seen twice (same radar, epoch and seq; without an epoch: same seq, time_end and
-scan among the radar's last 256, ``services.runtime.seen_batches``) is refused as a
-*duplicate*.
-Memory is bounded per radar (``seen``: 256 ids, offsets: ``offset_samples``); the number
-of radars is bounded by the service (``max_radars``).
+scan among the radar's last 256) is refused as a *duplicate*, a number far beyond what the
+radar could have published since its last one as a *sequence jump*; numbers that never
+arrived are counted per radar (``lost``): :mod:`services.runtime.seen_batches`.
+Memory is bounded per radar (``seen``: a window of numbers, offsets: ``offset_samples``);
+the number of radars is bounded by the service (``max_radars``).
 """
 
 from __future__ import annotations
@@ -56,14 +73,17 @@ class _Pending:
     sent_ns: int | None = field(compare=False)
     late: bool = field(default=False, compare=False)
     """Released behind the service time (see the module docstring)."""
+    done: bool = field(default=False, compare=False)
+    """Left the buffer (released or refused)."""
 
 
 class ReorderBuffer:
     """Holds batches ``wait`` seconds (arrival clock) and releases them in
-    ``(time_end, arrival order)`` order; refuses duplicates, batches from the future
-    (``future_tolerance`` s ahead of the receiver's clock, ``None``: no check), batches
-    behind their radar's watermark and batches more than ``max_lateness`` s behind the
-    service time."""
+    ``(time_end, arrival order)`` order, each within ``max_hold`` s; refuses duplicates,
+    sequence jumps, batches from the future (``future_tolerance`` s ahead of the
+    receiver's clock, ``None``: no check), batches behind their radar's watermark and
+    batches more than ``max_lateness`` s behind the service time. ``on_refused(p,
+    reason)`` is told of a queued batch refused later (``ahead of the data``)."""
 
     def __init__(
         self,
@@ -72,12 +92,25 @@ class ReorderBuffer:
         future_tolerance: float | None = 1.0,
         max_lateness: float = 2.0,
         offset_samples: int = 32,
+        max_hold: float = 3.0,
+        on_refused=None,
+        moves_time=None,
     ) -> None:
         self.wait = wait
         self.future_tolerance = future_tolerance
         self.max_lateness = max_lateness
+        self.max_hold = max(max_hold, wait)
+        self.on_refused = on_refused
+        self.moves_time = moves_time
+        """``moves_time(radar_id)``: whether that radar's batches count for the service
+        time and confirm other batches' times (the service: radars with a site, whose
+        batches are applied; ``None``: every radar)."""
         self._heap: list[_Pending] = []
         self._late: deque[_Pending] = deque()
+        self._arrivals: deque[_Pending] = deque()
+        """Queued batches in arrival order (released ones skipped lazily)."""
+        self._pushed: deque[tuple[float, int, int]] = deque()
+        """(arrival, order, time_end) of the batches queued in the last 2 ``max_hold``."""
         self._order = itertools.count()
         self.last_time: int | None = None
         """Service time: the latest ``time_end`` released, ns."""
@@ -106,15 +139,15 @@ class ReorderBuffer:
         newest = max(batch.time_end, batch.time[-1]) if batch.time else batch.time_end
         offsets = self._offsets.setdefault(rid, deque(maxlen=self._offset_samples))
         offsets.append(batch.time_end - recv_ns)
-        if self.seen.duplicate(batch):
-            return "duplicate batch"
-        if self.future_tolerance is not None and newest - recv_ns > self.future_tolerance * 1e9:
-            return "time in the future"
-        watermark = self.radar_time.get(rid)
-        if watermark is not None and batch.time_end < watermark:
-            return "out of sequence"
-        if self.last_time is not None and self.last_time - batch.time_end > self.max_lateness * 1e9:
-            return "too late"
+        tol = self.future_tolerance
+        horizon = None if tol is None else recv_ns + int(tol * 1e9)
+        reason = self.seen.check(batch, horizon, recv_ns)
+        if reason is None:
+            reason = self._time_problem(batch, newest, horizon)
+            if reason is not None:
+                self.seen.received(batch)  # refused, but its number arrived
+        if reason is not None:
+            return reason
         self.seen.add(batch)
         p = _Pending(batch.time_end, next(self._order), arrival, batch, sent_ns)
         if self.last_time is not None and batch.time_end < self.last_time:
@@ -122,6 +155,21 @@ class ReorderBuffer:
             self._late.append(p)
         else:
             heapq.heappush(self._heap, p)
+            self._arrivals.append(p)
+        if self.moves_time is None or self.moves_time(rid):
+            self._pushed.append((arrival, p.order, p.time_end))
+        while self._pushed and self._pushed[0][0] < arrival - 2 * self.max_hold:
+            self._pushed.popleft()
+        return None
+
+    def _time_problem(self, batch: PlotBatch, newest: int, horizon: int | None) -> str | None:
+        if horizon is not None and newest > horizon:
+            return "time in the future"
+        watermark = self.radar_time.get(batch.radar_id)
+        if watermark is not None and batch.time_end < watermark:
+            return "out of sequence"
+        if self.last_time is not None and self.last_time - batch.time_end > self.max_lateness * 1e9:
+            return "too late"
         return None
 
     def clock_offset(self, radar_id: str) -> float | None:
@@ -138,25 +186,68 @@ class ReorderBuffer:
         at most ``limit``. With the clock check on, a batch is also held until the
         receiver's wall clock ``wall_ns`` (default: now) reaches its ``time_end``: the
         service time never runs ahead of this host's clock, so a radar whose clock is
-        ahead (within the tolerance) waits for the others instead of making them late."""
+        ahead (within the tolerance) waits for the others instead of making them late.
+        A batch queued for ``max_hold`` is settled first (module docstring)."""
         out = []
         while self._late and (limit is None or len(out) < limit):
             out.append(self._release(self._late.popleft()))
         if self.future_tolerance is not None:
             wall_ns = time.time_ns() if wall_ns is None else wall_ns
-        while self._heap and now - self._heap[0].arrival >= self.wait:
-            if limit is not None and len(out) >= limit:
-                break
-            if wall_ns is not None and self._heap[0].time_end > wall_ns:
+        overdue = self._overdue(now)
+        while self._heap and (limit is None or len(out) < limit):
+            head = self._heap[0]
+            due = now - head.arrival >= self.wait and not self._unconfirmed_leap(head)
+            if overdue is None and not (due and (wall_ns is None or head.time_end <= wall_ns)):
                 break
             out.append(self._release(heapq.heappop(self._heap)))
+            if head is overdue:
+                overdue = self._overdue(now)
         return out
+
+    def _unconfirmed_leap(self, p: _Pending) -> bool:
+        """Whether releasing ``p`` would move the service time ahead by more than
+        ``max_lateness`` while nothing received after it is that far on: one batch (a
+        radar first heard far ahead, a message dated later than the data) does not carry
+        the service time away alone; it waits for data that confirms its time, else it is
+        refused at ``max_hold`` (:meth:`_overdue`)."""
+        lead = self.max_lateness * 1e9
+        if self.last_time is None or p.time_end - self.last_time <= lead:
+            return False
+        if self.moves_time is not None and not self.moves_time(p.batch.radar_id):
+            return False
+        return not any(order > p.order and t >= p.time_end - lead for _, order, t in self._pushed)
+
+    def _overdue(self, now: float) -> _Pending | None:
+        """The oldest queued batch if it has been held ``max_hold``, once settled: refused
+        when it is ahead of everything received since, else left at the head's side (the
+        caller releases up to it)."""
+        while True:
+            while self._arrivals and self._arrivals[0].done:
+                self._arrivals.popleft()
+            if not self._arrivals or now - self._arrivals[0].arrival < self.max_hold:
+                return None
+            p = self._arrivals[0]
+            since = [t for _, order, t in self._pushed if order > p.order]
+            if not since or p.time_end - max(since) <= self.max_lateness * 1e9:
+                return p
+            self._heap.remove(p)  # ahead of every source: it must not move the time
+            heapq.heapify(self._heap)
+            p.done = True
+            if self.on_refused is not None:
+                self.on_refused(p, "ahead of the data")
 
     def next_due(self) -> float | None:
         """Arrival-clock time the head of the buffer is due, or ``None`` if empty."""
         if self._late:
             return self._late[0].arrival
-        return self._heap[0].arrival + self.wait if self._heap else None
+        if not self._heap:
+            return None
+        due = self._heap[0].arrival + self.wait
+        while self._arrivals and self._arrivals[0].done:
+            self._arrivals.popleft()
+        if self._arrivals:
+            due = min(due, self._arrivals[0].arrival + self.max_hold)
+        return due
 
     def flush(self) -> list[_Pending]:
         """Everything queued: the late batches, then the others in order."""
@@ -164,10 +255,13 @@ class ReorderBuffer:
         return late + [self._release(heapq.heappop(self._heap)) for _ in range(len(self._heap))]
 
     def _release(self, p: _Pending) -> _Pending:
+        p.done = True
         rid = p.batch.radar_id
         if self.last_time is not None and p.time_end < self.last_time:
             p.late = True
         self.late_released += p.late
+        if self.moves_time is not None and not self.moves_time(rid):
+            return p  # dropped by the service (no site): its time moves nothing
         self.last_time = p.time_end if self.last_time is None else max(self.last_time, p.time_end)
         self.radar_time[rid] = max(self.radar_time.get(rid, p.time_end), p.time_end)
         return p

@@ -1,5 +1,5 @@
 """The fusion service core: input validation, radar registry, time-ordered reorder buffer,
-tracking, outputs and health counters. Network-free (the Zenoh side is ``cmd_fusion``),
+tracking, outputs and health counters. Network-free (the Zenoh side is ``server``),
 so it is tested directly.
 
 Data flow for one received plot batch::
@@ -20,20 +20,28 @@ refused (``time in the future``) and never moves the service time; a batch up to
 (``counters["batches_late_applied"]``): the tracks it finds ahead of its time take its
 plots through the out-of-sequence update (retrodiction to the plot time, Bar-Shalom's
 A1, :mod:`fusion.tracker.oosm`; counted in ``Status.late``), and the feed's time stays
-at the newest batch time; an older batch is refused (``too late``).
-A batch seen twice (same radar, seq and time_end) is counted as a duplicate.
+at the newest batch time; an older batch is refused (``too late``). Every batch leaves
+the buffer within ``max_hold`` (one far ahead of all the data received since is refused:
+``ahead of the data``). A batch seen twice (same radar, epoch and seq) is counted as a
+duplicate, a number far beyond what the radar can have published as a ``sequence jump``;
+numbers never received are counted per radar (``RadarHealth.batches_lost``), so every
+batch a sensor published is applied, refused with a counted reason, or counted as lost.
 
 **Sites.** A radar's site comes from its ``RadarSite`` messages or from the
 configuration; a batch from a radar without a known site is counted
 (``rejected["no site for radar"]``) and reported, never converted with a guessed site.
+A site message further than ``site_tolerance`` from the radar's *accepted* site
+(configured, saved, operator-accepted with ``accept_sites``, or the first received) is
+held and reported (:meth:`FusionCore.on_site`).
 Unless its origin is configured, the system frame is fixed when the first batch is
 applied, from the sites heard until then (its reorder hold included:
 :mod:`~skyfuse.services.fusion.system_frame`).
 
 **Latency** (plot time → track publication) is ``publish wall time − sender stamp``; the
 sender stamp is the wall-clock instant the sector sweep ended, sent as the sample
-attachment by ``skyfuse sensor`` / ``replay``; without one the batch's own ``time_end``
-is taken as a wall-clock time (a live radar).
+attachment by ``skyfuse sensor`` / ``replay``. A batch without one, or with one no clock
+could give, is left out of the figures and counted (``LatencyStats.unstamped``,
+``implausible``): its payload times are the sender's word, not a clock reading.
 """
 
 from __future__ import annotations
@@ -187,11 +195,35 @@ class FusionConfig(BaseModel):
         description="Apply batches up to this far behind the service time (late radars, "
         "through the tracker's out-of-sequence update), refuse older ones, s",
     )
+    max_hold: float = Field(
+        3.0,
+        gt=0.0,
+        le=600.0,
+        description="Every batch leaves the reorder buffer at most this long after its "
+        "arrival (at least the reorder wait), s: with the batches in front of it, or "
+        "refused ('ahead of the data') when everything received since is more than "
+        "max_lateness behind it",
+    )
+    max_seq_jump: int = Field(
+        64,
+        ge=1,
+        le=1_000_000,
+        description="A batch number may run ahead of the radar's highest one by this much "
+        "plus twice the radar's measured rate times the data time since; further ahead it "
+        "is refused ('sequence jump')",
+    )
     site_tolerance: float | None = Field(
         100.0,
         ge=0.0,
-        description="A site message moving a known radar further than this (3-D, m) is "
-        "held and reported, not applied ('off': apply every change)",
+        description="A site message further than this (3-D, m) from the radar's accepted "
+        "site (configured, saved, or the first received) is held and reported, not "
+        "applied; smaller corrections are applied ('off': apply every change)",
+    )
+    accept_sites: list[str] = Field(
+        default_factory=list,
+        description="Radars whose site as published now is accepted as their new accepted "
+        "site (an operator accepting a move held beyond site_tolerance); once accepted, "
+        "later moves are held again",
     )
     max_message_bytes: int = Field(
         8_000_000,
@@ -313,7 +345,14 @@ class _Radar:
     last_time: int | None = None
     rate: RateWindow = field(default_factory=RateWindow)
     site_held: RadarSite | None = None
-    """A received site that moves the radar beyond ``site_tolerance``: not applied."""
+    """A received site beyond ``site_tolerance`` of the accepted site: not applied."""
+    site_accepted: RadarSite | None = None
+    """The site moves are measured from: configured, saved, operator-accepted or the
+    first received (:meth:`FusionCore.on_site`)."""
+    refused: int = 0
+    """Valid batches refused (at intake or later in the reorder buffer), any reason."""
+    missed: int = 0
+    """Samples Zenoh reported missed from the radar's publisher (beyond its cache)."""
 
 
 @dataclass
@@ -341,8 +380,14 @@ class FusionCore:
         self.pipeline: CyclePipeline | None = None
         self.frame: FrameSpec | None = None
         self.buffer = ReorderBuffer(
-            cfg.reorder_wait, future_tolerance=cfg.future_tolerance, max_lateness=cfg.max_lateness
+            cfg.reorder_wait,
+            future_tolerance=cfg.future_tolerance,
+            max_lateness=cfg.max_lateness,
+            max_hold=cfg.max_hold,
+            on_refused=self._refused_in_buffer,
+            moves_time=self._applies,
         )
+        self.buffer.seen.max_jump = cfg.max_seq_jump
         self.radars: dict[str, _Radar] = {}
         self.counters: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
@@ -366,6 +411,9 @@ class FusionCore:
         self.role: str | None = None
         """``active`` once this instance publishes (``services.fusion.standby``)."""
         """Incarnation number, sent in every TrackBatch and Status (``state_store``)."""
+        self._configured = {s.radar_id: s for s in cfg.sites}
+        self._accepting = set(cfg.accept_sites)
+        """Radars whose next received site is accepted (``accept_sites``)."""
         for site in cfg.sites:
             self.on_site(site, configured=True)
 
@@ -424,23 +472,39 @@ class FusionCore:
             self.on_site(site)
 
     def on_site(self, site: RadarSite, configured: bool = False) -> None:
+        """A radar's site: from its messages, or ``configured`` (the configuration, a
+        saved state). Moves are measured from the radar's *accepted* site — configured
+        (the configuration wins over a saved site), saved, accepted by the operator
+        (``accept_sites``: the next one received) or else the first one received — not
+        from the last one applied, so small steps cannot add up: a site further than
+        ``site_tolerance`` from it is held and reported until the operator accepts it."""
         r = self._radar(site.radar_id)
-        if r.site is not None and not configured:
-            moved = site_displacement_m(r.site, site)
-            if self.cfg.site_tolerance is not None and moved > self.cfg.site_tolerance:
+        rid = site.radar_id
+        if configured:
+            if rid in self._configured and site != self._configured[rid]:
+                return  # a saved site never overrides the configured one
+            r.site_accepted = site
+        elif r.site_accepted is None or rid in self._accepting:
+            if rid in self._accepting and r.site_accepted is not None:
+                log.warning("radar %s: site accepted by the operator (accept_sites)", rid)
+            self._accepting.discard(rid)
+            r.site_accepted = site
+        elif self.cfg.site_tolerance is not None:
+            moved = site_displacement_m(r.site_accepted, site)
+            if moved > self.cfg.site_tolerance:
                 # a moved radar shifts its whole picture: hold it for the operator
                 r.site_held = site
-                self.reject("site change held", f"{site.radar_id} moved {moved:.0f} m")
+                self.reject("site change held", f"{rid} {moved:.0f} m from its accepted site")
                 return
         r.site_held = None
         if r.site != site:
             if r.site is not None:
-                log.info("radar %s: site changed", site.radar_id)
+                log.info("radar %s: site changed", rid)
             r.site = site
             self.counters["sites"] += 1
             log.info(
                 "radar %s: site %.4f°, %.4f° (%s)%s",
-                site.radar_id,
+                rid,
                 site.lat,
                 site.lon,
                 site.kind.value,
@@ -506,6 +570,7 @@ class FusionCore:
         reason = self.buffer.push(batch, arrival, sent_ns, recv_ns)
         if reason is not None:
             self.reject(reason, f"radar {batch.radar_id} seq {batch.seq}")
+            r.refused += 1
             return False
         n = len(batch.time)
         self._waiting[id(batch)] = (arrival, n)
@@ -641,6 +706,39 @@ class FusionCore:
     def _left_buffer(self, p: _Pending) -> None:
         self._waiting.pop(id(p.batch), None)
 
+    def _applies(self, radar_id: str) -> bool:
+        """Whether batches of ``radar_id`` are applied now (a known radar with a site):
+        only they move the service time (``ReorderBuffer.moves_time``)."""
+        r = self.radars.get(radar_id)
+        return r is not None and r.site is not None
+
+    def _refused_in_buffer(self, p: _Pending, reason: str) -> None:
+        """A queued batch refused by the reorder buffer (``ahead of the data``)."""
+        self._left_buffer(p)
+        self._moved_to_refused(p.batch)
+        self.reject(reason, f"radar {p.batch.radar_id} seq {p.batch.seq}")
+
+    def _moved_to_refused(self, batch: PlotBatch) -> None:
+        """A batch accepted at intake and refused after: per radar, counted as refused."""
+        r = self.radars.get(batch.radar_id)
+        if r is not None:
+            r.batches -= 1
+            r.plots -= len(batch.time)
+            r.refused += 1
+
+    def note_missed(self, missed: dict[str, int]) -> None:
+        """Samples Zenoh reported missed, by key (``Inbox.take_missed``): per radar."""
+        for key, n in missed.items():
+            try:
+                info = keys.parse(key)
+            except ValueError:
+                continue
+            r = self.radars.get(info.owner) if info.kind == "plots" else None
+            if r is not None:
+                r.missed += n
+            else:
+                self.counters["samples_missed_other"] += n
+
     def backlog(self, now: float | None = None) -> Backlog:
         """Batches and plots waiting, the oldest one's wait, plot rates in and out, and
         whether the service is behind (a batch waited longer than reorder wait +
@@ -669,6 +767,7 @@ class FusionCore:
         r = self.radars.get(batch.radar_id)  # None: forgotten meanwhile (see _admit)
         if r is not None and r.site is not None:
             return True
+        self._moved_to_refused(batch)
         if batch.radar_id not in self._warned and len(self._warned) < self.cfg.max_radars:
             self._warned.add(batch.radar_id)
             log.warning(
@@ -680,12 +779,23 @@ class FusionCore:
         return False
 
     def published(self, out: CycleOutput) -> None:
-        """Record the latency of each batch of a cycle output just published."""
+        """Record the latency of each batch of a cycle output just published: publication
+        wall time − the sender's wall-clock stamp. A batch without a stamp, or with one
+        no clock could give (more than ``future_tolerance`` ahead of this host's clock, or
+        older than ``LATENCY_MAX_S``), is counted and left out: a foreign publisher
+        cannot move the figures with its payload times."""
         t = time.time_ns()
-        lats = [
-            (t - (sent if sent is not None else end)) / 1e6
-            for sent, end in zip(out.sent_ns, out.time_ends)
-        ]
+        ahead = (self.cfg.future_tolerance or 1.0) * 1e3
+        lats = []
+        for sent in out.sent_ns:
+            if sent is None:
+                self.counters["latency_unstamped"] += 1
+                continue
+            lat = (t - sent) / 1e6
+            if not -ahead <= lat <= LATENCY_MAX_S * 1e3:
+                self.counters["latency_implausible"] += 1
+                continue
+            lats.append(lat)
         out.latency_ms = max(lats) if lats else None
         self.latencies.extend(lats)
         self.counters["track_batches_published"] += 1 + (out.full is not None)
@@ -705,12 +815,21 @@ class FusionCore:
 
     # --- status ----------------------------------------------------------------------
     def latency_stats(self) -> LatencyStats:
+        left_out = {
+            "unstamped": self.counters["latency_unstamped"],
+            "implausible": self.counters["latency_implausible"],
+        }
         if not self.latencies:
-            return LatencyStats(count=0)
+            return LatencyStats(count=0, **left_out)
         a = np.fromiter(self.latencies, dtype=float)
         p50, p90, p99 = np.percentile(a, [50, 90, 99])
         return LatencyStats(
-            count=int(a.size), p50=float(p50), p90=float(p90), p99=float(p99), max=float(a.max())
+            count=int(a.size),
+            p50=float(p50),
+            p90=float(p90),
+            p99=float(p99),
+            max=float(a.max()),
+            **left_out,
         )
 
     def late_stats(self) -> LateStats:
@@ -782,6 +901,9 @@ class FusionCore:
                     last_time=r.last_time,
                     clock_offset_s=self.buffer.clock_offset(r.radar_id),
                     site_held=r.site_held is not None,
+                    batches_refused=r.refused,
+                    batches_lost=self.buffer.seen.lost(r.radar_id),
+                    samples_missed=r.missed,
                 )
                 for r in sorted(self.radars.values(), key=lambda r: r.radar_id)
             ],
@@ -802,7 +924,10 @@ class FusionCore:
         held = sorted(r.radar_id for r in self.radars.values() if r.site_held is not None)
         if held:
             shown = ", ".join(held[:5]) + (" …" if len(held) > 5 else "")
-            return f"site change held (beyond site_tolerance) for {len(held)} radar(s): {shown}"
+            return (
+                f"site change held (beyond site_tolerance of the accepted site) for "
+                f"{len(held)} radar(s): {shown}; accept with accept_sites"
+            )
         return ""
 
 
@@ -813,4 +938,6 @@ def site_displacement_m(a: RadarSite, b: RadarSite) -> float:
     return float(np.linalg.norm(pa - pb))
 
 
+LATENCY_MAX_S = 3600.0
+"""Latencies longer than this are taken as a wrong stamp, not a slow service, s."""
 _NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")

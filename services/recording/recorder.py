@@ -28,7 +28,8 @@ and listed in the summary (``files``).
 
 **Bounded buffers**: the Foxglove plot channel holds one scan of plots per radar; at
 ``max_scan_plots`` plots the scan is written early, and at most ``max_scan_radars``
-radars are held (``limits`` in the summary counts both).
+radars are held (``limits`` in the summary counts both); at most ``max_topics`` distinct
+keys (MCAP channels) are recorded, messages on further keys counted (``too many keys``).
 
 The recorder never crashes on bad input: a payload that does not validate against the
 model of its key, or a key outside the v1 key space, is counted by reason and skipped.
@@ -118,6 +119,13 @@ class RecorderConfig(BaseModel):
         le=100_000_000,
         description="Plots of one radar held for its Foxglove scan message, at most; "
         "beyond it the scan is written early",
+    )
+    max_topics: int = Field(
+        2_000,
+        ge=10,
+        le=1_000_000,
+        description="Distinct keys recorded (MCAP channels), at most; messages on further "
+        "keys (e.g. invented radar ids) are counted ('too many keys'), not recorded",
     )
     max_scan_radars: int = Field(
         1_000,
@@ -270,6 +278,10 @@ class Recorder:
         self._scan_plots: dict[str, list[PlotBatch]] = {}
         self._scan_count: dict[str, int] = {}
         self.seen = SeenBatches(max_radars=cfg.max_scan_radars)
+        """Plot batches recorded, by ``(radar, epoch, seq)``: repeats and sequence jumps
+        are refused, numbers never received counted (``services.runtime.seen_batches``)."""
+        self.missed: dict[str, int] = {}
+        """Samples Zenoh reported missed, by key (not recoverable from the sender's cache)."""
         self.skipped = 0
         """Fusion state snapshots received (``fusion/*/state``, for standbys): not recorded."""
         self.limits: Counter[str] = Counter()
@@ -354,7 +366,13 @@ class Recorder:
                     log.warning("foxglove plots of %s not written: %s", radar_id, e)
             self._writer.add_metadata(
                 "skyfuse.recorder",
-                {"messages": self.messages, **{f"count:{k}": v for k, v in self.counts.items()}},
+                {
+                    "messages": self.messages,
+                    **{f"count:{k}": v for k, v in self.counts.items()},
+                    **{f"rejected:{k}": v for k, v in self.rejected.items()},
+                    **{f"lost:{k}": v for k, v in self.lost().items()},
+                    **{f"missed:{k}": v for k, v in self.missed.items()},
+                },
             )
             self._close_writer()
             self._writer = None
@@ -405,6 +423,9 @@ class Recorder:
         if len(item.payload) > self.cfg.max_message_bytes:
             self.rejected["message too large"] += 1
             return False
+        if item.key not in self.counts and len(self.counts) >= self.cfg.max_topics:
+            self.rejected["too many keys"] += 1  # bounded channels and per-key counts
+            return False
         msg, exc = decode(model, item.payload)
         if msg is None:  # any decoding exception is a counted rejection, never a crash
             self.rejected[f"invalid {model.__name__}"] += 1
@@ -412,9 +433,12 @@ class Recorder:
                 "rejected %s on %s: %s", model.__name__, item.key[:80], rejection_detail(exc)
             )
             return False
-        if isinstance(msg, PlotBatch) and self._duplicate(msg):
-            self.rejected["duplicate batch"] += 1
-            return False
+        if isinstance(msg, PlotBatch):
+            refused = self.seen.check(msg, recv_ns=item.recv_ns)
+            if refused is not None:  # a repeat, or a number the sensor cannot have reached
+                self.rejected[refused] += 1
+                return False
+            self.seen.add(msg)
         pub_time = item.sent_ns if item.sent_ns is not None else item.recv_ns
         self._write(item.key, item.payload, item.recv_ns, pub_time, model)
         if self.cfg.foxglove:
@@ -429,15 +453,17 @@ class Recorder:
         self.maybe_flush()
         return True
 
-    def _duplicate(self, msg: PlotBatch) -> bool:
-        """Whether this batch was recorded already: same ``(radar, epoch, seq)`` (a
-        restarted sensor's repeats, a file published again; without an epoch: same
-        ``(seq, time_end, scan)`` among the radar's last 256), bounded memory
-        (``services.runtime.seen_batches``, at most ``max_scan_radars`` radars)."""
-        if self.seen.duplicate(msg):
-            return True
-        self.seen.add(msg)
-        return False
+    def lost(self) -> dict[str, int]:
+        """Per radar, batch numbers never received (gaps in ``(epoch, seq)``; radars with
+        none left out: ``services.runtime.seen_batches``)."""
+        out = {rid: self.seen.lost(rid) for rid in self.seen.radars}
+        return {rid: n for rid, n in sorted(out.items()) if n}
+
+    def note_missed(self, missed: dict[str, int]) -> None:
+        """Samples Zenoh reported missed, by key (``Inbox.take_missed``)."""
+        for key, n in missed.items():
+            name = key if key in self.missed or len(self.missed) < _MAX_FEEDS * 16 else ""
+            self.missed[name] = self.missed.get(name, 0) + n
 
     def _buffer_plots(self, msg: PlotBatch, log_time: int) -> None:
         """Hold ``msg`` for its radar's scan message, within the bounds
@@ -523,4 +549,6 @@ class Recorder:
             "rejected": dict(self.rejected),
             "limits": dict(self.limits),
             "skipped_fusion_state": self.skipped,
+            "batches_lost": self.lost(),
+            "samples_missed": dict(self.missed),
         }

@@ -164,16 +164,3 @@ class RateWindow:
         now = time.monotonic() if now is None else now
         self._trim(now)
         return sum(n for _, n in self._items) / self.window_s
-
-
-def main_single(argv: list[str] | None = None) -> int:
-    """``python -m services.lifecycle COMMAND ARGS…``: the same as ``skyfuse COMMAND
-    ARGS…`` (kept as an entry point for the demo and the tests; ``skyfuse`` itself loads
-    only the named command's module)."""
-    from skyfuse.services.cli.main import main
-
-    return main(argv)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main_single())

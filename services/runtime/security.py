@@ -11,13 +11,17 @@ so all traffic passes through the one place that checks it. The policy
 (:func:`acl_policy`), default **deny**:
 
 * ``sensor-R`` may publish (put, liveliness, the site queryable) only under
-  ``radar/R/**``, plus its own ``service/sensor-R/**`` status and token;
+  ``radar/R/**``, plus its own ``service/sensor-R/**`` status and token, and the keys of
+  its plots' advanced publisher, ``radar/R/plots/@adv/**`` (the cache queryable that
+  answers receivers that missed batches, the heartbeat; ``**`` never matches the verbatim
+  chunk ``@adv``, so they need rules of their own);
 * ``fusion-F`` may publish only under ``fusion/F/**`` (tracks, events, status, snapshot
   queryable, the ``state`` snapshots for its standby, the election tokens, a standby's
-  own Status) and its service keys, and may read every radar and ``fusion/F/**`` (so
-  its instances — same identity, other hosts — follow each other);
-* the recorder ``N`` may read everything but the fusion ``state`` snapshots and publish
-  only its own service keys;
+  own Status) and its service keys, and may read every radar (its plots' heartbeats and
+  caches ``radar/*/plots/@adv/**`` included) and ``fusion/F/**`` (so its instances —
+  same identity, other hosts — follow each other);
+* the recorder ``N`` may read everything but the fusion ``state`` snapshots (and the
+  plots' heartbeats and caches) and publish only its own service keys;
 * ``client-C`` may read the fusion feeds (tracks, events, status, snapshot query,
   registration, standby Status) and nothing else — not the ``state`` snapshots;
 * everyone may look up service liveliness under ``service/**`` (``--wait-for``).
@@ -96,19 +100,27 @@ def _rules_for(p: Principal) -> list[dict]:
     own_service = f"{P}/service/{p.cn}/**"
     rules = _reader(f"{p.cn}-services", [f"{P}/service/*/alive"])
     if p.role == "sensor":
-        rules += _writer(p.cn, [f"{P}/radar/{p.name}/**", own_service, f"{P}/sim/**"])
+        mine = [f"{P}/radar/{p.name}/**", f"{P}/radar/{p.name}/plots/@adv/**"]
+        # told of the recovery queries and heartbeat subscribers of every reader
+        interest = [f"{P}/**", f"{P}/**/@adv/**"]
+        rules += _writer(p.cn, [*mine, own_service, f"{P}/sim/**"], interest)
     elif p.role == "fusion":
         own = [f"{P}/fusion/{p.name}/**", own_service, f"{P}/service/fusion/**"]
         # its own fusion/F/** too: the election tokens of its instances (fusion.standby)
-        rules += _writer(p.cn, own) + _reader(p.cn, [f"{P}/radar/**", f"{P}/fusion/{p.name}/**"])
+        read = [f"{P}/radar/**", PLOTS_ADV, f"{P}/fusion/{p.name}/**"]
+        rules += _writer(p.cn, own) + _reader(p.cn, read)
     elif p.role == "recorder":
-        everything = [f"{P}/radar/**", *FEED_KEYS, f"{P}/sim/**", f"{P}/service/**"]
-        rules += _writer(p.cn, [own_service]) + _reader(p.cn, [f"{P}/**"], receive=everything)
+        everything = [f"{P}/radar/**", PLOTS_ADV, *FEED_KEYS, f"{P}/sim/**", f"{P}/service/**"]
+        read = [f"{P}/**", f"{P}/**/@adv/**"]  # it subscribes (and recovers) skyfuse/@v1/**
+        rules += _writer(p.cn, [own_service]) + _reader(p.cn, read, receive=everything)
     elif p.role == "client":
         rules += _reader(p.cn, [f"{P}/fusion/**"], receive=FEED_KEYS)
     return rules
 
 
+PLOTS_ADV = f"{P}/radar/*/plots/@adv/**"
+"""The keys of the plots' advanced publishers (``services.runtime.transport``): their
+heartbeats and the cache queryables that answer receivers that missed batches."""
 FEED_KEYS = [
     *(f"{P}/fusion/*/{k}" for k in ("tracks", "events", "status", "snapshot", "registration")),
     f"{P}/fusion/*/standby/*/status",
@@ -117,15 +129,16 @@ FEED_KEYS = [
 the election tokens."""
 
 
-def _writer(cn: str, key_exprs: list[str]) -> list[dict]:
+def _writer(cn: str, key_exprs: list[str], interest: list[str] | None = None) -> list[dict]:
     """May publish on ``key_exprs`` and be told of their readers. Zenoh checks a
     declaration's key expression for *inclusion* in a rule's: a reader declares wildcards
     (``radar/*/plots``), which only the whole key space includes; so every writer learns
-    which key expressions are subscribed or queried (not what is published on them) —
-    without it a publisher stops sending after its first sample."""
+    which key expressions are subscribed or queried (``interest``, default the whole key
+    space; not what is published on them) — without it a publisher stops sending after
+    its first sample."""
     return [
         _rule(f"{cn}-write", _PUBLISH, ["ingress"], key_exprs),
-        _rule(f"{cn}-write-interest", _READ_IN, ["egress"], [f"{P}/**"]),
+        _rule(f"{cn}-write-interest", _READ_IN, ["egress"], interest or [f"{P}/**"]),
     ]
 
 

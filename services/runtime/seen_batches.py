@@ -1,28 +1,54 @@
-"""Which plot batches were already received: duplicates by ``(radar, epoch, seq)``
-(docs/reliability.md), with bounded memory. One mechanism for the fusion service's reorder
-buffer and the recorder.
+"""Which plot batches were already received, which numbers never came, and which numbers
+no sensor could have sent: one mechanism, by ``(radar, epoch, seq)``, for the fusion
+service's reorder buffer and the recorder, with bounded memory.
 
 A sensor announces the **epoch** of its numbering in every ``PlotBatch`` (``epoch``,
 ``services.sensors``): within one epoch of one radar, ``seq`` increases by one per batch
-and is never given to two different batches — a batch seen again with the same
-``(radar, epoch, seq)`` is a repeat (a restarted sensor publishing again what it
-published before, a file published twice). Per radar and epoch this keeps the highest
-``seq`` seen and the set of numbers seen in the ``window`` below it:
+and is never given to two different batches; a new epoch is the only way to start the
+numbering again. Per radar and epoch this keeps the highest ``seq`` accepted, the
+``time_end`` of that batch, and the numbers accepted in the ``window`` below it.
 
-* ``seq`` above the highest: new;
-* within the window: new unless in the set (batches may arrive out of order by up to
-  ``window`` numbers);
-* ``window`` or more below the highest: a repeat — a sensor publishes its numbers in
-  increasing order, so a number that old can only have been published already.
+**Duplicates.** A batch seen again with the same ``(radar, epoch, seq)`` is a repeat (a
+restarted sensor publishing again what it published before, a file published twice):
 
-So a whole file published again is refused, batch by batch, with memory
-``O(window)`` per radar and epoch; at most ``epochs`` epochs per radar (the least
-recently used forgotten) and ``max_radars`` radars (the least recently used forgotten)
-are kept.
+* within the window: a repeat if its number is in the set;
+* ``window`` or more below the highest: a repeat if its ``time_end`` is not after the
+  highest one's — a sensor's numbers and times increase together, so an old number with
+  an old time can only have been published already. An old number with a *newer* time
+  shows the highest number was not the sensor's (a forged one, or one kept from an
+  earlier version's state): the radar's numbering state starts again from this batch
+  (``resets``), so nothing received or persisted can lock a radar out.
+
+**Sequence and time jumps.** A radar's numbers and times advance together, at its own
+rate (numbers per second of data time, measured over the epoch). A number ahead of the
+highest by more than the radar could have published since is refused (``sequence
+jump``) and never becomes the highest: the allowance is ``max_jump`` plus twice the rate
+times the data time since the highest number. A time ahead of the highest number's by
+more than twice the time the numbers in between take (plus ``max_jump`` numbers) is
+refused too (``time jump``): one message dated an hour later, of a radar replaying old
+data, cannot carry the radar's time (and the service time) away — which no clock check
+can see, the data being older than the clock. A real jump (batches lost beyond the
+publisher's cache while the rate was unknown, a radar switched off for a while) costs
+``RESYNC_S`` seconds of that radar's batches: the refused batches that continue each
+other's numbering at the radar's rate (within 4 numbers, the time after the previous
+one's by at most what that many numbers take) are taken once they have done so for
+``RESYNC_S`` seconds of arrival time with no batch of the old numbering accepted in
+between — forged messages cannot do that beside a live radar.
+
+**Gaps** (``lost``). Numbers of an epoch between the lowest and the highest one received
+(accepted or refused by another check, not jumps or repeats) that never arrived are lost;
+a number that arrives later (recovered from the publisher's cache, reordered) is no longer
+counted. Numbers published before the first one received are not counted (the receiver
+was not there). Counts of epochs forgotten (at most ``epochs`` per radar, least recently
+used) are kept per radar.
 
 **Epoch 0** is "not announced" (recordings and sensors from before the field): numbers
 may start again at 0 after a restart, so only an exact repeat of one of the last
-``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate.
+``LEGACY_RECENT`` batches of the radar, by ``(seq, time_end, scan)``, is a duplicate;
+jumps are judged from the latest batch in time (a number going back is a restart), gaps
+are not counted.
+
+At most ``max_radars`` radars are kept (the least recently used forgotten).
 """
 
 from __future__ import annotations
@@ -33,84 +59,274 @@ from skyfuse.schemas.snapshot import SnapshotError, mapping
 
 LEGACY_RECENT = 256
 """Batches remembered per radar for epoch 0 (no epoch announced)."""
+RESYNC = 4
+"""A refused jump is confirmed by a next batch at most this many numbers after it."""
+RESYNC_S = 2.0
+"""Arrival time a refused jump's continuation must last before it is taken, s."""
+MAX_GAP_S = 60.0
+"""Data time a radar's next batch may be ahead of its last one while its rate is not
+known yet (its first batches), s."""
+DUPLICATE, JUMP, TIME_JUMP = "duplicate batch", "sequence jump", "time jump"
+"""The reasons :meth:`SeenBatches.check` returns."""
+
+
+def _legacy(ring: deque | None = None) -> dict:
+    """The state of epoch 0: the last batches' identities and the jump guard's numbers."""
+    ring = deque(maxlen=LEGACY_RECENT) if ring is None else ring
+    return {"ring": ring, "high": None, "t_high": None, "s0": None, "t0": None, "pending": None}
+
+
+def _state(seq: int, time_end: int) -> dict:
+    """The state of one epoch, starting at one batch (plain types: saved as they are)."""
+    return {
+        "high": seq,  # highest number accepted
+        "t_high": time_end,  # its time_end, ns
+        "recent": set(),  # numbers accepted within the window below `high`
+        "s0": seq,  # first number accepted, and its time_end: the rate
+        "t0": time_end,
+        "first": seq,  # lowest and highest number received (accepted or refused)
+        "top": seq,
+        "n": 0,  # distinct numbers received in first..top
+        "got": set(),  # numbers received within the window below `top`
+        "pending": None,  # [seq, time_end] of the last refused jump
+    }
 
 
 class SeenBatches:
-    """The ``(radar, epoch, seq)`` seen (module docstring). :meth:`duplicate` tests,
-    :meth:`add` records (call it only for a batch accepted)."""
+    """The ``(radar, epoch, seq)`` seen (module docstring). :meth:`check` tests a batch
+    (``None``, :data:`DUPLICATE` or :data:`JUMP`), :meth:`add` records one accepted,
+    :meth:`received` one refused by another check (for the gaps only)."""
 
-    def __init__(self, max_radars: int = 1000, window: int = 4096, epochs: int = 4) -> None:
+    def __init__(
+        self, max_radars: int = 1000, window: int = 4096, epochs: int = 4, max_jump: int = 64
+    ) -> None:
         self.max_radars, self.window, self.epochs = max_radars, window, epochs
+        self.max_jump = max_jump
         self.radars: dict[str, dict] = {}
-        """radar → epoch → ``[highest seq, set of seqs within the window]``; epoch 0 →
-        a deque of the last ``(seq, time_end, scan)``. Plain dicts in least recently
-        used order (:meth:`to_snapshot` keeps the order)."""
+        """radar → epoch → the epoch's state (:func:`_state`; epoch 0: :func:`_legacy`).
+        Plain dicts in least recently used order (:meth:`to_snapshot` keeps the order)."""
+        self.lost_forgotten: dict[str, int] = {}
+        """Per radar: numbers lost in epochs no longer kept."""
+        self.resets = 0
+        """Numbering states started again by an old number with a newer time."""
 
+    # --- state ---------------------------------------------------------------------
     def _epochs(self, radar_id: str) -> dict:
         per = self.radars.pop(radar_id, None)
         if per is None:
             per = {}
         self.radars[radar_id] = per  # most recently used last
         while len(self.radars) > self.max_radars:
-            del self.radars[next(iter(self.radars))]
+            gone = next(iter(self.radars))
+            del self.radars[gone]
+            self._lost_forgotten().pop(gone, None)
         return per
 
-    def duplicate(self, batch) -> bool:
-        """Whether ``batch`` (a PlotBatch) repeats one already added."""
+    def _lost_forgotten(self) -> dict[str, int]:
+        if not hasattr(self, "lost_forgotten"):  # a snapshot of an earlier version
+            self.lost_forgotten = {}
+        return self.lost_forgotten
+
+    @staticmethod
+    def _epoch_state(per: dict | None, epoch: int):
+        """The state of ``epoch`` of a radar's epochs ``per`` (None: none)."""
+        return None if per is None else per.get(epoch)
+
+    # --- queries -------------------------------------------------------------------
+    def check(self, batch, horizon_ns: int | None = None, recv_ns: int | None = None) -> str | None:
+        """Why ``batch`` must be refused (:data:`DUPLICATE`, :data:`JUMP`,
+        :data:`TIME_JUMP`), or ``None``. ``horizon_ns``: the latest time_end the receiver
+        believes (its clock plus a tolerance), which bounds the data time a jump may
+        claim; ``recv_ns``: its arrival (wall clock), which times a jump's continuation
+        (``None``: taken at the first continuation)."""
         per = self.radars.get(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
-        seen = None if per is None else per.get(epoch)
-        if seen is None:
-            return False
+        st = self._epoch_state(per, epoch)
+        if st is None:
+            return None
+        seq = batch.seq
         if epoch == 0:
-            return (batch.seq, batch.time_end, batch.scan) in seen
-        high, recent = seen
-        if batch.seq > high:
-            return False
-        return batch.seq <= high - self.window or batch.seq in recent
+            if (seq, batch.time_end, batch.scan) in st["ring"]:
+                return DUPLICATE
+        elif seq <= st["high"]:
+            if seq in st["recent"]:
+                return DUPLICATE
+            old = seq <= st["high"] - self.window
+            if old and self._not_newer(st, batch.time_end):
+                return DUPLICATE
+        return self._jump(st, seq, batch.time_end, horizon_ns, recv_ns)
 
+    def _jump(
+        self, st: dict, seq: int, time_end: int, horizon_ns: int | None, recv_ns: int | None
+    ) -> str | None:
+        """:data:`JUMP` or :data:`TIME_JUMP` (module docstring), or ``None``."""
+        if st["high"] is None or st["t_high"] is None:
+            return None
+        ahead = seq - st["high"]
+        rate = self._rate(st)
+        # without a measured rate yet, a time more than MAX_GAP_S ahead is a jump too
+        gap_s = 2.0 * (max(ahead, 0) + self.max_jump) / rate if rate > 0 else MAX_GAP_S
+        if ahead > 0 and ahead > self._allowance(st, time_end, horizon_ns):
+            problem = JUMP
+        elif time_end - st["t_high"] > gap_s * 1e9:
+            problem = TIME_JUMP
+        else:
+            return None
+        p = st["pending"]
+        since = recv_ns
+        if p is not None and 0 < seq - p[0] <= RESYNC:
+            step_s = 2.0 * (seq - p[0] + 1) / rate if rate > 0 else MAX_GAP_S
+            if 0 <= time_end - p[1] <= step_s * 1e9:  # continues the refused jump
+                since = p[2] if len(p) > 2 else None
+                if recv_ns is None or since is None or recv_ns - since >= RESYNC_S * 1e9:
+                    return None  # the radar's numbering moved: take it
+        st["pending"] = [seq, time_end, since]
+        return problem
+
+    @staticmethod
+    def _rate(st: dict) -> float:
+        """The radar's numbers per second of data time over the epoch (0: not known)."""
+        if st["t0"] is None or st["t_high"] is None:
+            return 0.0
+        span_t, span_n = (st["t_high"] - st["t0"]) * 1e-9, st["high"] - st["s0"]
+        return span_n / span_t if span_t > 0 and span_n > 0 else 0.0
+
+    def duplicate(self, batch) -> bool:
+        """Whether ``batch`` repeats one already added."""
+        return self.check(batch) == DUPLICATE
+
+    @staticmethod
+    def _not_newer(st: dict, time_end: int) -> bool:
+        return st["t_high"] is not None and time_end <= st["t_high"]
+
+    def _allowance(self, st: dict, time_end: int, horizon_ns: int | None) -> float:
+        """How far past the highest number the next one may be (module docstring)."""
+        t_high = st["t_high"]
+        if t_high is None or st["t0"] is None:
+            return self.max_jump
+        t = time_end if horizon_ns is None else min(time_end, horizon_ns)
+        return self.max_jump + 2.0 * self._rate(st) * max(0.0, (t - t_high) * 1e-9)
+
+    def lost(self, radar_id: str) -> int:
+        """Numbers of ``radar_id`` that never arrived (module docstring, *Gaps*)."""
+        total = self.lost_forgotten.get(radar_id, 0)
+        for epoch, st in self.radars.get(radar_id, {}).items():
+            if epoch != 0 and isinstance(st, dict) and st["first"] is not None:
+                total += st["top"] - st["first"] + 1 - st["n"]
+        return total
+
+    # --- records -------------------------------------------------------------------
     def add(self, batch) -> None:
-        """Record ``batch`` as seen."""
+        """Record ``batch`` as accepted (and received)."""
         per = self._epochs(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
-        seen = per.pop(epoch, None)
-        if seen is None:
-            seen = deque(maxlen=LEGACY_RECENT) if epoch == 0 else [batch.seq, set()]
-        per[epoch] = seen  # most recently used last
-        while len(per) > self.epochs:
-            del per[next(iter(per))]
+        seen = self._epoch_state(per, epoch)
+        per.pop(epoch, None)
         if epoch == 0:
-            seen.append((batch.seq, batch.time_end, batch.scan))
+            seen = seen if seen is not None else _legacy()
+            per[epoch] = seen  # most recently used last
+            seen["ring"].append((batch.seq, batch.time_end, batch.scan))
+            moved = self._continues(seen, batch.seq)
+            self._latest(seen, batch.seq, batch.time_end)
+            if moved:  # the numbering moved: its rate is measured again from here
+                seen["s0"], seen["t0"] = batch.seq, batch.time_end
+            self._forget_epochs(batch.radar_id, per)
             return
-        seen[0] = max(seen[0], batch.seq)
-        seen[1].add(batch.seq)
-        if len(seen[1]) > 2 * self.window:  # forget what fell below the window
-            floor = seen[0] - self.window
-            seen[1] = {s for s in seen[1] if s > floor}
+        seq, t = batch.seq, batch.time_end
+        if seen is None:
+            seen = _state(seq, t)
+        elif seq <= seen["high"] - self.window and not self._not_newer(seen, t):
+            self.resets += 1  # the highest number was not the sensor's: start again here
+            seen.update(high=seq, t_high=t, recent=set(), s0=seq, t0=t)
+        per[epoch] = seen
+        if seq > seen["high"] or seen["t_high"] is None:
+            seen["high"], seen["t_high"] = max(seq, seen["high"]), t
+        if seen["t0"] is None:
+            seen["s0"], seen["t0"] = seq, t
+        if self._continues(seen, seq):  # the numbering moved (a refused jump taken)
+            self._count(seen, seen["pending"][0])  # the refused batch before: not lost
+            seen["s0"], seen["t0"] = seq, t  # its rate measured again from here
+        seen["pending"] = None
+        seen["recent"].add(seq)
+        if len(seen["recent"]) > 2 * self.window:  # forget what fell below the window
+            floor = seen["high"] - self.window
+            seen["recent"] = {s for s in seen["recent"] if s > floor}
+        self._count(seen, seq)
+        self._forget_epochs(batch.radar_id, per)
 
-    # --- snapshots ---------------------------------------------------------------------
+    @staticmethod
+    def _continues(st: dict, seq: int) -> bool:
+        p = st["pending"]
+        return p is not None and 0 < seq - p[0] <= RESYNC
+
+    @staticmethod
+    def _latest(st: dict, seq: int, t: int) -> None:
+        """Epoch 0: the jump guard follows the latest batch in time; a number going back
+        is a restart of the numbering (the rate is measured again from it)."""
+        if st["t_high"] is None or t >= st["t_high"]:
+            if st["high"] is None or seq < st["high"]:
+                st["s0"], st["t0"] = seq, t
+            st["high"], st["t_high"] = seq, t
+        st["pending"] = None  # any batch accepted ends a refused jump's claim
+
+    def received(self, batch) -> None:
+        """Record ``batch`` as received but refused by another check (a time check): its
+        number is not lost. Not for batches :meth:`check` refused."""
+        epoch = getattr(batch, "epoch", 0)
+        if epoch == 0:
+            return
+        per = self._epochs(batch.radar_id)
+        seen = self._epoch_state(per, epoch)
+        if seen is None:  # nothing accepted yet: a state for the count only
+            seen = per[epoch] = _state(batch.seq, None)
+            seen["high"] = batch.seq - 1
+        self._count(seen, batch.seq)
+        self._forget_epochs(batch.radar_id, per)
+
+    def _count(self, st: dict, seq: int) -> None:
+        if st["first"] is None:
+            st["first"] = st["top"] = seq
+        if seq in st["got"] or seq <= st["top"] - self.window:
+            return
+        st["got"].add(seq)
+        st["n"] += 1
+        st["first"], st["top"] = min(st["first"], seq), max(st["top"], seq)
+        if len(st["got"]) > 2 * self.window:
+            floor = st["top"] - self.window
+            st["got"] = {s for s in st["got"] if s > floor}
+
+    def _forget_epochs(self, radar_id: str, per: dict) -> None:
+        while len(per) > self.epochs:
+            old = per.pop(next(iter(per)))
+            if isinstance(old, dict) and old.get("first") is not None:
+                lost = old["top"] - old["first"] + 1 - old["n"]
+                book = self.lost_forgotten
+                book[radar_id] = book.get(radar_id, 0) + lost
+
+    # --- snapshot ------------------------------------------------------------------
     def to_snapshot(self) -> dict:
-        """``{"radars": [[radar, [[epoch, seen], …]], …]}`` in least recently used order;
-        ``seen`` is ``[highest seq, [seqs within the window, sorted]]`` or, for epoch 0,
-        ``[[seq, time_end, scan], …]``. The bounds are this object's configuration."""
-        radars = []
-        for rid, per in self.radars.items():
-            epochs = []
-            for epoch, seen in per.items():
-                if epoch == 0:
-                    epochs.append([0, [list(t) for t in seen]])
-                else:
-                    epochs.append([epoch, [seen[0], sorted(seen[1])]])
-            radars.append([rid, epochs])
-        return {"radars": radars}
+        """``{"radars": [[radar, [[epoch, state], …]], …], "lost_forgotten": {radar: n},
+        "resets": n}``, radars and epochs in least recently used order; each state is the
+        dict of :func:`_state` (epoch 0: :func:`_legacy`) with its sets as sorted lists and
+        the epoch-0 ring as ``[[seq, time_end, scan], …]``. The bounds are this object's
+        configuration."""
+        radars = [
+            [rid, [[epoch, _state_snapshot(st)] for epoch, st in per.items()]]
+            for rid, per in self.radars.items()
+        ]
+        return {"radars": radars, "lost_forgotten": dict(self.lost_forgotten),
+                "resets": self.resets}  # fmt: skip
 
     def from_snapshot(self, snap) -> None:
-        """Hold the batches seen of :meth:`to_snapshot` (the least recently used beyond
-        this object's bounds are dropped); :class:`SnapshotError` if it is malformed (then
-        nothing changes)."""
-        radars = mapping(snap, "seen batches").get("radars")
-        if type(radars) is not list:
-            raise SnapshotError("seen batches: no radar list")
+        """Hold the state of :meth:`to_snapshot` (the least recently used radars and
+        epochs beyond this object's bounds dropped); :class:`SnapshotError` if it is
+        malformed (then nothing changes)."""
+        snap = mapping(snap, "seen batches")
+        radars, lost, resets = snap.get("radars"), snap.get("lost_forgotten"), snap.get("resets")
+        if type(radars) is not list or type(resets) is not int or type(lost) is not dict:
+            raise SnapshotError("seen batches: no radar list, lost counts or resets")
+        if not all(type(k) is str and type(v) is int for k, v in lost.items()):
+            raise SnapshotError("seen batches: lost counts are not radar → integer")
         out: dict[str, dict] = {}
         for item in radars:
             if type(item) is not list or len(item) != 2 or type(item[0]) is not str:
@@ -121,7 +337,27 @@ class SeenBatches:
         for per in out.values():
             for epoch in list(per)[: max(0, len(per) - self.epochs)]:
                 del per[epoch]
-        self.radars = out
+        self.radars, self.lost_forgotten, self.resets = out, dict(lost), resets
+
+
+_OPTIONAL_INT = ("high", "t_high", "s0", "t0", "first", "top")
+"""State entries that are an integer or None (a state made by a refused batch has no
+times; epoch 0 has neither first nor top)."""
+
+
+def _state_snapshot(st: dict) -> dict:
+    """One epoch's state as plain JSON values (see :meth:`SeenBatches.to_snapshot`)."""
+    out = {k: v for k, v in st.items() if k not in ("ring", "recent", "got", "pending")}
+    out["pending"] = None if st["pending"] is None else list(st["pending"])
+    if "ring" in st:
+        out["ring"] = [list(t) for t in st["ring"]]
+    else:
+        out["recent"], out["got"] = sorted(st["recent"]), sorted(st["got"])
+    return out
+
+
+def _int_or_none(v) -> bool:
+    return v is None or type(v) is int
 
 
 def _ints(values, n: int | None = None) -> bool:
@@ -132,6 +368,34 @@ def _ints(values, n: int | None = None) -> bool:
     )
 
 
+def _epoch(epoch: int, snap) -> dict:
+    """One epoch's state from its snapshot; :class:`SnapshotError` if malformed."""
+    snap = mapping(snap, f"seen batches: epoch {epoch}")
+    legacy = epoch == 0
+    st = _legacy() if legacy else _state(0, None)
+    names = set(st) | ({"ring"} if legacy else set())
+    if set(snap) != names:
+        raise SnapshotError(f"seen batches: epoch {epoch} has entries {sorted(snap)}")
+    for k in _OPTIONAL_INT:
+        if k in st and not _int_or_none(snap[k]):
+            raise SnapshotError(f"seen batches: epoch {epoch} {k} is not an integer")
+        if k in st:
+            st[k] = snap[k]
+    p = snap["pending"]
+    if p is not None and not (type(p) is list and 2 <= len(p) <= 3 and all(map(_int_or_none, p))):
+        raise SnapshotError(f"seen batches: epoch {epoch} pending is not [seq, time(, since)]")
+    st["pending"] = p
+    if legacy:
+        if type(snap["ring"]) is not list or not all(_ints(t, 3) for t in snap["ring"]):
+            raise SnapshotError("seen batches: epoch 0 ring is not a list of [seq, time, scan]")
+        st["ring"].extend(tuple(t) for t in snap["ring"])
+        return st
+    if not (_ints(snap["recent"]) and _ints(snap["got"]) and type(snap["n"]) is int):
+        raise SnapshotError(f"seen batches: epoch {epoch} numbers are not integers")
+    st["recent"], st["got"], st["n"] = set(snap["recent"]), set(snap["got"]), snap["n"]
+    return st
+
+
 def _epochs(items) -> dict:
     """The epochs of one radar from their snapshot (see ``to_snapshot``)."""
     if type(items) is not list:
@@ -139,14 +403,6 @@ def _epochs(items) -> dict:
     per: dict = {}
     for item in items:
         if type(item) is not list or len(item) != 2 or type(item[0]) is not int:
-            raise SnapshotError("seen batches: an epoch entry is not [epoch, seen]")
-        epoch, seen = item
-        if epoch == 0:
-            if type(seen) is not list or not all(_ints(t, 3) for t in seen):
-                raise SnapshotError("seen batches: epoch 0 is not a list of [seq, time, scan]")
-            per[0] = deque((tuple(t) for t in seen), maxlen=LEGACY_RECENT)
-        elif type(seen) is list and len(seen) == 2 and type(seen[0]) is int and _ints(seen[1]):
-            per[epoch] = [seen[0], set(seen[1])]
-        else:
-            raise SnapshotError(f"seen batches: epoch {epoch} is not [highest, [seqs]]")
+            raise SnapshotError("seen batches: an epoch entry is not [epoch, state]")
+        per[item[0]] = _epoch(*item)
     return per

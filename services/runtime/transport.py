@@ -15,6 +15,17 @@ Rules this module enforces (stack-notes, Zenoh section):
   so it can notice a stop request at any moment. A full inbox blocks the Zenoh thread,
   which with BLOCK publishers propagates back-pressure to the senders instead of losing
   samples.
+* **Plots are published with Zenoh's advanced publishers** (:func:`declare_cached_publisher`,
+  ``zenoh.ext``): each keeps its last ``cache`` samples and numbers them; a receiver
+  subscribed with ``recover`` (:meth:`Inbox.subscribe`) notices a gap in the numbers (or,
+  by the publisher's heartbeat, a missing last sample) and asks the publisher's cache for
+  the missing samples, which then arrive in order; what the cache no longer holds is
+  reported as missed (:meth:`Inbox.take_missed`). So a stalled receiver, or a link that
+  Zenoh drops at its lease and opens again, loses nothing up to the cache depth. (A BLOCK
+  publisher alone cannot prevent that loss: what is published while no link exists is
+  routed nowhere.) The advanced publisher's extra keys are ``KEY/@adv/pub/…`` (its cache
+  queryable and heartbeat), which the access policy must allow
+  (:mod:`~skyfuse.services.runtime.security`).
 
 Modes: ``peer`` (default; peers gossip, so a star of ``--connect`` to one listener is a
 full mesh), ``client`` (connects to a router such as ``zenohd``; use with ``--connect``)
@@ -39,7 +50,7 @@ from typing import Literal
 
 import zenoh
 from pydantic import BaseModel, Field, field_validator, model_validator
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError, add_model_arguments, build_config
 
 log = logging.getLogger(__name__)
 
@@ -257,6 +268,29 @@ def declare_publisher(session: zenoh.Session, key: str, *, express: bool = False
     )
 
 
+PLOT_CACHE = 1000
+"""Samples an advanced publisher keeps for recovery by default (plot batches per radar)."""
+HEARTBEAT_S = 0.5
+"""Period of an advanced publisher's heartbeat (the number of its last sample, sent when it
+changed): a receiver that missed the last samples asks for them within this, s."""
+
+
+def declare_cached_publisher(session: zenoh.Session, key: str, cache: int = PLOT_CACHE):
+    """A publisher on ``key`` like :func:`declare_publisher` (BLOCK, the payload encoding)
+    that also keeps its last ``cache`` samples for receivers that missed them, numbers its
+    samples and sends a heartbeat (``zenoh.ext`` advanced publisher: module docstring)."""
+    from zenoh.ext import CacheConfig, MissDetectionConfig, declare_advanced_publisher
+
+    return declare_advanced_publisher(
+        session,
+        key,
+        encoding=payload_encoding(key),
+        congestion_control=zenoh.CongestionControl.BLOCK,
+        cache=CacheConfig(max_samples=cache),
+        sample_miss_detection=MissDetectionConfig(heartbeat=None, sporadic_heartbeat=HEARTBEAT_S),
+    )
+
+
 def payload_encoding(key: str) -> zenoh.Encoding:
     """``application/json;skyfuse.{Model}/{schema version}`` for a key of the v1 key
     space that carries a message (e.g. ``application/json;skyfuse.TrackBatch/1``), so
@@ -321,9 +355,15 @@ class Inbox:
         self._handles: list = []
         self.discarded = 0
         """Samples that arrived after :meth:`close` and were dropped."""
+        self._sources: dict[tuple[str, int], str] = {}
+        """Advanced publishers seen (zid, entity id) → the key of their last sample."""
+        self._missed: dict[str, int] = {}
+        self._missed_lock = threading.Lock()
 
-    def _push(self, tag: str) -> Callable[[zenoh.Sample], None]:
+    def _push(self, tag: str, sources: bool = False) -> Callable[[zenoh.Sample], None]:
         def callback(sample: zenoh.Sample) -> None:
+            if sources:
+                self._note_source(sample)
             att = sample.attachment
             item = Received(
                 tag,
@@ -344,17 +384,62 @@ class Inbox:
         return callback
 
     def subscribe(
-        self, session: zenoh.Session, key_expr: str, tag: str = "", *, remote_only: bool = False
+        self,
+        session: zenoh.Session,
+        key_expr: str,
+        tag: str = "",
+        *,
+        remote_only: bool = False,
+        recover: bool = False,
     ) -> None:
         """Subscribe to ``key_expr``; samples arrive tagged ``tag`` (default: the key).
 
         ``remote_only`` ignores this session's own publications: a service that publishes
         on keys it also subscribes to must use it, or a blocking ``put`` from the thread
-        that drains a full inbox would wait for itself."""
+        that drains a full inbox would wait for itself. ``recover``: an advanced
+        subscriber (module docstring) that gets the samples it missed back from the
+        publishers' caches and counts what they no longer hold (:meth:`take_missed`)."""
         origin = zenoh.Locality.REMOTE if remote_only else None
-        self._handles.append(
-            session.declare_subscriber(key_expr, self._push(tag or key_expr), allowed_origin=origin)
+        if not recover:
+            self._handles.append(
+                session.declare_subscriber(
+                    key_expr, self._push(tag or key_expr), allowed_origin=origin
+                )
+            )
+            return
+        from zenoh.ext import RecoveryConfig, declare_advanced_subscriber
+
+        sub = declare_advanced_subscriber(
+            session,
+            key_expr,
+            self._push(tag or key_expr, sources=True),
+            allowed_origin=origin,
+            recovery=RecoveryConfig(periodic_queries=None, heartbeat=True),
         )
+        self._handles += [sub.sample_miss_listener(self._on_miss), sub]
+
+    def _note_source(self, sample: zenoh.Sample) -> None:
+        info = sample.source_info
+        if info is None:
+            return
+        sid = (str(info.source_id.zid), int(info.source_id.eid))
+        if sid not in self._sources and len(self._sources) >= MAX_SOURCES:
+            self._sources.pop(next(iter(self._sources)))  # the oldest publisher seen
+        self._sources[sid] = str(sample.key_expr)
+
+    def _on_miss(self, miss) -> None:
+        key = self._sources.get((str(miss.source.zid), int(miss.source.eid)), "")
+        with self._missed_lock:
+            if key not in self._missed and len(self._missed) >= MAX_SOURCES:
+                key = ""  # an unknown or one too many source: counted together
+            self._missed[key] = self._missed.get(key, 0) + int(miss.nb)
+
+    def take_missed(self) -> dict[str, int]:
+        """Samples reported missed since the last call, by key (``""``: a publisher not
+        seen), and forget them."""
+        with self._missed_lock:
+            out, self._missed = self._missed, {}
+        return out
 
     def subscribe_liveliness(
         self, session: zenoh.Session, key_expr: str, tag: str = "alive", history: bool = True
@@ -392,6 +477,10 @@ class Inbox:
             with contextlib.suppress(Exception):
                 h.undeclare()
         self._handles.clear()
+
+
+MAX_SOURCES = 4096
+"""Advanced publishers (and keys with misses) an :class:`Inbox` keeps track of, at most."""
 
 
 def declare_liveliness(session: zenoh.Session, key: str):
@@ -479,8 +568,6 @@ def loopback_endpoint(port: int | None = None) -> str:
 
 def add_transport_arguments(parser) -> None:
     """Add ``--mode --listen --connect --multicast --zenoh-config`` to an argparse parser."""
-    from skyfuse.services.cli.config import add_model_arguments
-
     group = parser.add_argument_group("zenoh transport")
     add_model_arguments(group, TransportConfig)
 
@@ -488,8 +575,6 @@ def add_transport_arguments(parser) -> None:
 def transport_config(args=None, *, toml_path=None, section: str | None = "transport"):
     """The :class:`TransportConfig` from defaults < TOML ``[transport]`` < ``SKYFUSE_*``
     environment < flags."""
-    from skyfuse.services.cli.config import build_config
-
     return build_config(
         TransportConfig, args, toml_path=toml_path, section=section, env_prefix=ENV_PREFIX
     )

@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import time
 
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, start_time_ns
 from skyfuse.services.sensors.continuation import file_epoch
 from skyfuse.services.sensors.fleet import RadarFleet, asterix_sites, stats_text
@@ -57,7 +57,7 @@ class AsterixRecordingSensor:
             for b in self.result.batches
             if b.radar_id in radars
         ]
-        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}")
+        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix'}", cfg.cache_batches)
 
     def run(self, stop) -> SensorStats:
         cfg, res, fleet = self.cfg, self.result, self.fleet

@@ -15,7 +15,7 @@ import socket
 import time
 
 from skyfuse.schemas import PlotBatch, RadarSite
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.state_files import state_home
 from skyfuse.services.sensors.config import SensorServiceConfig, SensorStats, parse_host_port
 from skyfuse.services.sensors.continuation import SequenceCeiling
@@ -66,7 +66,7 @@ class AsterixUdpSensor:
         self._new_site_check = -1e9
         self._published: dict[str, RadarSite] = {}
         self._clock_warned = False
-        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}")
+        self.fleet = RadarFleet(session, f"sensor-{cfg.radar or 'asterix-udp'}", cfg.cache_batches)
         self.sequence = SequenceCeiling(
             cfg.state_dir or state_home() / f"sensor-{cfg.radar or 'asterix-udp'}"
         )

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from pydantic import Field, field_validator
 from skyfuse.schemas import keys
-from skyfuse.services.cli.scenario_config import ScenarioSelection
+from skyfuse.services.runtime.transport import PLOT_CACHE
+from skyfuse.services.sensors.scenario_config import ScenarioSelection
 
 
 class SensorServiceConfig(ScenarioSelection):
@@ -80,6 +81,14 @@ class SensorServiceConfig(ScenarioSelection):
         "after --wait-for: sensors started apart then run in step",
     )
     status_interval: float = Field(2.0, gt=0, description="Status publication period, s")
+    cache_batches: int = Field(
+        PLOT_CACHE,
+        ge=1,
+        le=1_000_000,
+        description="Plot batches each radar's publisher keeps for receivers that missed "
+        "them (a stalled or cut-off fusion service or recorder gets them back); what is "
+        "older is counted as lost by the receivers",
+    )
     linger: float = Field(
         0.5, ge=0, le=30, description="Seconds to stay connected after the last batch"
     )

@@ -16,12 +16,16 @@ repeats have the identity ``(radar, epoch, seq)`` of the first copies, which the
 service and the recorder refuse as ``duplicate batch`` (``services.runtime.seen_batches``).
 
 **Epochs** (``PlotBatch.epoch``): a sensor's numbering is identified by an epoch, kept
-with the numbering: the simulated sensor's is saved in ``progress.json`` (a continued
-run keeps it; a run from the beginning starts a new one: its start instant, ns), the
-live ASTERIX sensor's in ``sequence.json`` (``@epoch``, made once with the file); the
-ASTERIX file sensor's is a fingerprint of the file and of how it is decoded
-(:func:`file_epoch`), so publishing the same file again repeats the same
-``(radar, epoch, seq)`` and is refused as duplicates, batch by batch.
+with the numbering, and a new epoch is the only way to number from anywhere else than
+where the last number left off (receivers refuse a number far beyond what the radar can
+have published since its last one: ``services.runtime.seen_batches``). The simulated
+sensor's epoch is saved in ``progress.json`` (a continued run keeps it and continues its
+numbers; a run from the beginning starts a new one: its start instant, ns); the live
+ASTERIX sensor takes a new one at every start (its numbers then continue above the
+ceiling of ``sequence.json``, with a gap of up to ``SEQ_RESERVE``); the ASTERIX file
+sensor's is a fingerprint of the file and of how it is decoded (:func:`file_epoch`), so
+publishing the same file again repeats the same ``(radar, epoch, seq)`` and is refused as
+duplicates, batch by batch.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ PROGRESS_INTERVAL = 1.0
 """Seconds between two writes of the progress file (wall clock)."""
 _PACING_FIELDS = {
     "start_at", "align", "wait_for", "wait_timeout", "status_interval", "linger",
-    "state_dir", "resume_max_age",
+    "state_dir", "resume_max_age", "cache_batches",
 }  # fmt: skip
 
 
@@ -148,16 +152,13 @@ class SequenceCeiling:
         self.dir.mkdir(parents=True, exist_ok=True, mode=0o700)
         self.path = self.dir / "sequence.json"
         self.epoch = new_epoch()
-        """The epoch of this sensor's numbering (``@epoch`` in the file; a new one only
-        when the file is made, i.e. when the numbers start again from 0)."""
+        """The epoch of this run's numbering: a new one at every start, since the numbers
+        jump by up to ``SEQ_RESERVE`` (the ``@epoch`` of earlier versions' files is
+        ignored)."""
         try:
             saved = json.loads(self.path.read_text())
-            epoch = saved.pop(EPOCH_KEY, None)
+            saved.pop(EPOCH_KEY, None)
             self.ceiling = {str(k): int(v) for k, v in saved.items()}
-            if type(epoch) is int and epoch > 0:
-                self.epoch = epoch
-            elif self.ceiling:  # a file of an earlier version: numbers go on, new epoch
-                self._write()
         except FileNotFoundError:
             self.ceiling = {}
         except (ValueError, TypeError, AttributeError) as e:
@@ -175,13 +176,14 @@ class SequenceCeiling:
 
     def _write(self) -> None:
         try:
-            atomic_write(self.path, json.dumps({**self.ceiling, EPOCH_KEY: self.epoch}).encode())
+            atomic_write(self.path, json.dumps(self.ceiling).encode())
         except OSError as e:
             log.error("cannot write %s: %s", self.path, e)
 
 
 EPOCH_KEY = "@epoch"
-"""The epoch's entry in ``sequence.json`` (no radar id contains ``@``)."""
+"""The epoch's entry in ``sequence.json`` of earlier versions (no radar id contains
+``@``); ignored."""
 
 
 def new_epoch() -> int:

@@ -8,8 +8,10 @@ import time
 from collections import Counter
 
 from skyfuse.schemas import PlotBatch, RadarSite, Status, keys
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import (
+    PLOT_CACHE,
+    declare_cached_publisher,
     declare_liveliness,
     declare_publisher,
     service_alive_key,
@@ -24,11 +26,13 @@ class RadarFleet:
     Per radar: a ``RadarSite`` message and a queryable on ``radar/{id}/site`` once its
     site is known, a liveliness token ``radar/{id}/alive`` from its first site or batch
     on, and its ``PlotBatch`` publications (BLOCK publishers). ``service`` names the
-    process's own ready token and status key."""
+    process's own ready token and status key; ``cache``: plot batches each radar's
+    publisher keeps for receivers that missed them."""
 
-    def __init__(self, session, service: str) -> None:
+    def __init__(self, session, service: str, cache: int = PLOT_CACHE) -> None:
         self.session = session
         self.service = service
+        self.cache = cache
         self.sites: dict[str, bytes] = {}
         self.stats = SensorStats()
         self.batches_by_radar: Counter = Counter()
@@ -68,7 +72,9 @@ class RadarFleet:
         rid = batch.radar_id
         pub = self._pub_plots.get(rid)
         if pub is None:
-            pub = self._pub_plots[rid] = declare_publisher(self.session, keys.radar_plots(rid))
+            pub = self._pub_plots[rid] = declare_cached_publisher(
+                self.session, keys.radar_plots(rid), self.cache
+            )
             self.alive(rid)
         pub.put(batch.to_json_bytes(), attachment=wall_stamp(stamp_ns))
         self.stats.published["plots"] += 1

@@ -28,7 +28,13 @@ from pathlib import Path
 
 from skyfuse.schemas import keys
 from skyfuse.services.recording.mcap_io import ReadStats, iter_recording
-from skyfuse.services.runtime.transport import declare_liveliness, declare_publisher, wall_stamp
+from skyfuse.services.runtime.transport import (
+    PLOT_CACHE,
+    declare_cached_publisher,
+    declare_liveliness,
+    declare_publisher,
+    wall_stamp,
+)
 
 log = logging.getLogger(__name__)
 
@@ -100,20 +106,22 @@ def replay(
     stop=None,
     liveliness: bool = True,
     start_at: float | None = None,
+    cache: int = PLOT_CACHE,
 ) -> ReplayResult:
     """Publish the sites and plots (and ``truth``) of ``path``; return what was sent.
 
     ``radars`` restricts the replay to those radar ids. ``stop`` (an Event-like object)
     ends the replay early. ``start_at``: the Unix time (s, this host's clock) at which the
     recording's start is due (default: now); replays given the same value, in one or
-    several processes, publish in phase (messages already due are published at once)."""
+    several processes, publish in phase (messages already due are published at once).
+    Plots go through advanced publishers that keep ``cache`` batches per radar for
+    receivers that missed them (``services.runtime.transport``)."""
     if speed <= 0:
         raise ValueError(f"speed = {speed}: must be > 0")
     kinds = (*REPLAYED_KINDS, "truth") if truth else REPLAYED_KINDS
     result = ReplayResult()
     topics = replay_topics(path, kinds, radars)
-    publishers: dict[str, object] = {}
-    tokens: dict[str, object] = {}
+    out = _Publishers(session, cache, liveliness)
     lead = 0.0 if start_at is None else start_at - time.time()  # s until the start
     if lead < 0:
         log.warning("start_at is %.1f s in the past: what is already due is published at "
@@ -149,22 +157,45 @@ def replay(
                             break
                     else:
                         time.sleep(delay)
-            pub = publishers.get(rec.topic)
-            if pub is None:
-                pub = publishers[rec.topic] = declare_publisher(session, rec.topic)
-            if info.kind == "site" and liveliness and info.owner not in tokens:
-                tokens[info.owner] = declare_liveliness(session, keys.radar_alive(info.owner))
-            if info.kind == "plots":
-                if not result.subscribed and pub.matching_status.matching:
-                    result.subscribed = True
-                pub.put(rec.data, attachment=wall_stamp())
-            else:
-                pub.put(rec.data)
+            if out.put(rec.topic, info, rec.data):
+                result.subscribed = True
             result.published[rec.topic] += 1
     finally:
         result.wall_s = time.monotonic() - wall0
-        for tok in tokens.values():
-            tok.undeclare()
-        for pub in publishers.values():
-            pub.undeclare()
+        out.close()
     return result
+
+
+class _Publishers:
+    """The replay's publishers, declared on first use: plots through advanced publishers
+    with a cache of ``cache`` batches (and a plain one each, never used to send, for its
+    matching status), sites and truth through plain ones; a radar's liveliness token
+    from its first site (with ``liveliness``)."""
+
+    def __init__(self, session, cache: int, liveliness: bool) -> None:
+        self.session, self.cache, self.liveliness = session, cache, liveliness
+        self.pubs: dict[str, object] = {}
+        self.probes: dict[str, object] = {}
+        self.tokens: dict[str, object] = {}
+
+    def put(self, topic: str, info, data: bytes) -> bool:
+        """Publish ``data``; whether it is a plot batch someone subscribes to."""
+        pub = self.pubs.get(topic)
+        if pub is None:
+            if info.kind == "plots":
+                pub = declare_cached_publisher(self.session, topic, self.cache)
+                self.probes[topic] = declare_publisher(self.session, topic)
+            else:
+                pub = declare_publisher(self.session, topic)
+            self.pubs[topic] = pub
+        if info.kind == "site" and self.liveliness and info.owner not in self.tokens:
+            self.tokens[info.owner] = declare_liveliness(self.session, keys.radar_alive(info.owner))
+        if info.kind != "plots":
+            pub.put(data)
+            return False
+        pub.put(data, attachment=wall_stamp())
+        return self.probes[topic].matching_status.matching
+
+    def close(self) -> None:
+        for handle in [*self.tokens.values(), *self.pubs.values(), *self.probes.values()]:
+            handle.undeclare()

@@ -22,8 +22,9 @@ import logging
 import time
 
 from skyfuse.schemas import RadarSite, Status, keys
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import (
+    declare_cached_publisher,
     declare_liveliness,
     declare_publisher,
     service_alive_key,
@@ -57,7 +58,9 @@ class SimulatedRadar:
         self.stats = SensorStats()
         self._site_bytes = self.site.to_json_bytes()
         self._pub_site = declare_publisher(session, keys.radar_site(cfg.radar))
-        self._pub_plots = declare_publisher(session, keys.radar_plots(cfg.radar))
+        self._pub_plots = declare_cached_publisher(
+            session, keys.radar_plots(cfg.radar), cfg.cache_batches
+        )
         self._pub_truth = declare_publisher(session, keys.SIM_TRUTH) if cfg.truth else None
         self._pub_status = declare_publisher(session, keys.service_status(f"sensor-{cfg.radar}"))
         self._queryable = session.declare_queryable(keys.radar_site(cfg.radar), self._answer_site)
@@ -115,31 +118,21 @@ class SimulatedRadar:
             t0 = None  # the first batch not yet published is due at the start instant
         next_status = wall0
         for ev in Simulator(self.scenario, seed=cfg.seed).run():
-            if skip is not None and ev.kind != "site" and ev.time <= skip:
-                continue  # published by the previous run (services.sensors.continuation)
-            if ev.kind == "truth":
-                if self._pub_truth is None:
-                    continue
-            elif getattr(ev.message, "radar_id", None) != cfg.radar:
+            if not self._mine(ev):
+                continue
+            if skip is not None and ev.time <= skip:
+                # published by the previous run (services.sensors.continuation); a site
+                # of that part is the current site, published now and not paced: it
+                # must not set the pacing origin, which is the first batch not published
+                if ev.kind == "site" and ev.message.to_json_bytes() != self._site_bytes:
+                    self.publish_site(ev.message)
                 continue
             if t0 is None:
                 t0 = ev.time
             due_ns = start_ns + int((ev.time - t0) / cfg.speed)
             if not self.stats.wait_until(due_ns, stop):
                 break
-            if ev.kind == "plots":
-                ev.message.epoch = self.epoch
-                self._pub_plots.put(ev.message.to_json_bytes(), attachment=wall_stamp(due_ns))
-                self.stats.plots += len(ev.message.time)
-                self.stats.published["plots"] += 1
-                if self.progress is not None:
-                    self.progress.published(ev.message.seq, ev.message.time_end)
-            elif ev.kind == "site":
-                if ev.message.to_json_bytes() != self._site_bytes:
-                    self.publish_site(ev.message)
-            else:
-                self._pub_truth.put(ev.message.to_json_bytes())
-                self.stats.published["truth"] += 1
+            self._publish(ev, due_ns)
             now = time.monotonic()
             if now >= next_status:
                 next_status = now + cfg.status_interval
@@ -151,6 +144,29 @@ class SimulatedRadar:
             else:
                 self.progress.finished()  # the scenario is done: a new run starts afresh
         return self.stats
+
+    def _mine(self, ev) -> bool:
+        """Whether this sensor publishes the simulator event ``ev``: its radar's, and the
+        truth when asked for."""
+        if ev.kind == "truth":
+            return self._pub_truth is not None
+        return getattr(ev.message, "radar_id", None) == self.cfg.radar
+
+    def _publish(self, ev, due_ns: int) -> None:
+        """Publish one event of this radar (or the truth) due at wall clock ``due_ns``."""
+        if ev.kind == "plots":
+            ev.message.epoch = self.epoch
+            self._pub_plots.put(ev.message.to_json_bytes(), attachment=wall_stamp(due_ns))
+            self.stats.plots += len(ev.message.time)
+            self.stats.published["plots"] += 1
+            if self.progress is not None:
+                self.progress.published(ev.message.seq, ev.message.time_end)
+        elif ev.kind == "site":
+            if ev.message.to_json_bytes() != self._site_bytes:
+                self.publish_site(ev.message)
+        else:
+            self._pub_truth.put(ev.message.to_json_bytes())
+            self.stats.published["truth"] += 1
 
     def close(self) -> None:
         if self._ready is not None:

@@ -10,7 +10,7 @@ import pytest
 from skyfuse.fusion.sim import Simulator, build_scenario
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.schemas import FeedKind, Status, TrackBatch, TrackPicture
-from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
+from skyfuse.services.fusion.server import make_pipeline_factory
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 
 

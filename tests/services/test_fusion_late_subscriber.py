@@ -13,7 +13,7 @@ import pytest
 from skyfuse.fusion.sim import Simulator, build_scenario
 from skyfuse.fusion.tracker.config import TrackerConfig
 from skyfuse.schemas import FeedKind, TrackBatch, TrackPicture, keys
-from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
+from skyfuse.services.fusion.server import make_pipeline_factory, serve
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.runtime.transport import (
     Inbox,

@@ -10,7 +10,7 @@ import time
 import pytest
 import zenoh
 from skyfuse.schemas import SCHEMA_VERSION, Status, keys
-from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
+from skyfuse.services.fusion.server import make_pipeline_factory, serve
 from skyfuse.services.fusion.service import FusionConfig, FusionCore
 from skyfuse.services.runtime.transport import (
     TransportConfig,

@@ -10,9 +10,9 @@ from skyfuse.fusion.sim import build_scenario
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.services.cli import cmd_fusion
 from skyfuse.services.cli.cmd_demo import fusion_arguments
-from skyfuse.services.cli.config import build_config
 from skyfuse.services.cli.main import build_parser, main
 from skyfuse.services.evaluation.demo import DemoConfig
+from skyfuse.services.runtime.config import build_config
 
 
 def _fusion_config(demo_argv: list[str]) -> tuple[DemoConfig, TrackerConfig]:

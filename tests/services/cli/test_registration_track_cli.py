@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 
 from service_support import BIASED_REGIONAL, BIASED_TRUTH
-from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
+from skyfuse.services.cli.main import main as skyfuse_main
 
 
 def _track(rec: Path, tmp_path: Path, *flags: str) -> dict:

@@ -20,7 +20,7 @@ import importlib, json, pkgutil, sys
 import numba.core.registry
 import skyfuse.fusion as fusion
 from skyfuse.fusion.tracker.kernel_warmup import warm_up
-from skyfuse.services.runtime.lifecycle import main_single
+from skyfuse.services.cli.main import main as skyfuse_main
 
 def dispatchers():
     found = {}
@@ -39,7 +39,7 @@ warm_up()
 warmed = signatures()
 rec, out = sys.argv[1], sys.argv[2]
 for motion in ("imm-cv-ct", "cv"):
-    assert main_single(["track", rec, "--out", out, "--no-progress", "--motion", motion]) == 0
+    assert skyfuse_main(["track", rec, "--out", out, "--no-progress", "--motion", motion]) == 0
 after = signatures()
 print(json.dumps({"before": before, "warmed": warmed, "after": after}))
 """

@@ -13,9 +13,9 @@ from service_support import make_site
 from skyfuse.fusion.registration import RegistrationConfig
 from skyfuse.fusion.tracker.measurements import MeasurementBatch, SectorCoverage
 from skyfuse.schemas import RadarKind
-from skyfuse.services.cli.config import ConfigError
 from skyfuse.services.cli.main import build_parser
 from skyfuse.services.fusion.registration_link import RegistrationLink, registration_config
+from skyfuse.services.runtime.config import ConfigError
 
 
 @pytest.mark.parametrize("command", [["fusion"], ["track", "r.mcap"], ["eval", "r.mcap"]])

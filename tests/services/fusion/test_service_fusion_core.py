@@ -97,7 +97,7 @@ def test_core_applies_in_time_order_and_counts_rejects():
     assert c.on_plots_payload(keys.radar_plots("R2"), json.dumps(bad).encode(), 11.0) is None
     assert c.on_plots_payload(keys.radar_plots("R9"), good.to_json_bytes(), 11.0) is None
     assert c.on_plots_payload(keys.radar_plots("R2"), good.to_json_bytes(), 11.0) is None
-    early = make_batch("R1", 0, 0, 4, 5, rng).model_copy(update={"seq": 99})
+    early = make_batch("R1", 0, 0, 4, 5, rng).model_copy(update={"seq": 8})  # new, but old
     assert c.on_plots_payload(keys.radar_plots("R1"), early.to_json_bytes(), 11.0) is None
     assert c.rejected == {
         "invalid PlotBatch: not JSON": 1,
@@ -140,7 +140,7 @@ def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
     17) and at an assumed altitude when the fusion configuration gives one; never
     rejected."""
     from skyfuse.fusion.tracker.config import TrackerConfig
-    from skyfuse.services.cli.cmd_fusion import make_pipeline_factory
+    from skyfuse.services.fusion.server import make_pipeline_factory
 
     rng = np.random.default_rng(5)
     batch = make_batch("R1", 0, 0, 4, 6, rng)

@@ -24,8 +24,8 @@ from skyfuse.schemas import (
     TrackBatch,
     keys,
 )
+from skyfuse.services.cli.main import main as skyfuse_main
 from skyfuse.services.recording.mcap_io import iter_recording
-from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
 from skyfuse.services.runtime.transport import (
     Inbox,
     free_port,

@@ -20,9 +20,9 @@ from skyfuse.schemas import (
     TrackPicture,
     keys,
 )
+from skyfuse.services.cli.main import main as skyfuse_main
 from skyfuse.services.fusion.system_frame import frame_for_sites
 from skyfuse.services.recording.mcap_io import iter_recording
-from skyfuse.services.runtime.lifecycle import main_single as skyfuse_main
 from skyfuse.services.runtime.transport import (
     Inbox,
     free_port,

@@ -49,6 +49,7 @@ def test_identity_columns_survive_the_recording_and_the_replay(simulated_recordi
             pass
 
     monkeypatch.setattr(replay_mod, "declare_publisher", lambda s, topic: Pub(topic))
+    monkeypatch.setattr(replay_mod, "declare_cached_publisher", lambda s, topic, cache: Pub(topic))
     monkeypatch.setattr(replay_mod, "declare_liveliness", lambda s, key: Pub(key))
     replay_mod.replay(None, path, fast=True)
     replayed = [PlotBatch.from_json_bytes(d) for t, d in published if t.endswith("/plots")]

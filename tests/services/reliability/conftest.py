@@ -84,7 +84,7 @@ def start_skyfuse(tmp_path):
     def start(*args: str, log: str = "proc") -> subprocess.Popen:
         err = open(tmp_path / f"{log}.log", "wb")
         proc = subprocess.Popen(
-            [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", *args],
+            [sys.executable, "-m", "skyfuse.services.cli", *args],
             stdout=subprocess.DEVNULL,
             stderr=err,
             env=dict(os.environ),

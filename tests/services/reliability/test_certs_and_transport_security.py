@@ -15,12 +15,12 @@ import zenoh
 from cryptography import x509
 from cryptography.hazmat.primitives.asymmetric.padding import PKCS1v15
 from cryptography.x509.oid import NameOID
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import TransportConfig, warn_exposed, zenoh_config
 
 
 def certs_cli(out, *args):
-    cmd = [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "certs", "--out", str(out)]
+    cmd = [sys.executable, "-m", "skyfuse.services.cli", "certs", "--out", str(out)]
     return subprocess.run([*cmd, *args], capture_output=True, timeout=120)
 
 

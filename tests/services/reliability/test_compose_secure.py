@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from cryptography import x509
 from cryptography.x509.oid import NameOID
-from skyfuse.services.cli.config import build_config
 from skyfuse.services.cli.main import build_parser
+from skyfuse.services.runtime.config import build_config
 from skyfuse.services.runtime.transport import endpoint_port, transport_config
 
 yaml = pytest.importorskip("yaml")

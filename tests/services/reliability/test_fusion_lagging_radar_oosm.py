@@ -97,7 +97,9 @@ def test_lagging_radar_is_applied_by_the_oosm_update(start_skyfuse):
     assert st is not None and st.late is not None
     late = st.late
     assert st.counters["cycles"] >= 2 * n  # every R1 and R2 batch (and R3's first)
-    assert late.batches_late >= n - 1  # R2: 1 s behind the service time
+    # R2: 1 s behind the service time (its first batch may come in order: the service time
+    # does not leap from R3's first batch 2.5 s ahead before later data confirms it)
+    assert late.batches_late >= n - 2
     assert late.batches_oosm >= n - 6  # … all but the first few (before the track starts)
     assert late.plots_oosm >= n - 6 and late.hits_oosm >= n - 6
     assert late.track_updates_oosm >= late.batches_oosm

@@ -88,7 +88,7 @@ def test_a_state_too_old_is_not_resumed_but_ids_are_never_reused(tmp_path, scena
     used: set[int] = set()
     for i, b in enumerate(batches[:third]):
         feed(core, [b])
-        p.guard_ids()  # before publishing (cmd_fusion)
+        p.guard_ids()  # before publishing (services.fusion.server)
         used |= set(core.pipeline.tracker.ids.tolist())
         if i == third // 2:
             p.save()  # the last snapshot: the tracks made after it are lost by a crash

@@ -84,7 +84,7 @@ def drain_until(inbox: Inbox, pred, timeout: float = 15.0) -> list:
 
 def tracks_snapshot(certs: Path, cn: str, ep: str, where: str = "ok"):
     d = certs / where
-    cmd = [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "tracks", "--snapshot",
+    cmd = [sys.executable, "-m", "skyfuse.services.cli", "tracks", "--snapshot",
            "--json", "--mode", "client", "--connect", ep, "--tls-root-ca", str(certs / "ok/ca.pem"),
            "--tls-cert", str(d / f"{cn}.pem"), "--tls-key", str(d / f"{cn}.key")]  # fmt: skip
     return subprocess.run(cmd, capture_output=True, timeout=60)

@@ -144,7 +144,7 @@ def test_epoch_0_keeps_the_old_rule_and_memory_is_bounded():
         for s in range(100):
             seen.add(_B("A", e, s))
     assert set(seen.radars["A"]) == {2, 3}  # at most `epochs` per radar
-    assert all(len(v[1]) <= 2 * 16 + 1 for v in seen.radars["A"].values())
+    assert all(len(v["recent"]) <= 2 * 16 + 1 for v in seen.radars["A"].values())
     for r in "BCDE":
         seen.add(_B(r, 1, 0))
     assert list(seen.radars) == ["C", "D", "E"]  # at most `max_radars`

@@ -67,12 +67,12 @@ def test_third_signal_exits_at_once():
 
 def test_single_command_entry_point_usage_errors():
     r = subprocess.run(
-        [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "nosuchcommand"],
+        [sys.executable, "-m", "skyfuse.services.cli", "nosuchcommand"],
         cwd=ROOT, capture_output=True, text=True, timeout=30,
     )  # fmt: skip
     assert r.returncode == 2 and "invalid choice: 'nosuchcommand'" in r.stderr
     r = subprocess.run(
-        [sys.executable, "-m", "skyfuse.services.runtime.lifecycle", "record", "--out", "x.mcap",
+        [sys.executable, "-m", "skyfuse.services.cli", "record", "--out", "x.mcap",
          "--connect", "localhost:7447"],
         cwd=ROOT, capture_output=True, text=True, timeout=30,
     )  # fmt: skip

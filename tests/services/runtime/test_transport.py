@@ -9,7 +9,7 @@ import time
 
 import pytest
 from service_support import peer, wait_for
-from skyfuse.services.cli.config import ConfigError
+from skyfuse.services.runtime.config import ConfigError
 from skyfuse.services.runtime.transport import (
     Inbox,
     TransportConfig,

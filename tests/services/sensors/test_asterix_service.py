@@ -232,7 +232,7 @@ def test_cat062_from_fusion_and_bridge_decode_to_the_fused_tracks(tmp_path):
     test fast; the command-line wiring is checked in test_asterix_cli.py."""
     from skyfuse.fusion.tracker import TrackerConfig
     from skyfuse.services.cli.cmd_cat062 import Cat062Config, Cat062UdpSender, bridge
-    from skyfuse.services.cli.cmd_fusion import make_pipeline_factory, serve
+    from skyfuse.services.fusion.server import make_pipeline_factory, serve
     from skyfuse.services.fusion.service import FusionConfig, FusionCore
     from skyfuse.services.sensors.asterix_file import AsterixRecordingSensor
     from skyfuse.services.sensors.config import SensorServiceConfig

@@ -46,6 +46,9 @@ def _publish_times(monkeypatch, path, radars, start_at=None):
     """Monotonic times of each plots publication of a replay of ``radars``, with topics."""
     log = []
     monkeypatch.setattr(replay_mod, "declare_publisher", lambda s, topic: _Pub(log, topic))
+    monkeypatch.setattr(
+        replay_mod, "declare_cached_publisher", lambda s, topic, cache: _Pub(log, topic)
+    )
     monkeypatch.setattr(replay_mod, "declare_liveliness", lambda s, key: _Pub([], key))
     replay_mod.replay(None, path, speed=SPEED, radars=radars, start_at=start_at)
     return [(t, topic) for t, topic in log if topic.endswith("/plots")]

@@ -4,7 +4,7 @@ simulator (``skyfuse simulate``, ``skyfuse sensor``), and building the scenario 
 from __future__ import annotations
 
 from pydantic import BaseModel, Field, field_validator
-from skyfuse.services.cli.config import ConfigError, parse_key_values
+from skyfuse.services.runtime.config import ConfigError, parse_key_values
 
 
 class ScenarioSelection(BaseModel):
