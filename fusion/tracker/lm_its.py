@@ -44,8 +44,10 @@ def modified_clutter_density(
     else:
         raise ValueError(f"prior = {prior!r}: must be 'canonical' or 'thesis'")
     r = p / rho_prior
-    rsum = np.bincount(tp_track, weights=r, minlength=n)
-    P = pdpg[tp_track] * psi_pred[tp_track] * r / rsum[tp_track]  # (6.12)
+    rsum = np.bincount(tp_track, weights=r, minlength=n)[tp_track]
+    # (6.12); a track whose gated plots all have likelihood 0 (a particle cloud far from
+    # them, its likelihoods underflowed) gives them no prior probability, not 0/0
+    P = pdpg[tp_track] * psi_pred[tp_track] * r / np.where(rsum > 0.0, rsum, 1.0)
     P = np.minimum(P, 1.0 - 1e-12)
     term = p * P / (1.0 - P)
     per_plot = np.bincount(tp_plot, weights=term, minlength=nplots)

@@ -76,3 +76,23 @@ def test_modified_clutter_density_by_hand():
     rho0 = 1e-4 + 0.7 * 0.6 * 2e-3  # for track 0 at plot 0
     P00t = 0.8 * 0.9 * (1e-3 / rho0) / (1e-3 / rho0 + 4e-4 / 1e-4)
     assert th[2] == pytest.approx(1e-4 + 1e-3 * P00t / (1 - P00t))
+
+
+def test_a_track_whose_gated_likelihoods_all_underflowed_adds_no_clutter():
+    """Track 1 gates plots 0 and 1 with likelihood 0 (a particle cloud far from them):
+    (6.12) has 0/0 for it; it must give those plots no prior probability, so ρ̃ of track
+    0's rows is ρ plus nothing from track 1, and every value is finite (a NaN here became
+    a NaN existence on the Barcelona recording with lmipf)."""
+    tp_track, tp_plot = np.array([0, 1, 1]), np.array([0, 0, 1])
+    p = np.array([2e-9, 0.0, 0.0])
+    rho = np.full(3, 1e-9)
+    out = modified_clutter_density(
+        tp_track, tp_plot, 2, p, rho, np.array([0.9, 0.9]), np.array([0.85, 0.85])
+    )
+    assert np.isfinite(out).all()
+    # track 0's own row: other tracks' terms only (track 1's are 0); track 1's row on
+    # plot 0: track 0's term p P / (1 - P) with P = P_D P_G ψ (its only gated plot)
+    P0 = min(0.85 * 0.9, 1.0 - 1e-12)
+    assert out[0] == rho[0]
+    assert out[1] == pytest.approx(rho[1] + 2e-9 * P0 / (1.0 - P0), rel=1e-12)
+    assert out[2] == rho[2]
