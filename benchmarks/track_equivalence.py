@@ -10,7 +10,8 @@ command ``python -m skyfuse.services.cli`` of that interpreter does the work)::
 
 ``--quick`` runs a subset (about 1-2 min on an idle machine), ``--only TEXT`` the
 configurations whose name contains TEXT (repeatable), ``--list`` prints the names,
-``--jobs N`` runs N configurations at once. The simulated inputs are written once into
+``--jobs N`` runs N configurations at once, ``--track-args "ARGS"`` adds ARGS to every
+``skyfuse track`` command (e.g. ``--no-identity``). The simulated inputs are written once into
 ``--inputs`` (default ``<out>/../track-equivalence-inputs``) and reused by every run, so
 that both versions track the same plots even if their simulators differed (the compare
 step checks the inputs' SHA-256).
@@ -29,7 +30,11 @@ for float), ``within tolerance`` (same messages, ids, statuses, events; numbers 
 at most ``--tol`` relative: a vector or matrix relative to its largest entry, a scalar
 to itself, or ``--atol`` absolute) with the largest relative difference of the track
 states and covariances and of any number, or ``DIFFERENT`` with the first message that
-differs beyond the tolerance (its index, topic, time and the path of the field). Exit
+differs beyond the tolerance (its index, topic, time and the path of the field).
+``--ignore-identity`` compares the kinematics alone: the tracks' identity fields (every
+``Track`` field but the kinematic ones, :data:`KINEMATIC`) and the identity events
+(:data:`IDENTITY_EVENTS`) are left out of both sides first, so a version that attributes
+identity to the tracks is compared with one that does not. Exit
 status 0 when every configuration is identical or within tolerance, 1 otherwise. A run
 that fails is dumped too (exit status and last error line): two versions that fail the
 same way on a configuration are reported as an ``identical failure``.
@@ -63,6 +68,12 @@ lat = 41.300702
 lon = 2.102058
 alt = 27.26
 """
+KINEMATIC = frozenset(("track_id", "time", "status", "existence", "state", "covariance",
+                       "lat", "lon", "alt", "vel_east", "vel_north", "vel_up", "speed",
+                       "heading", "radars", "updates"))  # fmt: skip
+"""The fields of a ``Track`` that are not identity (what ``--ignore-identity`` keeps)."""
+IDENTITY_EVENTS = frozenset(("identity_changed", "identity_conflict", "emergency", "spi"))
+"""The event kinds ``--ignore-identity`` leaves out."""
 KINDS = ("gnn", "ipda", "its", "lmipda", "lmits", "jipda", "jits")
 OWN_DENSITY = ("ipf", "lmipf")
 MOTIONS = ("cv", "imm-cv-ct", "imm-cv-singer")
@@ -197,8 +208,9 @@ def read_messages(path: Path) -> tuple[list[str], list[list]]:
     return topics, out
 
 
-def run_one(cfg: Config, out_dir: Path, python: str, prepared) -> str:
+def run_one(cfg: Config, out_dir: Path, python: str, prepared, track_args=()) -> str:
     path, extra = prepared
+    extra = [*extra, *track_args]
     with tempfile.TemporaryDirectory() as tmp:
         mcap = Path(tmp) / "tracks.mcap"
         cmd = [*_cli(python), "track", str(path), "--out", str(mcap), "--no-progress",
@@ -253,7 +265,8 @@ def run(a) -> int:
     t0 = time.monotonic()
     failed = 0
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:
-        jobs = [pool.submit(run_one, c, out, a.python, prepared[c.input]) for c in cfgs]
+        targs = (a.track_args or "").split()
+        jobs = [pool.submit(run_one, c, out, a.python, prepared[c.input], targs) for c in cfgs]
         for j in jobs:
             line = j.result()
             failed += "FAILED" in line
@@ -376,6 +389,24 @@ def _load(path: Path) -> dict:
         return json.load(f)
 
 
+def without_identity(dump: dict) -> dict:
+    """``dump`` with the tracks' identity fields and the identity events left out."""
+    if "messages" not in dump:
+        return dump
+    out = []
+    for topic, body in dump["messages"]:
+        if not isinstance(body, dict):
+            out.append([topic, body])
+        elif body.get("kind") in IDENTITY_EVENTS:
+            continue
+        elif "tracks" in body:
+            tracks = [{k: v for k, v in t.items() if k in KINEMATIC} for t in body["tracks"]]
+            out.append([topic, {**body, "tracks": tracks}])
+        else:
+            out.append([topic, body])
+    return {**dump, "messages": out}
+
+
 def compare_dumps(da: dict, db: dict, tol: float, atol: float) -> str:
     """One line: identical / within tolerance / DIFFERENT (see the module docstring)."""
     if da["input"]["sha256"] != db["input"]["sha256"]:
@@ -408,7 +439,7 @@ def compare_dumps(da: dict, db: dict, tol: float, atol: float) -> str:
     )
 
 
-def compare(a, b, tol: float, atol: float) -> int:
+def compare(a, b, tol: float, atol: float, ignore_identity: bool = False) -> int:
     """Compare the dumps of two run directories; one line per configuration."""
     da, db = Path(a), Path(b)
     names = sorted({p.name[:-8] for d in (da, db) for p in d.glob("*.json.gz")})
@@ -420,6 +451,8 @@ def compare(a, b, tol: float, atol: float) -> int:
             line = f"missing in {'A' if not pa.exists() else 'B'}"
         else:
             x, y = _load(pa), _load(pb)
+            if ignore_identity:
+                x, y = without_identity(x), without_identity(y)
             line = compare_dumps(x, y, tol, atol)
             if x.get("summary") != y.get("summary") and line.startswith(("identical", "within")):
                 line += "; the run summaries differ"
@@ -441,9 +474,15 @@ def main(argv=None) -> int:
     p.add_argument("--compare", nargs=2, metavar=("A", "B"), help="compare two run directories")
     p.add_argument("--tol", type=float, default=1e-9, help="relative tolerance (default 1e-9)")
     p.add_argument("--atol", type=float, default=1e-12, help="absolute tolerance of numbers")
+    p.add_argument("--track-args", help="arguments added to every skyfuse track command")
+    p.add_argument(
+        "--ignore-identity",
+        action="store_true",
+        help="compare without the tracks' identity fields and identity events",
+    )
     a = p.parse_args(argv)
     if a.compare:
-        return compare(*a.compare, a.tol, a.atol)
+        return compare(*a.compare, a.tol, a.atol, a.ignore_identity)
     if a.list:
         for c in configurations(a.quick):
             print(c.name, " ".join(c.args()))

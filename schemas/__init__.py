@@ -13,7 +13,15 @@ from .identity import Emergency
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
 from .site import RadarKind, RadarSite
-from .status import Backlog, LatencyStats, LateStats, OverloadStatus, RadarHealth, Status
+from .status import (
+    Backlog,
+    IdentityStatus,
+    LatencyStats,
+    LateStats,
+    OverloadStatus,
+    RadarHealth,
+    Status,
+)
 from .tracks import (
     FeedKind,
     FrameKind,
@@ -60,6 +68,7 @@ __all__ = [
     "FeedKind",
     "FrameKind",
     "FrameSpec",
+    "IdentityStatus",
     "LateStats",
     "LatencyStats",
     "MeasuredPlot",

@@ -7,11 +7,14 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of the payload models (in the Zenoh encoding, ``skyfuse.{Model}/{version}``):
 1 the first; 2 adds the secondary-surveillance plot columns and the track identity
-fields (:mod:`schemas.identity`). Models forbid unknown fields, so a consumer of an older
-version rejects a message that uses the new ones."""
+fields (:mod:`schemas.identity`); 3 the identity events (``identity_changed``,
+``identity_conflict``, ``emergency``, ``spi``, with ``attribute``, ``value``,
+``previous``), ``Track.mode_3a_changed`` and the identity counters of ``Status``.
+Models forbid unknown fields, so a consumer of an older version rejects a message that
+uses the new ones."""
 
 INT64_MIN = -(2**63)
 INT64_MAX = 2**63 - 1

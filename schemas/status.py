@@ -144,6 +144,26 @@ class LateStats(WireModel):
     )
 
 
+class IdentityStatus(WireModel):
+    """Fusion: the identity of the tracks (docs/concepts/identity.md), counted since the
+    tracker started (kept across restarts with its state)."""
+
+    conflicts: int = Field(
+        0,
+        ge=0,
+        description="identity_conflict events: a Mode-S address or callsign other than a "
+        "track's seen on it within the conflict window (two aircraft on one track)",
+    )
+    changes: int = Field(0, ge=0, description="identity_changed events (e.g. squawk changes)")
+    emergencies: int = Field(
+        0, ge=0, description="emergency events (Mode-3/A 7500, 7600, 7700 on a confirmed track)"
+    )
+    spi: int = Field(0, ge=0, description="spi events (SPI set on a confirmed track)")
+    tracks_in_emergency: int = Field(
+        0, ge=0, description="Published tracks that show an emergency code now"
+    )
+
+
 class Status(WireModel):
     service: str = Field(description="Service kind: sensor, fusion, recorder, replay")
     service_id: str = Field(pattern=ID_PATTERN)
@@ -175,4 +195,7 @@ class Status(WireModel):
     )
     registration: RegistrationStatus | None = Field(
         None, description="Fusion: online sensor-registration estimates (issue 17)"
+    )
+    identity: IdentityStatus | None = Field(
+        None, description="Fusion: identity conflicts, changes, emergencies, SPI"
     )

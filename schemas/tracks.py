@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from enum import StrEnum
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -133,6 +134,10 @@ class Track(WireModel):
         None, ge=0, le=ident.MODE_3A_MAX, description="Mode-3/A code (integer of its 12 bits)"
     )
     mode_3a_time: int | None = _confirmed("the Mode-3/A code")
+    mode_3a_changed: bool | None = Field(
+        None, description="The Mode-3/A code changed recently (CAT062 I062/060 CH; the "
+        "fusion's identity_change_hold)",
+    )  # fmt: skip
     mode_s: int | None = Field(
         None, ge=0, le=ident.MODE_S_MAX, description="Mode-S 24-bit ICAO aircraft address"
     )
@@ -249,14 +254,33 @@ class TrackBatch(WireModel):
 
 
 class TrackEventKind(StrEnum):
+    """What happened to a track: its life cycle, and its identity (the secondary-
+    surveillance attributes the plots assigned to it carried; docs/concepts/identity.md)."""
+
     CONFIRMED = "confirmed"
+    """The track was confirmed (published from now on)."""
     TERMINATED = "terminated"
+    """The track ended."""
     MERGED = "merged"
+    """The track was removed as a duplicate of ``other_track_id``."""
+    IDENTITY_CHANGED = "identity_changed"
+    """A new code replaced the track's (``attribute``: ``mode_3a``, a squawk change, or
+    ``mode_s`` / ``callsign``; ``value`` the new, ``previous`` the old)."""
+    IDENTITY_CONFLICT = "identity_conflict"
+    """A Mode-S address or callsign other than the track's (``value``; ``previous`` the
+    track's) was seen within the conflict window of the track's last confirmation: two
+    aircraft on one track, a swap or a merge."""
+    EMERGENCY = "emergency"
+    """The track's Mode-3/A code became an emergency code (7500, 7600, 7700; ``value``),
+    or the track was confirmed with one; the track's ``emergency`` says which."""
+    SPI = "spi"
+    """The special position identification was set (or the track was confirmed with it)."""
 
 
 class TrackEvent(WireModel):
-    """A track life-cycle event. For ``merged``, ``track_id`` was removed as a duplicate of
-    ``other_track_id``."""
+    """A track event (:class:`TrackEventKind`). For ``merged``, ``track_id`` was removed as
+    a duplicate of ``other_track_id``. The identity kinds name the ``attribute`` and its
+    values as text (Mode-3/A in octal, Mode-S address in hexadecimal, callsign)."""
 
     fusion_id: str = Field(pattern=ID_PATTERN)
     time: int = Field(ge=0, description="ns UTC")
@@ -265,6 +289,15 @@ class TrackEvent(WireModel):
     other_track_id: int | None = Field(None, ge=0)
     existence: float = Field(ge=0.0, le=1.0)
     reason: str = ""
+    attribute: Literal["mode_3a", "mode_s", "callsign", "spi"] | None = Field(
+        None, description="Identity events: the attribute concerned"
+    )
+    value: str | None = Field(
+        None, max_length=8, description="Identity events: the value seen or adopted"
+    )
+    previous: str | None = Field(
+        None, max_length=8, description="Identity events: the track's value before"
+    )
 
 
 class TrackPicture:

@@ -11,11 +11,12 @@ Gaussian mixture with Singer memory, IMM mixture, particles), ``associators`` (s
 lm, joint, gnn over ``ipda`` (Λ, ψ, β), ``lm_its`` (modified clutter), ``jits`` (joint
 events), ``gnn``), ``existence`` (Markov chains), ``clutter`` (known / estimated),
 ``coverage``, ``initiation``, ``management``, ``oosm_pass`` (late plots),
-``reidentification``; ``its`` (component update) and ``components`` (mixture store,
-Singer merge, pruning) serve the Gaussian-mixture density; ``store`` (the track store:
-every per-track state as declared columns), ``phases`` (the steps the ordinary and the
-out-of-sequence updates share), ``config`` (TrackerConfig), ``measurements``
-(MeasurementBatch, SectorCoverage), ``tracker`` (the step). Gating is
+``reidentification``, ``identity`` (the secondary-surveillance identity of the tracks);
+``its`` (component update) and ``components`` (mixture store, Singer merge, pruning)
+serve the Gaussian-mixture density; ``store`` (the track store: every per-track state as
+declared columns), ``phases`` (the steps the ordinary and the out-of-sequence updates
+share), ``config`` (TrackerConfig), ``measurements`` (MeasurementBatch, SectorCoverage),
+``events`` (the event record), ``tracker`` (the step). Gating is
 :mod:`fusion.association.gating`, moment matching :mod:`fusion.filters.moment_matching`,
 initial states :mod:`fusion.filters.initiation`. The wire adapter (PlotBatch →
 MeasurementBatch) lives in ``skyfuse.services.fusion.adapter``.
@@ -23,8 +24,9 @@ MeasurementBatch) lives in ``skyfuse.services.fusion.adapter``.
 
 from .config import TrackerConfig
 from .detections import batch_from_positions, batch_from_wgs84
+from .events import TrackEventRecord
 from .measurements import MeasurementBatch, SectorCoverage
-from .tracker import Tracker, TrackerOutput, TrackEventRecord
+from .tracker import Tracker, TrackerOutput
 
 __all__ = [
     "MeasurementBatch",

@@ -212,6 +212,32 @@ class TrackerConfig(BaseModel):
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )
 
+    identity: bool = Field(
+        True,
+        description="Attribute the plots' secondary-surveillance identity to the tracks "
+        "(Mode-3/A, Mode-S address, callsign, flight level, SPI, downlinked parameters; "
+        "fusion/tracker/identity.py); it never drives association",
+    )
+    identity_confirm: int = Field(
+        2,
+        ge=1,
+        description="Identity: sightings in a row of a new code (validated, ungarbled) "
+        "before it replaces the track's code",
+    )
+    identity_conflict_window: float = Field(
+        60.0,
+        gt=0.0,
+        description="Identity: a Mode-S address or callsign other than the track's, seen "
+        "within this long of the last confirmation of the track's, is a conflict (two "
+        "aircraft on one track: a swap or a merge), s",
+    )
+    identity_change_hold: float = Field(
+        30.0,
+        ge=0.0,
+        description="Identity: a track's Mode-3/A code counts as changed (CAT062 I062/060 "
+        "CH) for this long after the change, s",
+    )
+
     # IMM densities (motion = imm-cv-ct | imm-cv-singer; [Dikić], [MZD]) [IMPL] defaults for
     # civil aircraft: straight flight in a quiet CV mode, 2.5-3 g turns (ω ≈ 0.1-0.2 rad/s
     # at 150-300 m/s) in the turn mode, for 4 s and 10-12 s scan periods.

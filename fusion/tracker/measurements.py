@@ -35,6 +35,7 @@ import numpy as np
 from scipy.special import ndtr
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 
+from .identity import PlotIdentity
 from .plot_validity_kernel import all_plots_valid
 
 TWO_PI = 2.0 * np.pi
@@ -179,7 +180,9 @@ class MeasurementBatch:
     (None: every track); plot_times (m,) ns (optional); plot_ids, target_ids (m,)
     optional, for evaluation only (never used to associate); heights (m,) m above the
     ellipsoid (the reported flight level of 2-D radars, NaN: unknown; optional), used only
-    for the coverage (the cone of silence of the tracks' last plots)."""
+    for the coverage (the cone of silence of the tracks' last plots); identity (optional):
+    the plots' secondary-surveillance columns (:class:`~.identity.PlotIdentity`), only
+    ever attributed to the tracks that took the plots, never used to associate."""
 
     time_ns: int
     radar_id: str
@@ -192,6 +195,7 @@ class MeasurementBatch:
     plot_ids: np.ndarray | None = None
     target_ids: np.ndarray | None = None
     heights: np.ndarray | None = None
+    identity: PlotIdentity | None = None
     rejected: dict[str, int] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -204,6 +208,8 @@ class MeasurementBatch:
         m = len(z)
         if self.heights is not None and np.shape(self.heights) != (m,):
             raise ValueError(f"heights has shape {np.shape(self.heights)}: expected ({m},)")
+        if self.identity is not None and len(self.identity) != m:
+            raise ValueError(f"identity has {len(self.identity)} plots: expected {m}")
         rejected = dict(self.rejected)
         # one pass over the whole batch first: a clean batch (the usual case) skips the
         # per-reason masks (the same result: every plot kept, nothing counted)
@@ -223,6 +229,7 @@ class MeasurementBatch:
             plot_ids=sel(self.plot_ids),
             target_ids=sel(self.target_ids),
             heights=None if self.heights is None else np.asarray(self.heights, float)[ok],
+            identity=self.identity if clean or self.identity is None else self.identity.take(ok),
             rejected=rejected,
         )
 

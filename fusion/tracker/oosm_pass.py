@@ -108,6 +108,7 @@ class OutOfSequence:
         density.update_late(pred, table, res.beta0, res.beta)
         tr.exist[late] = phases.chain.update(exist, res.psi_post)
         hits = phases.record_hits(late, np.maximum(tr.last_update, t_tau), res, table, bit)
+        phases.attribute(b, late, res, table)
         taken = hits >= 0
         assigned = np.where(taken, hits, assigned)
         used = used | phases.used_plots(len(b), table, res)

@@ -11,6 +11,8 @@ the out-of-sequence pass never reaches into the tracker.
 * :meth:`Phases.record_hits`: a track whose plots weigh more than its "no plot"
   hypothesis (1 − β₀ > 0.5) counts a detection (updates, radar mask, last update time,
   the re-identification fix); each track's most likely plot of the batch;
+* :meth:`Phases.attribute`: the identity of the plots with a weight above one half goes to
+  their tracks (:mod:`.identity`);
 * :meth:`Phases.used_plots`: the plots that may not start tracks.
 """
 
@@ -29,11 +31,13 @@ class Phases:
     """The shared steps over the track store ``tracks`` (see the module docstring): cfg
     (``TrackerConfig``), chain (the existence chain), associate (the association part),
     g and P_G (gate threshold and probability), reid (the re-identification part or
-    None)."""
+    None), identity (the identity part or None)."""
 
-    def __init__(self, cfg, tracks, chain, associate, g: float, P_G: float, reid) -> None:
+    def __init__(self, cfg, tracks, chain, associate, g: float, P_G: float, reid,
+                 identity=None) -> None:  # fmt: skip
         self.cfg, self.tracks, self.chain = cfg, tracks, chain
         self.associate_part, self.g, self.P_G, self.reid = associate, g, P_G, reid
+        self.identity = identity
 
     def associate(
         self,
@@ -110,6 +114,18 @@ class Phases:
             good = res.beta[best] > res.beta0[tp_track[best]]
             assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
         return assigned
+
+    def attribute(self, b: MeasurementBatch, rows: np.ndarray, res: AssociationResult,
+                  table: GatedTable) -> None:  # fmt: skip
+        """The identity of the plots whose weight β on a track of ``rows`` (the rows of
+        the association) is above one half, to that track (:mod:`.identity`)."""
+        if self.identity is None or b.identity is None or not len(res.beta):
+            return
+        strong = np.flatnonzero(res.beta > 0.5)
+        plots = table.tp_plot[strong]
+        t = b.time_ns if b.plot_times is None else b.plot_times[plots]
+        t = np.broadcast_to(np.asarray(t, np.int64), plots.shape)
+        self.identity.observe(b.identity, rows[table.tp_track[strong]], plots, t)
 
     def used_plots(self, m: int, table: GatedTable, res: AssociationResult) -> np.ndarray:
         """Plots that may not start tracks: gated by any track (``init_free_weight`` None),

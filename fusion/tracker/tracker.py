@@ -46,7 +46,9 @@ from skyfuse.schemas.snapshot import SnapshotError, check_version, counts, entry
 from .config import TrackerConfig
 from .coverage import detection_share, existence_clock, select_tracks, track_heights
 from .density.base import TrackDensity
+from .events import TrackEventRecord
 from .existence import ExistenceChain, markov_chain_one, markov_chain_two
+from .identity import Identity, TrackIdentity
 from .initiation import PlotBuffer, one_point, pair_plots, two_point
 from .management import (
     duplicates,
@@ -68,19 +70,6 @@ NS = 1e-9
 #: Tracks whose closed-form predicted existence is at least τ_t + this are not terminated
 #: without the exact chain prediction (the two differ by rounding, ~1e-15).
 TERMINATION_MARGIN = 1e-6
-
-
-@dataclass
-class TrackEventRecord:
-    """A life-cycle event: kind is ``confirmed``, ``terminated`` or ``merged`` (``track_id``
-    removed as a duplicate of ``other_track_id``)."""
-
-    time_ns: int
-    kind: str
-    track_id: int
-    existence: float
-    other_track_id: int | None = None
-    reason: str = ""
 
 
 @dataclass
@@ -119,8 +108,9 @@ class TrackerOutput:
     ids (n,), states (n, d), covariances (n, d, d), existence (n,), confirmed (n,) bool,
     updates (n,) scans with a plot, radar_mask (n,) bit i = ``radar_names[i]`` updated the
     track, last_update_ns (n,), assigned_plot (n,) index of the most likely plot of this
-    batch for the track (−1: none or not in coverage), events, stats, and the validated
-    batch (its ``target_ids`` serve evaluation).
+    batch for the track (−1: none or not in coverage), events, stats, the validated
+    batch (its ``target_ids`` serve evaluation) and the tracks' identity (copies,
+    :class:`~.identity.TrackIdentity`; None when the tracker does not attribute it).
 
     ``states``, ``covariances`` and ``existence`` are predicted from ``prediction`` on
     first access (all rows at once); :meth:`predicted` predicts only some rows (the
@@ -140,6 +130,7 @@ class TrackerOutput:
     events: list[TrackEventRecord] = field(default_factory=list)
     stats: dict[str, int] = field(default_factory=dict)
     batch: MeasurementBatch | None = None
+    identity: TrackIdentity | None = None
     _all: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
@@ -185,8 +176,9 @@ class Tracker:
     re-identification fixes. ``density``: a :class:`~.density.base.TrackDensity` not yet
     attached to a store (default: the configured one, :func:`.registry.make_density`)."""
 
-    SNAPSHOT_VERSION = 1
-    """Version of :meth:`to_snapshot` (the columns and parts it holds)."""
+    SNAPSHOT_VERSION = 2
+    """Version of :meth:`to_snapshot` (the columns and parts it holds): 2 adds the
+    identity part's columns and its configuration."""
 
     def __init__(self, config: TrackerConfig | None = None, density=None) -> None:
         self.cfg = cfg = config or TrackerConfig()
@@ -211,9 +203,10 @@ class Tracker:
             else Reidentification(cfg, self.model, self.tracks, self.density)
         )
         self.oosm = OutOfSequence(self.density, self.tracks, cfg.oosm)
+        self.identity = Identity(cfg, self.tracks, self.chain) if cfg.identity else None
         self.associate = ASSOCIATIONS[cfg.association]
         self.phases = Phases(cfg, self.tracks, self.chain, self.associate, self.g, self.P_G,
-                             self.reid)  # fmt: skip
+                             self.reid, self.identity)  # fmt: skip
         self.newest_ns = 0
         """The newest batch time applied, ns: outputs never go back in time."""
         self.buffer = PlotBuffer.empty(self.k)
@@ -362,6 +355,8 @@ class Tracker:
         tr.height[:] = track_heights(tr.height, assigned, b.heights)
         tr.coast_from[:] = np.where(blind, np.maximum(tr.coast_from, t_pred), tr.coast_from)
         events: list[TrackEventRecord] = []
+        if self.identity is not None:
+            self.identity.flush(events, stats)
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
         new = self._initiate(b, used)
         assigned = np.concatenate([assigned, np.full(new, -1, dtype=np.int64)])
@@ -388,6 +383,7 @@ class Tracker:
         tr.exist[sel] = self.chain.update(exist_pred, res.psi_post)
         tr.t_last[sel] = t_pred[sel]
         assigned = self.phases.record_hits(sel, t_pred, res, table, bit)
+        self.phases.attribute(b, sel, res, table)
         return assigned, self.phases.used_plots(len(b), table, res)
 
     # ------------------------------------------------------------------ management
@@ -473,6 +469,9 @@ class Tracker:
             events.append(
                 TrackEventRecord(t_batch, "confirmed", int(tr.ids[r]), float(psi_r), reason=why)
             )
+        if self.identity is not None and len(rows):
+            self.identity.confirmed(rows, t_batch)
+            self.identity.flush(events, {})
 
     def _terminate(
         self,
@@ -543,6 +542,7 @@ class Tracker:
         before = self.n
         if cfg.initiation == "one_point":
             self._add_tracks(*one_point(z, R, cfg.v_max), t)
+            self._first_sightings(b, before, free, t)
             return self.n - before
         # drop expired buffered plots, pair, consume the paired ones, buffer the rest
         self.buffer.keep((int(b.time_ns) - self.buffer.time) * NS <= cfg.init_max_dt)
@@ -550,11 +550,18 @@ class Tracker:
         if len(old):
             x, P = two_point(self.buffer.z[old], self.buffer.R[old], z[new], R[new], dt)
             self._add_tracks(x, P, t[new])
+            self._first_sightings(b, before, free[new], t[new])
             consumed = np.zeros(len(self.buffer), bool)
             consumed[old] = True
             self.buffer.keep(~consumed)
         self.buffer.add(z, R, t, uid[free])
         return self.n - before
+
+    def _first_sightings(self, b: MeasurementBatch, first_row: int, plots, t) -> None:
+        """The identity of the plots ``plots`` that started the tracks from row
+        ``first_row`` on, at times ``t`` (:mod:`.identity`)."""
+        if self.identity is not None and b.identity is not None:
+            self.identity.observe(b.identity, np.arange(first_row, self.n), plots, t)
 
     def _output(
         self,
@@ -604,6 +611,7 @@ class Tracker:
             events=[] if events is None else events,
             stats={} if stats is None else stats,
             batch=batch,
+            identity=None if self.identity is None else self.identity.output(self.newest_ns),
         )
 
     # ------------------------------------------------------------------ snapshots

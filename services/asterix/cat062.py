@@ -11,7 +11,7 @@ I062/100    system Cartesian position, LSB 0.5 m                   ``x``, ``y``
 I062/185    Cartesian velocity, LSB 0.25 m/s                       ``vx``, ``vy``
 I062/136    measured flight level, LSB 1/4 FL                      ``flight_level``
 I062/130    calculated geometric altitude, LSB 6.25 ft             ``geometric_alt_ft``
-I062/060    Mode-3/A code (V = 0)                                  ``mode_3a``
+I062/060    Mode-3/A code (V = 0), CH (code changed)               ``mode_3a``, ``mode_3a_changed``
 I062/245    target identification                                  ``callsign``
 I062/380    aircraft-derived data: ADR, ID, MHG, IAS (IAS or       ``mode_s``, ``callsign``
             Mach), TAS, SAL, FSS, BVR, GVR, RAN, TAR, TAN, GS,     (without I245), the
@@ -75,6 +75,7 @@ class Cat062Track:
     flight_level: float | None = None
     geometric_alt_ft: float | None = None
     mode_3a: int | None = None
+    mode_3a_changed: bool | None = None
     mode_s: int | None = None
     mono: bool | None = None
     confirmed: bool | None = None
@@ -175,6 +176,7 @@ def _identity(rec: Any, trk: Cat062Track) -> None:
     i060 = rec.get_item("060")
     if i060 is not None and sub_uint(i060.variation, "V") == 0:
         trk.mode_3a = sub_uint(i060.variation, "MODE3A")
+        trk.mode_3a_changed = bool(sub_uint(i060.variation, "CH"))
     i245 = rec.get_item("245")
     if i245 is not None:
         trk.callsign = decode_callsign(sub_uint(i245.variation, "CHR"))

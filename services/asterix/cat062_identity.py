@@ -5,9 +5,13 @@ items built with libasterix (the reference encoder of the differential test).
 ==========  ==================================================  ===========================
 item        content                                             from :class:`schemas.Track`
 ==========  ==================================================  ===========================
-I062/060    Mode-3/A code (V = 0, G = 0, CH = 0)                ``mode_3a``
-I062/245    target identification, STI = 0 (downlinked), 8 ×    ``callsign``
-            6-bit ICAO characters
+I062/060    Mode-3/A code (V = 0, G = 0: the fusion shows only  ``mode_3a``,
+            validated ungarbled codes), CH = 1 while the code   ``mode_3a_changed``
+            counts as changed
+I062/245    target identification, STI = 0 (downlinked: every   ``callsign``
+            callsign a track shows came from the aircraft's
+            BDS 2,0 via the plots; none comes from a flight
+            plan), 8 × 6-bit ICAO characters
 I062/380    aircraft derived data: ADR (address), ID            ``mode_s``, ``callsign``,
             (identification), MHG (360/2¹⁶ °), IAS (IM = 0:     ``magnetic_heading``,
             2⁻¹⁴ NM/s; IM = 1: Mach 0.001, when only Mach is    ``indicated_airspeed`` /
@@ -208,7 +212,7 @@ def identity_items(t: Track) -> tuple[dict[str, Any], int]:
         return {}, 0  # a track made without identity fields: nothing to look at
     raw: dict[str, Any] = {}
     if t.mode_3a is not None:
-        raw["060"] = t.mode_3a
+        raw["060"] = (int(bool(t.mode_3a_changed)), t.mode_3a)
     if t.callsign is not None:
         raw["245"] = encode_callsign(t.callsign)
     f = _i380(t)
@@ -276,7 +280,7 @@ def _pack_340(v: dict[str, Any]) -> bytes:
 def pack_identity(name: str, value: Any) -> bytes:
     """The bytes of identity item ``name`` from its raw value."""
     if name == "060":
-        return value.to_bytes(2, "big")
+        return (value[0] << 13 | value[1]).to_bytes(2, "big")  # V = G = 0, CH, spare
     if name == "245":
         return value.to_bytes(7, "big")  # STI = 0 in the top two bits
     if name == "380":
@@ -289,7 +293,7 @@ def pack_identity(name: str, value: Any) -> bytes:
 def build_identity(name: str, value: Any) -> Any:
     """The libasterix ``create`` argument of identity item ``name`` (reference encoder)."""
     if name == "060":
-        return (0, 0, 0, 0, ("MODE3A", value))
+        return (0, 0, ("CH", value[0]), 0, ("MODE3A", value[1]))
     if name == "245":
         return (0, 0, ("CHR", value))
     if name in ("290", "295"):

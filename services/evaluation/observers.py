@@ -20,7 +20,12 @@
   and for plots without one their discrete Mode-3/A code (I048/070; :func:`mode_3a_fallback`);
   labels score tracks, they never drive association. With reported altitudes the same
   measures are given per traffic class (``labels_by_traffic``: airborne, surface,
-  overhead, all; :mod:`skyfuse.fusion.metrics.traffic_split`).
+  overhead, all; :mod:`skyfuse.fusion.metrics.traffic_split`). With a tracker that
+  attributes identity, the identity the tracks showed (``identity``,
+  :mod:`skyfuse.fusion.metrics.identity_metrics`): the share of confirmed-track updates
+  whose track shows the plot's Mode-S address, the share of airborne aircraft whose track
+  shows their callsign within two scans of confirmation, the flight-level agreement, and
+  the identity conflicts (per hour, each listed with its time and the two identities).
 * :class:`ReferenceObserver` — the confirmed tracks' updates (a plot updated them) scored
   against an independent reference (ADS-B or multilateration positions with addresses):
   probability of update, position error, continuity, duplicates, false tracks, correct
@@ -261,8 +266,15 @@ def mode_3a_fallback(mode_s: np.ndarray, mode_3a: np.ndarray | None) -> np.ndarr
     return label
 
 
+_IDENTITY = ("mode_s", "callsign", "flight_level", "scan_s", "track_mode_s",
+             "track_callsign", "track_flight_level")  # fmt: skip
+"""What :class:`PlotTrackRows` keeps per plot for the identity measures."""
+
+
 class PlotTrackRows:
-    """Per-plot rows (time s, label, track id, confirmed) collected batch by batch.
+    """Per-plot rows (time s, label, track id, confirmed) collected batch by batch, and
+    for a tracker that attributes identity the plot's Mode-S address, callsign (packed)
+    and valid flight level with the credited track's after the step.
 
     ``add(batch, out)`` after each tracker step: ``batch`` the PlotBatch, ``out`` its
     :class:`~skyfuse.fusion.tracker.tracker.TrackerOutput` (whose ``batch.plot_ids`` map
@@ -277,6 +289,7 @@ class PlotTrackRows:
         self.kind: str | None = label
         self._cols: list[list[np.ndarray]] = [[], [], [], []]
         self._geo: list[list[np.ndarray]] = [[], []]
+        self._ident: list[list[np.ndarray]] = [[] for _ in _IDENTITY]
 
     def _labels(self, batch: PlotBatch) -> np.ndarray:
         for name in (self.label,) if self.label else ("target_id", "mode_s"):
@@ -288,12 +301,15 @@ class PlotTrackRows:
                 return mode_3a_fallback(col, batch.validated_column("mode_3a"))
         return np.full(len(batch), NO_LABEL, np.int64)
 
-    def add(self, batch: PlotBatch, out) -> None:
+    def add(self, batch: PlotBatch, out, scan_s: float = float("nan")) -> None:
+        """The plots of ``batch`` and the tracks of ``out`` they updated; ``scan_s``: the
+        scan period of the batch's radar (identity measures)."""
         m = len(batch)
         if m == 0:
             return
         track = np.full(m, -1, np.int64)
         conf = np.zeros(m, bool)
+        trow = np.full(m, -1, np.int64)  # the credited track's row of ``out``
         rows = np.flatnonzero(out.assigned_plot >= 0)
         if len(rows) and out.batch is not None and out.batch.plot_ids is not None:
             plot = np.asarray(out.batch.plot_ids)[out.assigned_plot[rows]]
@@ -304,6 +320,9 @@ class PlotTrackRows:
             last = np.r_[plot[1:] != plot[:-1], True]
             track[plot[last]] = out.ids[rows[last]]
             conf[plot[last]] = c[last]
+            trow[plot[last]] = rows[last]
+        if getattr(out, "identity", None) is not None:
+            self._add_identity(batch, out.identity, trow, scan_s)
         for col, v in zip(
             self._cols, (batch.column("time") * 1e-9, self._labels(batch), track, conf)
         ):
@@ -311,6 +330,38 @@ class PlotTrackRows:
         for col, name in zip(self._geo, ("altitude", "range")):
             v = batch.column(name)
             col.append(np.full(m, np.nan) if v is None else np.asarray(v, float))
+
+    def _add_identity(self, batch: PlotBatch, ident, trow: np.ndarray, scan_s: float) -> None:
+        """The identity rows of one batch (``ident``: the tracks' ``TrackIdentity``)."""
+        from skyfuse.fusion.tracker.identity import CALLSIGN, MODE_S, pack_callsigns
+
+        m, has = len(batch), trow >= 0
+        none = np.full(m, -1, np.int64)
+        mode_s, callsign = batch.column("mode_s"), batch.column("callsign")
+        level = batch.validated_column("flight_level")
+        shown = [none.copy(), none.copy(), np.full(m, np.nan)]
+        for col, v in zip(shown, (ident.codes[:, MODE_S], ident.codes[:, CALLSIGN],
+                                  ident.flight_level)):  # fmt: skip
+            col[has] = v[trow[has]]
+        nan = np.full(m, np.nan)
+        values = (none if mode_s is None else mode_s,
+                  none if callsign is None else pack_callsigns(callsign),
+                  nan if level is None else level, np.full(m, scan_s), *shown)  # fmt: skip
+        for col, v in zip(self._ident, values):
+            col.append(v)
+
+    def identity_rows(self):
+        """The :class:`~skyfuse.fusion.metrics.identity_metrics.IdentityRows` of the
+        plots so far (None when the tracker showed no identity)."""
+        from skyfuse.fusion.metrics.identity_metrics import IdentityRows
+        from skyfuse.fusion.metrics.traffic_split import traffic_class
+
+        if not self._ident[0] or len(self._ident[0]) != len(self._cols[0]):
+            return None
+        t, _, track, conf = self.arrays()
+        cols = dict(zip(_IDENTITY, (np.concatenate(c) for c in self._ident)))
+        cls = traffic_class(*self.geometry())
+        return IdentityRows(t=t, track=track, confirmed=conf, cls=cls, **cols)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(time s, label, track, confirmed), concatenated over the batches."""
@@ -379,9 +430,14 @@ class LabelObserver(Observer):
     ) -> None:
         self.rows = PlotTrackRows(label)
         self.warmup_s, self.min_label_share = warmup_s, min_label_share
+        self.conflicts: list[tuple] = []
 
     def on_step(self, step: Step) -> None:
-        self.rows.add(step.batch, step.out)
+        self.rows.add(step.batch, step.out, float(getattr(step.site, "scan_period", np.nan)))
+        for e in step.out.events:
+            if e.kind == "identity_conflict":
+                self.conflicts.append((e.time_ns * 1e-9, e.track_id, e.attribute, e.value,
+                                       e.previous))  # fmt: skip
 
     def summary(self) -> dict:
         m = self.rows.metrics(warmup_s=self.warmup_s, min_label_share=self.min_label_share)
@@ -389,7 +445,43 @@ class LabelObserver(Observer):
         split = self.rows.traffic_metrics(min_label_share=self.min_label_share)
         if split is not None:
             out["labels_by_traffic"] = split
+        ident = self.rows.identity_rows()
+        if ident is not None and (ident.mode_s >= 0).any():
+            out["identity"] = identity_summary(ident, self.conflicts)
         return out
+
+
+def identity_summary(rows, conflicts: list[tuple], limit: int = 200) -> dict:
+    """The identity measures (:mod:`skyfuse.fusion.metrics.identity_metrics`) as JSON
+    values; the conflicts and the aircraft whose callsign was late listed (at most
+    ``limit`` each), times in s since the epoch and in UTC."""
+    import datetime as dt
+
+    from skyfuse.fusion.metrics import identity_metrics as im
+    from skyfuse.fusion.tracker.identity import MODE_S, code_text
+
+    def utc(t: float) -> str:
+        return dt.datetime.fromtimestamp(t, dt.UTC).isoformat(timespec="milliseconds")
+
+    n_s, ok_s = im.mode_s_correct(rows)
+    n_fl, ok_fl = im.flight_level_agreement(rows)
+    cs = im.callsign_shown(rows)
+    incidents = im.conflict_incidents(conflicts)
+    hours = im.duration_hours(rows.t)
+    missed = [{"mode_s": code_text(MODE_S, a), "callsign": im.callsign_text(c),
+               "confirmed_utc": utc(t)} for a, c, t in cs["missed"][:limit]]  # fmt: skip
+    return {
+        "mode_s_updates": n_s,
+        "mode_s_correct": json_number(ok_s),
+        "callsign_aircraft": cs["aircraft"],
+        "callsign_within_2_scans": json_number(cs["share"]),
+        "callsign_late": missed,
+        "flight_level_updates": n_fl,
+        "flight_level_within_1": json_number(ok_fl),
+        "conflicts": len(incidents),
+        "conflicts_per_hour": json_number(len(incidents) / hours, 3) if hours > 0 else None,
+        "conflict_list": [{**c, "utc": utc(c["time_s"])} for c in incidents[:limit]],
+    }
 
 
 class ReferenceObserver(Observer):

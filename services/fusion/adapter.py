@@ -7,8 +7,11 @@ from the conversion. The coverage carries the radar's cone of silence: the site 
 and its maximum elevation (a ``max_elevation`` field of the site, rad, when the schema
 has one; otherwise :data:`~skyfuse.fusion.tracker.measurements.DEFAULT_MAX_ELEVATION`
 for rotating radars, none for cartesian sensors), and the batch carries the plots'
-reported altitudes as their heights. Plots the conversion marked invalid are dropped and counted by
-reason in ``MeasurementBatch.rejected``.
+reported altitudes as their heights, and their secondary-surveillance columns, when
+the batch has any, as their identity (:func:`~skyfuse.fusion.tracker.identity
+.plot_identity`: what the tracker attributes to the tracks that take them, never used
+to associate). Plots the conversion marked invalid are dropped and counted by reason in
+``MeasurementBatch.rejected``.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import re
 from collections import Counter
 
 import numpy as np
+from skyfuse.fusion.tracker.identity import plot_identity
 from skyfuse.fusion.tracker.measurements import (
     DEFAULT_MAX_ELEVATION,
     MeasurementBatch,
@@ -68,6 +72,7 @@ def measurement_batch_from(
         site_height=float(site.alt),
     )
     alt = plot_batch.column("altitude")
+    identity = plot_identity(plot_batch.column)  # None without secondary columns
     return MeasurementBatch(
         time_ns=int(plot_batch.time_end),
         radar_id=site.radar_id,
@@ -80,5 +85,6 @@ def measurement_batch_from(
         plot_ids=np.flatnonzero(valid),
         target_ids=None if tid is None else tid[valid],
         heights=None if alt is None else np.asarray(alt, dtype=np.float64)[valid],
+        identity=None if identity is None else identity.take(valid),
         rejected=dict(rejected),
     )

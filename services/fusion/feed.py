@@ -3,7 +3,9 @@
 Contract (``schemas.tracks``: ``TrackBatch.kind``): a **delta** message carries only the
 tracks its cycle(s) changed — a track is *changed* when it enters the published set
 (new, or confirmed with ``publish = confirmed``), when a plot updated it (its
-``last_update`` time moved), or when its status changed — and lists in ``removed`` the
+``last_update`` time moved), when its status changed, or when a plot confirmed its
+identity (:mod:`~skyfuse.services.fusion.feed_identity`: its identity revision moved,
+e.g. by a late plot) — and lists in ``removed`` the
 ids that left the set (terminated, merged, or no longer published). A **full** message
 carries every published track, predicted to the message time, and replaces the
 picture. The service keeps the same picture its subscribers rebuild
@@ -30,9 +32,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pydantic_core
 from skyfuse.fusion.frames import SystemFrame
+from skyfuse.fusion.tracker.identity import TrackIdentity
 from skyfuse.fusion.tracker.tracker import TrackerOutput
 from skyfuse.schemas import FeedKind, TrackBatch
 from skyfuse.schemas.snapshot import SnapshotError, array_field, counts, entry, mapping
+from skyfuse.services.fusion.feed_identity import add_identity
 
 TWO_PI = 2.0 * math.pi
 
@@ -54,7 +58,8 @@ def _declared(d: int) -> dict[str, tuple[type, tuple[int, ...]]]:
 @dataclass
 class TrackTable:
     """Rows of published tracks as columns (row i = one track). ``states`` (n, d),
-    ``covariances`` (n, d, d); the geodetic columns are filled by :meth:`with_geodetic`."""
+    ``covariances`` (n, d, d); the geodetic columns are filled by :meth:`with_geodetic`;
+    ``ident``: the tracks' identity (None: a tracker without identity)."""
 
     ids: np.ndarray
     time: np.ndarray
@@ -66,6 +71,7 @@ class TrackTable:
     states: np.ndarray
     covariances: np.ndarray
     geo: dict[str, np.ndarray] = field(default_factory=dict)
+    ident: TrackIdentity | None = None
 
     @classmethod
     def empty(cls, d: int) -> TrackTable:
@@ -85,6 +91,7 @@ class TrackTable:
             out.ids[rows], np.full(len(rows), out.time_ns, np.int64), out.last_update_ns[rows],
             out.confirmed[rows], np.clip(psi, 0.0, 1.0), out.updates[rows],
             out.radar_mask[rows], x, P,
+            ident=None if out.identity is None else out.identity.take(rows),
         )  # fmt: skip
 
     def __len__(self) -> int:
@@ -93,18 +100,30 @@ class TrackTable:
     def take(self, idx: np.ndarray) -> TrackTable:
         t = TrackTable(*(getattr(self, k)[idx] for k in _ARRAYS))
         t.geo = {k: v[idx] for k, v in self.geo.items()}
+        t.ident = None if self.ident is None else self.ident.take(idx)
         return t
+
+    def identity_revision(self) -> np.ndarray:
+        """(n,) each row's identity revision (0 without identity)."""
+        return np.zeros(len(self), np.int64) if self.ident is None else self.ident.revision
 
     @staticmethod
     def concat(parts: list[TrackTable]) -> TrackTable:
         t = TrackTable(*(np.concatenate([getattr(p, k) for p in parts]) for k in _ARRAYS))
         if all(p.geo for p in parts):
             t.geo = {k: np.concatenate([p.geo[k] for p in parts]) for k in _GEO}
+        if any(p.ident is not None for p in parts):  # the picture before the first step
+            none = TrackIdentity.none
+            t.ident = TrackIdentity.concat([none(len(p)) if p.ident is None else p.ident
+                                            for p in parts])  # fmt: skip
         return t
 
     def to_snapshot(self) -> dict:
-        """The columns by name (the geodetic ones under ``geo``, empty when not filled)."""
-        return {"columns": {k: getattr(self, k) for k in _ARRAYS}, "geo": dict(self.geo)}
+        """The columns by name (the geodetic ones under ``geo``, empty when not filled;
+        the identity under ``identity``, None without)."""
+        ident = None if self.ident is None else self.ident.to_snapshot()
+        return {"columns": {k: getattr(self, k) for k in _ARRAYS}, "geo": dict(self.geo),
+                "identity": ident}  # fmt: skip
 
     @classmethod
     def from_snapshot(cls, snap, d: int) -> TrackTable:
@@ -120,6 +139,8 @@ class TrackTable:
             raise SnapshotError(f"geodetic columns {sorted(geo)}")
         table = cls(*values)
         table.geo = {k: array_field(geo, k, np.float64, (n,)) for k in _GEO if geo}
+        ident = snap.get("identity")
+        table.ident = None if ident is None else TrackIdentity.from_snapshot(ident, n)
         return table
 
     def with_geodetic(self, frame: SystemFrame, ndim: int) -> TrackTable:
@@ -179,7 +200,7 @@ class TrackTable:
             "updates": self.updates.tolist(),
         }
         keys = list(cols)
-        return [dict(zip(keys, r)) for r in zip(*cols.values())]
+        return add_identity([dict(zip(keys, r)) for r in zip(*cols.values())], self.ident)
 
 
 @dataclass
@@ -230,7 +251,9 @@ class FeedBuilder:
         self.picture = TrackTable.empty(d).with_geodetic(frame, ndim)
         self.cycle = 0
         self.rejected: dict[str, int] = {}
-        self._known = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool))
+        self._known = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool),
+                       np.zeros(0, np.int64))  # fmt: skip
+        """Ids, last update, confirmation and identity revision of the tracks published."""
         self._parts: list[TrackTable] = []
         self._last: TrackerOutput | None = None
         self._pic_head: tuple[int, list[str]] | None = None
@@ -250,12 +273,15 @@ class FeedBuilder:
         applied ``batches`` plot batches (several when coalesced)."""
         rows = self._rows(out)
         ids, lu, cf = out.ids[rows], out.last_update_ns[rows], out.confirmed[rows]
-        kid, klu, kcf = self._known
+        st = np.zeros(len(rows), np.int64) if out.identity is None else (
+            out.identity.revision[rows])  # fmt: skip
+        kid, klu, kcf, kst = self._known
         idx, known = _lookup(kid, ids)
         changed = ~known
-        changed[known] = (klu[idx[known]] != lu[known]) | (kcf[idx[known]] != cf[known])
+        i = idx[known]
+        changed[known] = (klu[i] != lu[known]) | (kcf[i] != cf[known]) | (kst[i] != st[known])
         self._parts.append(TrackTable.from_output(out, rows[changed]))
-        self._known = (ids, lu, cf)
+        self._known = (ids, lu, cf, st)
         self._last = out
         self._batches += batches
 
@@ -294,7 +320,8 @@ class FeedBuilder:
             return None
         table = TrackTable.from_output(out, self._rows(out)).with_geodetic(self.frame, self.ndim)
         picture = self._checked(table)[0]
-        self._known = (picture.ids, picture.last_update, picture.confirmed)
+        self._known = (picture.ids, picture.last_update, picture.confirmed,
+                       picture.identity_revision())  # fmt: skip
         with self._lock:
             self.picture, self._pic_head = picture, _head(out)
         return self.snapshot()
@@ -338,14 +365,14 @@ class FeedBuilder:
         """The picture (its rows and its head), the cycle counter, the change detection's
         last view of the tracks, the rows recorded but not yet sent, the counters. Arrays
         are views: serialise before the next step."""
-        kid, klu, kcf = self._known
+        kid, klu, kcf, kst = self._known
         return {
             "cycle": self.cycle,
             "rejected": dict(self.rejected),
             "picture": self.picture.to_snapshot(),
             "picture_head": None if self._pic_head is None else list(self._pic_head),
             "source": list(self._source),
-            "known": {"ids": kid, "last_update": klu, "confirmed": kcf},
+            "known": {"ids": kid, "last_update": klu, "confirmed": kcf, "identity": kst},
             "pending": [t.to_snapshot() for t in self._parts],
             "batches": self._batches,
             "recorded": self._last is not None,
@@ -361,7 +388,8 @@ class FeedBuilder:
         kid = array_field(known, "ids", np.int64, (None,))
         n = len(kid)
         self._known = (kid, array_field(known, "last_update", np.int64, (n,)),
-                       array_field(known, "confirmed", np.bool_, (n,)))  # fmt: skip
+                       array_field(known, "confirmed", np.bool_, (n,)),
+                       array_field(known, "identity", np.int64, (n,)))  # fmt: skip
         pending = entry(snap, "pending", list)
         self._parts = [TrackTable.from_snapshot(t, d) for t in pending]
         self.picture = TrackTable.from_snapshot(snap.get("picture"), d)

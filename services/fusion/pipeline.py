@@ -348,6 +348,9 @@ class TrackPipeline:
                 other_track_id=e.other_track_id,
                 existence=float(np.clip(e.existence, 0.0, 1.0)),
                 reason=e.reason,
+                attribute=e.attribute or None,
+                value=e.value or None,
+                previous=e.previous or None,
             )
             for e in out.events
         ]

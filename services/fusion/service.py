@@ -59,10 +59,12 @@ from typing import Protocol
 import numpy as np
 import pymap3d
 from pydantic import BaseModel, Field, field_validator
+from skyfuse.fusion.tracker.identity import EMERGENCY
 from skyfuse.schemas import (
     Backlog,
     FrameKind,
     FrameSpec,
+    IdentityStatus,
     LatencyStats,
     LateStats,
     PlotBatch,
@@ -848,6 +850,21 @@ class FusionCore:
             unsupported=oosm.get("unsupported", 0),
         )
 
+    def identity_status(self) -> IdentityStatus | None:
+        """The identity counters (the tracker's totals of its identity events) and the
+        published tracks in emergency; None before the first batch or without identity."""
+        tracker = getattr(self.pipeline, "tracker", None)
+        if tracker is None or tracker.identity is None:
+            return None
+        tot = tracker.totals
+        ident = self.pipeline.picture().ident
+        emergency = 0 if ident is None else int(np.isin(ident.codes[:, 0], EMERGENCY).sum())
+        return IdentityStatus(
+            conflicts=tot.get("identity_conflicts", 0), changes=tot.get("identity_changes", 0),
+            emergencies=tot.get("emergencies", 0), spi=tot.get("spi_raised", 0),
+            tracks_in_emergency=emergency,
+        )  # fmt: skip
+
     def _coalesced(self) -> dict[str, int]:
         """Coalesced tracker steps (``coalesce_max_deg``; ``TrackPipeline.coalesced``)."""
         co = getattr(self.pipeline, "coalesced", None) or {}
@@ -889,6 +906,7 @@ class FusionCore:
                 **self._coalesced(),
             },
             registration=reg.status(self.cfg.fusion_id) if reg else None,
+            identity=self.identity_status(),
             rejected={**self.rejected, **self._plot_rejections()},
             radars=[
                 RadarHealth(

@@ -191,3 +191,36 @@ def test_emergency_codes_and_octal_text():
     assert emergency_of_code(0o7777) is None and emergency_of_code(None) is None
     assert mode_3a_text(0o1000) == "1000" and mode_3a_text(7) == "0007"
     assert mode_3a_text(None) == "" and mode_3a_text(-1) == ""
+
+
+def test_identity_events_status_and_change_flag_round_trip():
+    from skyfuse.schemas import Status
+    from skyfuse.schemas.status import IdentityStatus
+    from skyfuse.schemas.tracks import TrackEvent, TrackEventKind
+
+    for kind, attribute, value, previous in [
+        ("identity_changed", "mode_3a", "7700", "4004"),
+        ("identity_conflict", "mode_s", "4CA73D", "3C6586"),
+        ("identity_conflict", "callsign", "ROT415", "DLH65A"),
+        ("emergency", "mode_3a", "7500", None),
+        ("spi", "spi", None, None),
+    ]:
+        ev = TrackEvent(fusion_id="m", time=5, kind=kind, track_id=7, existence=0.9,
+                        attribute=attribute, value=value, previous=previous)  # fmt: skip
+        back = TrackEvent.from_json_bytes(ev.to_json_bytes())
+        assert back == ev and back.kind is TrackEventKind(kind)
+    with pytest.raises(ValidationError, match="attribute"):
+        TrackEvent(fusion_id="m", time=5, kind="spi", track_id=7, existence=0.9,
+                   attribute="squawk")  # fmt: skip
+    with pytest.raises(ValidationError, match="value"):
+        TrackEvent(fusion_id="m", time=5, kind="identity_changed", track_id=7, existence=0.9,
+                   attribute="callsign", value="A" * 9)  # fmt: skip
+    st = Status(service="fusion", service_id="main", time=1, uptime_s=2.0,
+                identity=IdentityStatus(conflicts=3, changes=2, emergencies=1, spi=4,
+                                        tracks_in_emergency=1))  # fmt: skip
+    assert Status.from_json_bytes(st.to_json_bytes()) == st
+    with pytest.raises(ValidationError, match="conflicts"):
+        IdentityStatus(conflicts=-1)
+    t = Track(**_track(mode_3a=0o7700, mode_3a_time=4_900, mode_3a_changed=True))
+    assert Track.from_json_bytes(t.to_json_bytes()).mode_3a_changed is True
+    assert b"mode_3a_changed" not in Track(**_track()).to_json_bytes()

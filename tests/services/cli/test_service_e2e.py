@@ -44,3 +44,16 @@ def test_demo_three_radars_end_to_end(tmp_path):
     assert s["gospa_mean_second_half_m"] < s["gospa_c_m"]
     assert s["latency_ms"]["count"] == s["fusion_cycles"] > 0
     assert Path(s["png"]).stat().st_size > 10_000
+    # identity: the tracks are listed by the callsigns the simulated aircraft downlinked
+    assert any(line.startswith("  tracks by callsign") for line in res.stdout.decode().splitlines())
+    sent = {c for b in recorded_plots(out) for c in b.callsign or () if c}
+    listed = {name for name in s["tracks_by_callsign"] if not name.startswith("squawk ")}
+    assert listed and listed <= sent, (listed, sent)
+    assert len(listed) >= 0.7 * len(sent)
+
+
+def recorded_plots(path: Path):
+    from skyfuse.schemas import PlotBatch
+    from skyfuse.services.recording.mcap_io import iter_recording
+
+    return [r.message for r in iter_recording(path) if isinstance(r.message, PlotBatch)]
