@@ -13,7 +13,7 @@ Modules, one concept each:
 * :mod:`.model` — the state-space model protocol the generic filter steps use.
 * :mod:`.sir` / :mod:`.sis` / :mod:`.auxiliary` — filter steps of Tab 3.1, 3.3, 3.4.
 * :mod:`.pcrlb` — Tichavský posterior Cramér–Rao lower bound (3.74–3.81), with P_D.
-* :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark (docs/particles.md).
+* :mod:`.nonlinear_benchmark` — the scalar nonlinear benchmark (docs/reports/particles-log.md).
 * :mod:`.likelihood` — per-particle Gaussian plot likelihoods ([LM-IPF] eq. 7-8) for
   gated pairs.
 * :mod:`.association` — the IPF association ([LM-IPF] eq. 10-12, 16-17) and the LM step

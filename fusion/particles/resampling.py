@@ -1,11 +1,11 @@
-"""Resampling of many particle clouds at once (spec 04 A15, B.2 Tab 3.2; spec 02 §6 step 9).
+"""Resampling of many particle clouds at once ([thesis] (3.51–3.55); Arulampalam et al. 2002).
 
 Every scheme takes normalised weights ``w`` (n_clouds, N) and returns ancestor indices
 (n_clouds, N) into each cloud's own particles, sorted ascending within a row; after
 resampling all weights are 1/N. All are unbiased, E[N_i] = N w_i for the offspring count
 N_i of particle i; they differ in Var N_i:
 
-* **systematic** (A15, 3.51–3.55): one u ~ U[0, 1/N) per cloud, u_l = u + (l − 1)/N, take
+* **systematic** ([thesis] (3.51–3.55)): one u ~ U[0, 1/N) per cloud, u_l = u + (l − 1)/N, take
   the i with c_{i−1} < u_l ≤ c_i (c = cumsum w). The number of u_l ≤ c_i is
   ⌊N c_i − N u⌋ + 1, so offspring counts are differences of that, exact and O(N) per
   cloud with no search. N_i ∈ {⌊N w_i⌋, ⌈N w_i⌉}: Var N_i = f(1 − f), f = frac(N w_i).
