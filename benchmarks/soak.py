@@ -1,4 +1,4 @@
-"""Soak (issue 14 §6): the whole service on loopback for a long run, checked for silent
+"""Soak (docs/reliability.md §6): the whole service on loopback for a long run, checked for silent
 loss, memory growth and latency drift.
 
 One ``skyfuse replay --radars ID`` publisher process per radar (the ``regional``
