@@ -136,7 +136,7 @@ def wait_for(pred, timeout: float = 10.0, step: float = 0.05) -> bool:
 
 
 BIASED_TRUTH = {"LYVR": (0.2, 150.0), "LRTR": (-0.15, -100.0)}
-"""Azimuth (deg) and range (m) biases of the biased regional recording (issue 17)."""
+"""Azimuth (deg) and range (m) biases of the biased regional recording."""
 BIASED_REGIONAL = (
     "--scenario", "regional", "--seed", "4", "--duration", "200", "--targets", "15",
     "--param", "radars=3," + ",".join(

@@ -1,5 +1,5 @@
-"""SIR, SIS and APF steps (spec 04 B.2 Tab 3.1/3.3/3.4) against the Kalman filter on a
-scalar linear-Gaussian model, and PF vs EKF on the nonlinear benchmark of spec 04 B.3.
+"""SIR, SIS and APF steps (Arulampalam et al. 2002) against the Kalman filter on a
+scalar linear-Gaussian model, and PF vs EKF on the nonlinear growth-model benchmark.
 
 Linear-Gaussian check: C = 200 independent clouds of N = 2000 particles filter the same
 observations. Bounds: the mean over clouds of (PF mean − KF mean) within 5 standard

@@ -1,4 +1,4 @@
-"""LM-IPF step (spec 04 A9–A13) over the particle gated table: far-apart tracks give the
+"""LM-IPF step ([LM-IPF] eq. 12-17) over the particle gated table: far-apart tracks give the
 IPF inputs exactly; close tracks match the formulas evaluated by brute-force loops."""
 
 from __future__ import annotations
