@@ -11,7 +11,7 @@ settings default to the source's ([thesis] §7.1-7.4):
   V_k = max(gate of the track's S, π (v_max T)²) (``clutter_volume``; [A]:
   the gate alone cannot give the source's tables, see docs/reproduction.md);
 * two-point initiation from plots of consecutive scans only (``init_max_dt`` 1.5 T) no
-  track selected, with v_max = 50 m/s ([A], the spec's suggestion);
+  track selected, with v_max = 50 m/s ([A]: not in the thesis, [IMPL]);
 * confirmation at ψ ≥ 0.99 (single target) / 0.95 (multi-target); termination at
   ψ < 10⁻³ ([IMPL]); ψ_init per variant (calibrated, see ``calibration``).
 

@@ -17,7 +17,7 @@ True/false labels of [thesis] §7.1, eq. (7.1):
 3. A true track for t stays true while it **selects** t's detections: in a scan in which any
    of the plots it selected (gated / was updated with) originated from t, it keeps the
    label and no distance test is made.
-4. Missed scans (spec [A]; the spec's suggestion): a scan in which a true track selects no
+4. Missed scans (not in the thesis; [IMPL]): a scan in which a true track selects no
    detection of t (t undetected, t absent, or only clutter / other targets' plots in the
    gate) keeps the label and counts a miss. After ``retest_after`` (3) consecutive misses,
    and in every further scan while the misses continue, (7.1) is re-tested: if t still

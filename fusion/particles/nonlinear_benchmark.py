@@ -25,7 +25,7 @@ from skyfuse.fusion.filters import ekf
 
 @dataclass(frozen=True)
 class ScalarBenchmark:
-    """Model of B.3. q = σ_ω², r = σ_e² (dimensionless), c = forcing frequency (rad/step)."""
+    """The benchmark model. q = σ_ω², r = σ_e² (dimensionless), c = forcing frequency (rad/step)."""
 
     q: float = 1.0
     r: float = 10.0

@@ -39,7 +39,7 @@ def effective_sample_size(w: np.ndarray) -> np.ndarray:
 
 def weighted_moments(x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MMSE mean (n, d) and covariance (n, d, d) of clouds x (n, N, d) with weights w (n, N)
-    (A16, 3.87–3.88)."""
+    ([thesis] (3.56–3.57))."""
     mean = np.einsum("...i,...id->...d", w, x)
     dx = x - mean[..., None, :]
     cov = np.swapaxes(dx * w[..., None], -1, -2) @ dx  # batched matmul: 4× the einsum

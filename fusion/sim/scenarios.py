@@ -1,4 +1,4 @@
-"""Named scenarios (values from ``shared/spec``; ambiguous values are parameters).
+"""Named scenarios (values from the sources; ambiguous values are parameters).
 
 * ``thesis-stt`` ([thesis] §7.3): one target from x₀ = [100, 16, 100, 4] (m, m/s),
   T = 1 s, 50 scans, P_D = 0.6, R = 25 I. Clutter: the 900 × 900 m area is split at
@@ -27,7 +27,7 @@
   downlinking their track and turn (:mod:`fusion.sim.identity`); uniform clutter plus a
   ground-clutter ring around each radar; horizon test at 0°.
 
-Scan numbering of the planar thesis scenarios follows the spec: scan k (k = 1..K) is a
+Scan numbering of the planar thesis scenarios follows the thesis: scan k (k = 1..K) is a
 snapshot at t = k·T after the scenario start, and the targets' initial states are at
 t = 0 (so thesis-stt with q = 0 is at (900, 300) at scan 50, and the thesis-mtt / lm-ipf
 targets are at the centre at scan 20). Polar radars number their revolutions from 0.
@@ -84,7 +84,7 @@ _PLANAR = {
 def _cartesian_common(pd: float) -> dict[str, Param]:
     return {
         "p_detection": Param(pd, "detection probability P_D", probability),
-        "sigma": Param(5.0, "measurement noise σ per axis, m (R = σ² I; spec: R = 25 I)", positive),
+        "sigma": Param(5.0, "measurement noise σ per axis, m (R = σ² I; [thesis]: 25 I)", positive),
         "scan_period": Param(1.0, "scan period T, s", positive),
         "clutter_density": Param(
             0.0, "uniform Poisson clutter over the area, plots per m² per scan", in_range(0, 1)
@@ -286,7 +286,7 @@ _CROSS_PARAMS = {
         "2d", "radar kind: 2d (range, azimuth, altitude) or 3d", choices=("2d", "3d")
     ),
     "sigma_range": Param(20.0, "σ_r, m", positive),
-    "sigma_az_mrad": Param(2.5, "σ_θ, mrad (spec cases: 2.5 and 6)", positive),
+    "sigma_az_mrad": Param(2.5, "σ_θ, mrad ([MZD] cases: 2.5 and 6)", positive),
     "sigma_el_mrad": Param(4.0, "σ_elevation (3d), mrad", positive),
     "sigma_altitude": Param(30.0, "altitude (Mode C) noise σ (2d), m", positive),
     "scan_period": Param(4.0, "antenna revolution period T, s", positive),

@@ -267,7 +267,7 @@ class TrackerConfig(BaseModel):
         None,
         gt=0.0,
         le=1.0,
-        description="ipf/lmipf: resample a cloud when N_eff < this × N; None: every scan (A15)",
+        description="ipf/lmipf: resample a cloud when N_eff < this × N; None: every scan",
     )
     resampling: Literal["systematic", "stratified", "multinomial", "residual"] = Field(
         "systematic", description="ipf/lmipf: resampling scheme (source: systematic)"

@@ -184,7 +184,7 @@ def test_add_keep_and_three_dimensional_positions():
 
 
 def test_update_weights_follow_a14_before_resampling():
-    """Stored MMSE = Σ w_j x_j with w_j ∝ w_j (β_0 + Σ_i β_i p_i(x_j)/p_i) (A14, A16),
+    """Stored MMSE = Σ w_j x_j with w_j ∝ w_j (β_0 + Σ_i β_i p_i(x_j)/p_i) ([LM-IPF] eq. 11, 13),
     evaluated here with explicit loops over plots and particles."""
     rng = np.random.default_rng(9)
     dens = ParticleDensity(CV, 60, seed=5)

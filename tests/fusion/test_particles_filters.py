@@ -102,7 +102,7 @@ def test_roughening_sigma_and_spread():
 
 
 def test_pf_beats_ekf_on_the_scalar_nonlinear_benchmark():
-    """Spec 04 B.3: 40 runs × 50 steps, SIR with N = 1000. Per-run MSEs are paired; the
+    """The nonlinear benchmark: 40 runs × 50 steps, SIR with N = 1000. Per-run MSEs are paired; the
     EKF − PF differences are heavy-tailed (EKF divergences), so the bound is a one-sided
     Wilcoxon signed-rank test at p < 1e-3, plus overall RMSE(PF) < 0.8 RMSE(EKF). The PF's
     MSE must stay above 0.9 × the PCRLB (Tichavský recursion along the true trajectories)."""

@@ -1,4 +1,4 @@
-"""Named scenarios: they build and run, carry the spec's geometry, are deterministic, and
+"""Named scenarios: they build and run, carry the sources' geometry, are deterministic, and
 reject bad parameters with errors that name them."""
 
 from __future__ import annotations
