@@ -157,7 +157,7 @@ def _manoeuvring_traffic(rng: np.random.Generator, n: int, side: float, duration
     """n targets (150-250 m/s, random headings, starting in the central fifth of the
     square): straight 8-15 s, a 60-120° turn at 2-3 g, straight 8-15 s, a 60-120° turn the
     other way at 2-3 g, straight to the end (the civil-aircraft turns the IMM defaults are
-    tuned for, issue 11)."""
+    tuned for)."""
     builders = []
     for _ in range(n):
         p = rng.uniform(0.4 * side, 0.6 * side, 2)

@@ -1,5 +1,5 @@
 """Expected existence log-odds gain per scan of a true track under the non-parametric
-clutter estimate (thesis 2.35-2.41), closed form against the tracker (issue 16, step 1).
+clutter estimate ([thesis] (2.35)-(2.41)), closed form against the tracker.
 
 A track on an isolated target in a clutter-free gate sees at most one plot, its own
 (probability a = P_D P_G). With m = 1 the estimate (2.35) is m̂ = 1 − a ψ_{k|k−1}, so

@@ -34,7 +34,6 @@ import json
 import os
 import random
 import sys
-import tempfile
 import threading
 import time
 from collections import Counter
@@ -45,7 +44,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from service_pipeline import Follower, rss_mb, start_children, start_replays  # noqa: E402
+from service_pipeline import rss_mb, start_replays  # noqa: E402
 from skyfuse.schemas import PlotBatch, RadarSite, keys  # noqa: E402
 from skyfuse.services.recording.mcap_io import iter_recording  # noqa: E402
 from skyfuse.services.runtime.transport import (  # noqa: E402
@@ -54,9 +53,17 @@ from skyfuse.services.runtime.transport import (  # noqa: E402
     declare_liveliness,
     open_session,
     service_alive_key,
-    wait_for_tokens,
 )
-from soak import level, observers, rss_growth, windows  # noqa: E402
+from soak import (  # noqa: E402
+    drain,
+    rss_growth,
+    run_in_work_dir,
+    send,
+    services,
+    start_services,
+    stop_services,
+    windows,
+)
 
 HOUR_NS = 3_600_000_000_000
 
@@ -192,22 +199,13 @@ def _per_radar(rec: Path, work: Path, status) -> dict:
 
 
 def run(a, work: Path) -> dict:
-    rec, facts, speed = level(a, work)
-    per_window = max(10, round(facts["batches"] / a.duration * a.window))
-    frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
-    extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
-    ep, fusion, pubs = start_children(rec, speed, facts["radars"], frame, a, work, a.rate,
-                                      fusion_extra=extra)  # fmt: skip
-    recorder, client = observers(ep, work)
+    sv = services(a, work)
+    rec, facts, speed, pubs, recorder = sv.rec, sv.facts, sv.speed, sv.pubs, sv.recorder
     load0 = os.getloadavg()
     rec_rss: list = []
     stop_rss = threading.Event()
-    with open_session(TransportConfig(listen=[ep])) as s:
-        for c in (fusion, recorder, client):
-            c.start(state_home=work / "state-home")
-        names = [service_alive_key("fusion"), service_alive_key("recorder")]
-        assert wait_for_tokens(s, names, 60.0) == [], "fusion or recorder did not start"
-        f = Follower(s, fusion.proc.pid)
+    with open_session(TransportConfig(listen=[sv.ep])) as s:
+        f = start_services(sv, s, work)
         sampler = threading.Thread(
             target=_rss_sampler, args=(lambda: recorder.proc.pid, rec_rss, stop_rss), daemon=True
         )
@@ -219,19 +217,14 @@ def run(a, work: Path) -> dict:
         go = declare_liveliness(s, service_alive_key("bench"))
         fuzzing = threading.Thread(target=fuzz.run, daemon=True)
         fuzzing.start()
-        while any(c.poll() is None for c in pubs):
-            f.pump(0.2)
+        send(f, pubs)
         t_sent = time.monotonic() - t0
         fuzz.stop.set()
         fuzzing.join(5.0)
-        deadline = time.monotonic() + a.drain
-        while time.monotonic() < deadline and f.status["bench"].counters.get("queued", 1):
-            f.pump(0.2)
-        time.sleep(1.0)
-        f.pump(0.1)
+        drain(f, a.drain, lambda: not f.status["bench"].counters.get("queued", 1))
         go.undeclare()
         stop_rss.set()
-        rcs = {c.name: c.terminate(timeout=15.0) for c in (client, recorder, fusion)}
+        rcs = stop_services(sv)
         fuzz.inbox.close()
         f.inbox.close()
     if fuzz.dump is not None:
@@ -288,14 +281,7 @@ def main() -> None:
     print(f"hostile soak: {a.duration:.0f} s, {a.rate:.0f} valid plots/s from {a.radars} "
           f"radars, {a.fuzz:.0f} hostile messages/s; load {os.getloadavg()}",
           flush=True)  # fmt: skip
-    if a.keep is not None:
-        a.keep.mkdir(parents=True, exist_ok=True)
-        out = run(a, a.keep)
-    else:
-        with tempfile.TemporaryDirectory() as tmp:
-            out = run(a, Path(tmp))
-    for w in out["windows"]:
-        print(json.dumps(w))
+    out = run_in_work_dir(a, run)
     keep = ("valid_radars", "fuzz_sent", "fuzz_per_s", "fusion_rejected", "recorder_rejected",
             "fusion_rss", "recorder_rss_mb_per_window", "recorder_rss_growth_pct",
             "confirmed_tracks_per_window", "offered_plots_per_s", "exit_codes",

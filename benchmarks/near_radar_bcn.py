@@ -1,10 +1,10 @@
 """Real Barcelona recording (15 min, one radar, Mode-S labels): plots near the radar and
-the airborne / surface split of the label measures (issue 17 §3-4).
+the airborne / surface split of the label measures (docs/reports/registration-log.md §3-4).
 
 Runs the recording through the same path as ``skyfuse eval FILE.ast --sites`` (ASTERIX
 reader → ``TrackPipeline`` → ``PlotTrackRows``, default tracker configuration) and writes
 one row per plot (time, Mode-S label, track, confirmed, altitude, slant range, valid)
-to ``--rows`` (npz). It uses only APIs that existed before issue 17, so the same script
+to ``--rows`` (npz). It uses only APIs that existed before the near-radar work, so the same script
 run against an older checkout gives the "before" rows. With ``--analyse A.npz [B.npz]``
 it prints and writes (``--json``) the measures of
 :func:`fusion.metrics.traffic_split.split_label_metrics` for each rows file.

@@ -61,7 +61,7 @@ P0 = np.diag([SIGMA**2, 4.0, SIGMA**2, 4.0])
 
 
 def make_scans(n: int, scans: int, clutter: float, seed: int = 1):
-    """Initial states (n, 4) and per-scan plots (z (m, 2)) of the A.4 geometry."""
+    """Initial states (n, 4) and per-scan plots (z (m, 2)) of the [LM-IPF] scenario geometry."""
     rng = np.random.default_rng(seed)
     ang = np.deg2rad(180.0 + 10.0 * (np.arange(n) - (n - 1) / 2))
     start = 500.0 + 450.0 * np.column_stack([np.cos(ang), np.sin(ang)])

@@ -1,4 +1,4 @@
-"""Online registration on the regional scenario (issue 17 §5 acceptance).
+"""Online registration on the regional scenario (docs/reports/registration-log.md §2).
 
 Four radars (LYBE 3d 4 s, LYVR 2d 8 s, LRTR 2d 10 s, NOVISAD 3d 12 s), two of them
 biased — LYVR and LRTR: azimuth +0.2°, range +150 m, time +50 ms — tracked at library
@@ -16,7 +16,7 @@ Reported per run, every ``--every`` s of simulated time: confirmed tracks per ai
 position RMSE of the assigned tracks (Hungarian assignment on distance, gate
 ``--radius``), and for ``biased_on`` each radar's bias estimate ± σ against the truth.
 Summaries over the second half of the run. JSON into benchmarks/results/registration.json;
-``--plot DIR`` writes the figures used in docs/registration.md.
+``--plot DIR`` writes the figures used in docs/reports/registration-log.md.
 
     python benchmarks/registration.py [--duration 600] [--targets 40] [--seed 1]
 """

@@ -1,4 +1,4 @@
-"""Reproduction of the source's tracker experiments (spec 03 §3-§5, issues 6 §5 and 16).
+"""Reproduction of the source's tracker experiments ([thesis] §7.3-7.4, ch. 8).
 
 Runs ``skyfuse eval`` on the thesis scenarios with ψ_init calibrated over all runs (the
 source's 15 or 20 confirmed false tracks per experiment) and writes the tables, curves and

@@ -1,4 +1,4 @@
-"""Soak (issue 14 §6): the whole service on loopback for a long run, checked for silent
+"""Soak (docs/reliability.md §6): the whole service on loopback for a long run, checked for silent
 loss, memory growth and latency drift.
 
 One ``skyfuse replay --radars ID`` publisher process per radar (the ``regional``
@@ -43,6 +43,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -117,37 +118,67 @@ def in_air_fraction(a, duration: float, n: int = 2000) -> float:
     return float(np.mean([((birth <= t) & (death >= t)).mean() for t in times]))
 
 
-def run(a, work: Path) -> dict:
+def services(a, work: Path, extra: tuple = ()) -> SimpleNamespace:
+    """The leveled input (:func:`level`) and the children, not started: the fusion (its
+    latency window the batches of one ``--window``, its state in ``work``, then ``extra``
+    flags), one replay per radar, the recorder and the track client."""
     rec, facts, speed = level(a, work)
-    base = a.rate / speed
     per_window = max(10, round(facts["batches"] / a.duration * a.window))
     frame = (facts["frame"]["lat0"], facts["frame"]["lon0"])
-    extra = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
-    extra += overload_flags(a)
+    flags = ("--latency-window", str(per_window), "--state-dir", str(work / "fusion-state"))
     ep, fusion, pubs = start_children(
-        rec, speed, facts["radars"], frame, a, work, a.rate, fusion_extra=extra
+        rec, speed, facts["radars"], frame, a, work, a.rate, fusion_extra=flags + tuple(extra)
     )
     recorder, client = observers(ep, work)
+    return SimpleNamespace(rec=rec, facts=facts, speed=speed, ep=ep, fusion=fusion, pubs=pubs,
+                           recorder=recorder, client=client)  # fmt: skip
+
+
+def start_services(sv: SimpleNamespace, s, work: Path) -> Follower:
+    """Start the fusion, the recorder and the client; wait for the first two on session
+    ``s``; follow the fusion's Status."""
+    for c in (sv.fusion, sv.recorder, sv.client):
+        c.start(state_home=work / "state-home")
+    names = [service_alive_key("fusion"), service_alive_key("recorder")]
+    assert wait_for_tokens(s, names, 60.0) == [], "fusion or recorder did not start"
+    return Follower(s, sv.fusion.proc.pid)
+
+
+def send(f: Follower, pubs: list) -> None:
+    """Follow the fusion while the replays publish."""
+    while any(c.poll() is None for c in pubs):
+        f.pump(0.2)
+
+
+def drain(f: Follower, seconds: float, done) -> None:
+    """Follow the fusion until ``done()`` or ``seconds``, then take its last Status."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not done():
+        f.pump(0.2)
+    time.sleep(1.0)  # the last Status after the drain
+    f.pump(0.1)
+
+
+def stop_services(sv: SimpleNamespace) -> dict:
+    """Stop the client, the recorder and the fusion: their exit codes."""
+    return {c.name: c.terminate(timeout=15.0) for c in (sv.client, sv.recorder, sv.fusion)}
+
+
+def run(a, work: Path) -> dict:
+    sv = services(a, work, overload_flags(a))
+    facts, speed, pubs = sv.facts, sv.speed, sv.pubs
+    base = a.rate / speed
     load0 = os.getloadavg()
-    with open_session(TransportConfig(listen=[ep])) as s:
-        for c in (fusion, recorder, client):
-            c.start(state_home=work / "state-home")
-        names = [service_alive_key("fusion"), service_alive_key("recorder")]
-        assert wait_for_tokens(s, names, 60.0) == [], "fusion or recorder did not start"
-        f = Follower(s, fusion.proc.pid)
+    with open_session(TransportConfig(listen=[sv.ep])) as s:
+        f = start_services(sv, s, work)
         time.sleep(1.0)  # the client's subscription propagates
         t0 = start_replays(pubs, work / "state-home")
         go = declare_liveliness(s, service_alive_key("bench"))
-        while any(c.poll() is None for c in pubs):
-            f.pump(0.2)
+        send(f, pubs)
         t_sent = time.monotonic() - t0
-        deadline = time.monotonic() + a.drain
-        while time.monotonic() < deadline and not f.caught_up(facts["batches"]):
-            f.pump(0.2)
-        time.sleep(1.0)  # the last Status after the drain
-        f.pump(0.1)
+        drain(f, a.drain, lambda: f.caught_up(facts["batches"]))
         go.undeclare()
-        rcs = {c.name: c.terminate(timeout=15.0) for c in (client, recorder, fusion)}
+        rcs = stop_services(sv)
         f.inbox.close()
     out = {
         "config": {k: str(v) for k, v in vars(a).items()},
@@ -254,6 +285,20 @@ def rss_growth(ws: list[dict]) -> dict:
             "growth_pct": round(100.0 * (end - ref) / ref, 2)}  # fmt: skip
 
 
+def run_in_work_dir(a, run) -> dict:
+    """``run(a, work)`` in ``--keep`` (kept: the simulated file, the recording, logs and
+    state) or in a temporary directory; prints the result's windows, one JSON line each."""
+    if a.keep is not None:
+        a.keep.mkdir(parents=True, exist_ok=True)
+        out = run(a, a.keep)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = run(a, Path(tmp))
+    for w in out["windows"]:
+        print(json.dumps(w))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--duration", type=float, default=600.0, help="wall seconds of publishing")
@@ -293,14 +338,7 @@ def main() -> None:
         f"load {os.getloadavg()}",
         flush=True,
     )
-    if a.keep is not None:  # the simulated file, the recording, logs and state, kept
-        a.keep.mkdir(parents=True, exist_ok=True)
-        out = run(a, a.keep)
-    else:
-        with tempfile.TemporaryDirectory() as tmp:
-            out = run(a, Path(tmp))
-    for w in out["windows"]:
-        print(json.dumps(w))
+    out = run_in_work_dir(a, run)
     print(json.dumps({k: out[k] for k in ("accounting", "rss", "offered_plots_per_s", "send_s",
                                           "exit_codes", "loadavg_end")}, indent=1))  # fmt: skip
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,6 @@
 """Sector batches of a large regional simulation through ``TrackPipeline`` offline.
 
-The live case of issue 13: ≈1,000–4,000 tracks, 16 sector batches of 5–60 plots per
+The live case (docs/performance.md): ≈1,000–4,000 tracks, 16 sector batches of 5–60 plots per
 scan, several radars. The ``regional`` scenario (``--targets`` aircraft, ``--radars``
 radars) is simulated once in this process; its sector batches (in time order, as the
 fusion service's reorder buffer releases them) go through one ``TrackPipeline`` per

@@ -1,6 +1,6 @@
 """Per-batch cost of the tracker at small and large sizes, with an optional profile.
 
-Two kinds of cases (issue 11's Stone Soup comparison, issue 13's live service):
+Two kinds of cases (the Stone Soup comparison and the live service, docs/performance.md):
 
 * ``small``: the plots of ``compare_stonesoup.py``'s ``manoeuvring`` (20 targets, 50
   false plots per scan, IMM ``gnn`` / ``jipda`` / ``lmits`` with ``imm-cv-ct``) and

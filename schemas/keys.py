@@ -83,12 +83,12 @@ def fusion_snapshot(fusion_id: str) -> str:
 
 
 def fusion_registration(fusion_id: str) -> str:
-    """Online sensor-registration estimates (RegistrationStatus, issue 17)."""
+    """Online sensor-registration estimates (RegistrationStatus, docs/concepts/registration.md)."""
     return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/registration"
 
 
 def fusion_state(fusion_id: str) -> str:
-    """The active instance's state snapshot for its standbys (binary, issue 14 §4)."""
+    """The active instance's state snapshot for its standbys (binary, docs/reliability.md §5)."""
     return f"{PREFIX}/fusion/{check_id(fusion_id, 'fusion id')}/state"
 
 

@@ -1,5 +1,5 @@
 """``RegistrationStatus``: a fusion service's online sensor-registration estimates, on
-``skyfuse/@v1/fusion/{id}/registration`` and in ``Status.registration`` (issue 17).
+``skyfuse/@v1/fusion/{id}/registration`` and in ``Status.registration``.
 
 Each radar's systematic errors (azimuth offset rad clockwise, range offset m, range gain
 dimensionless, time-stamping offset s; reported = (1 + gain) × true + offset, time + offset)

@@ -19,7 +19,7 @@ class RadarKind(StrEnum):
     """``2d``: range and azimuth, altitude from Mode C / flight level;
     ``3d``: range, azimuth and elevation;
     ``cartesian``: a planar test sensor measuring (x east, y north) in metres in the
-    site's local plane, with ``R = sigma_cartesian² I`` (spec 02 §1)."""
+    site's local plane, with ``R = sigma_cartesian² I`` ([thesis] §7.3)."""
 
     TWO_D = "2d"
     THREE_D = "3d"

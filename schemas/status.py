@@ -122,7 +122,7 @@ class OverloadStatus(WireModel):
 class LateStats(WireModel):
     """Batches behind the service time (a lagging radar, a slow link), fusion only: those
     within ``max_lateness`` are applied, their plots through the tracker's out-of-sequence
-    update (retrodiction, Bar-Shalom A1: docs/tracker.md "Out-of-sequence plots")."""
+    update (retrodiction, Bar-Shalom A1: docs/reports/tracker-log.md "Out-of-sequence plots")."""
 
     max_lateness_s: float = Field(0.0, ge=0.0, description="Configured bound, s")
     batches_late: int = Field(0, ge=0, description="Late batches applied")
@@ -194,7 +194,7 @@ class Status(WireModel):
         None, description="Fusion: the overload policy, when and how much it widens the steps"
     )
     registration: RegistrationStatus | None = Field(
-        None, description="Fusion: online sensor-registration estimates (issue 17)"
+        None, description="Fusion: online sensor-registration estimates"
     )
     identity: IdentityStatus | None = Field(
         None, description="Fusion: identity conflicts, changes, emergencies, SPI"

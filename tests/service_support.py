@@ -135,8 +135,19 @@ def wait_for(pred, timeout: float = 10.0, step: float = 0.05) -> bool:
     return bool(pred())
 
 
+def last_payload(inbox, seconds: float, parse=json.loads):
+    """The last payload an ``Inbox`` receives within ``seconds``, parsed by ``parse``
+    (JSON by default, e.g. ``Status.from_json_bytes``); None when nothing arrived."""
+    out, end = None, time.monotonic() + seconds
+    while time.monotonic() < end:
+        item = inbox.get(0.1)
+        if item is not None:
+            out = parse(item.payload)
+    return out
+
+
 BIASED_TRUTH = {"LYVR": (0.2, 150.0), "LRTR": (-0.15, -100.0)}
-"""Azimuth (deg) and range (m) biases of the biased regional recording (issue 17)."""
+"""Azimuth (deg) and range (m) biases of the biased regional recording."""
 BIASED_REGIONAL = (
     "--scenario", "regional", "--seed", "4", "--duration", "200", "--targets", "15",
     "--param", "radars=3," + ",".join(

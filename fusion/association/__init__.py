@@ -1,5 +1,5 @@
 """Data association: vectorised gating and optimal assignment (auction with ε-scaling and
-scipy's Jonker-Volgenant, both with "no assignment" options; spec 01 §6). The trackers
+scipy's Jonker-Volgenant, both with "no assignment" options; [MZD] §5). The trackers
 that use them are in :mod:`fusion.tracker` (the GNN of [MZD] is its ``gnn`` kind)."""
 
 from .assignment import (

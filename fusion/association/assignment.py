@@ -1,4 +1,4 @@
-"""Optimal track-to-plot assignment with "no assignment" options (spec 01 §6).
+"""Optimal track-to-plot assignment with "no assignment" options ([MZD] §5).
 
 Problem: minimise Σ cost[i, a(i)] over assignments where each track i takes at most one
 plot and each plot at most one track; a track left unassigned costs ``miss_cost[i]``;
@@ -155,7 +155,7 @@ def assign_auction(
 
 
 def track_clusters(track: np.ndarray, plot: np.ndarray, n_tracks: int, n_plots: int) -> np.ndarray:
-    """Cluster label of every track (spec 03 §1.1 step 1): tracks sharing a gated plot,
+    """Cluster label of every track ([thesis] §6.2.1, clustering): tracks sharing a gated plot,
     directly or through a chain of tracks, get the same label. Labels are in
     [0, n_tracks): the smallest track index of the cluster; a track that shares no plot
     is alone in its cluster (its own index).

@@ -1,12 +1,12 @@
 """Gating of all (predicted state, plot) pairs at once — the one gating of skyfuse
-(spec 01 §6, 003 eq. 16-20; spec 02 §7 step 4, eq. 5.7).
+([MZD] §5, eq. 16-20; [thesis] (5.7)).
 
 A predicted state c (a track, or one mixture component / IMM mode of a track) selects
 plot j when d² = νᵀ S⁻¹ ν < g with ν = z_j − ŷ^c and S = H P^c Hᵀ + R_j (per-plot R).
 g is the chi-square quantile of the gate probability P_G for the measurement dimension
-(spec 02 §10 [IMPL]: g = 9.21 ⇔ P_G = 0.99 in 2-D; 003: P_G = 0.9997, g = 16.2235).
+([IMPL]: g = 9.21 ⇔ P_G = 0.99 in 2-D; [MZD]: P_G = 0.9997, g = 16.2235).
 Returned per pair: ν, S, d², ln det S, log N(ν; 0, S) (the IPDA likelihood p = N/P_G,
-4.17) and the GNN cost d² + ln det S (003 eq. 20).
+4.17) and the GNN cost d² + ln det S ([MZD] eq. 20).
 
 All pairs are never formed: a spatial pre-gate sorts the plots by their first coordinate
 and takes, per state, the window ``searchsorted(x ± r)`` with the radius
@@ -50,7 +50,7 @@ def unit_ball_volume(ndim: int) -> float:
 
 
 def gate_volume(S: np.ndarray, g: float) -> np.ndarray:
-    """Volume of the gate {νᵀS⁻¹ν < g}: c_n g^{n/2} √det S (spec 02 §4 [LIT]: π g √det S)."""
+    """Volume of the gate {νᵀS⁻¹ν < g}: c_n g^{n/2} √det S ([LIT]: π g √det S in 2-D)."""
     n = S.shape[-1]
     return unit_ball_volume(n) * g ** (n / 2) * np.sqrt(np.maximum(np.linalg.det(S), 0.0))
 
@@ -107,7 +107,7 @@ class GatedPairs:
 
     @property
     def cost(self) -> np.ndarray:
-        """GNN cost d² + ln det S (003 eq. 20)."""
+        """GNN cost d² + ln det S ([MZD] eq. 20)."""
         return self.d2 + self.logdet
 
     def cost_matrix(self) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""Compiled loops of the gating (:mod:`fusion.association.gating`; spec 01 §6, 003 eq.
-16-20; spec 02 §7 step 4, eq. 5.7), numba with ``cache=True``.
+"""Compiled loops of the gating (:mod:`fusion.association.gating`; [MZD] §5, eq.
+16-20; [thesis] (5.7)), numba with ``cache=True``.
 
 * :func:`box_pairs`: the pre-gate's windows. The plots are sorted by their first
   coordinate; state i's window is the sorted positions ``lo[i]:hi[i]`` (from

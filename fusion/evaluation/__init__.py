@@ -1,4 +1,4 @@
-"""Monte Carlo evaluation of the trackers on the planar thesis scenarios (issue 6).
+"""Monte Carlo evaluation of the trackers on the planar thesis scenarios ([thesis] ch. 7).
 
 Pure computation (no files, no processes):
 

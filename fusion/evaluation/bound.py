@@ -1,5 +1,5 @@
 """Posterior Cramér–Rao floor under the RMSE curves of the Monte Carlo evaluation
-(Tichavský's bound, [thesis] 3.74–3.81; docs/particles.md, used in the evaluation as the
+(Tichavský's bound, Tichavský et al. 1998; docs/reports/particles-log.md, used as the
 floor under RMSE).
 
 For every target of every run the bound is computed along its own life (its *age*: the

@@ -1,6 +1,6 @@
 """Calibration of ψ_init so that an experiment yields a target number of confirmed false
-tracks (spec 03 §2 "ψ_init": 15 ± 10 % per multi-target experiment, 20 ± 10 % single
-target, so that CTT curves compare at equal false-track counts; spec 02 §8).
+tracks ([thesis] §7.1: 15 ± 10 % per multi-target experiment, 20 ± 10 % single
+target, so that CTT curves compare at equal false-track counts; [thesis] §7.1-7.2).
 
 The count of confirmed false tracks over a fixed set of runs (fixed seeds) is a
 non-decreasing step function of ψ_init in practice (a higher initial existence confirms

@@ -1,24 +1,24 @@
-"""Definition of a Monte Carlo tracker experiment on a planar thesis scenario (spec 03 §2-§4).
+"""Definition of a Monte Carlo tracker experiment on a planar thesis scenario ([thesis] ch. 7).
 
 An :class:`Experiment` names a scenario (``thesis-stt``, ``thesis-mtt-5/15/50``,
 ``lm-ipf-2/15``), the tracker **variants** to compare (tracker kind and Singer depth N),
 the number of runs and the seed, and the tracker settings shared by every variant. The
-settings default to the source's (spec 03 §0, §2; spec 02 §8, §10):
+settings default to the source's ([thesis] §7.1-7.4):
 
 * CV model with q = 0.75 m²/s⁴, R = σ² I from the scenario (25 m²), T = 1 s;
 * Markov chain one, Δ11 = 0.98, Δ21 = 0; gate P_G = 0.99 (g = 9.21, [IMPL]);
 * **non-parametric** (estimated) clutter density (2.35), as the thesis experiments, with
-  V_k = max(gate of the track's S, π (v_max T)²) (``clutter_volume``; [A], issue 16:
+  V_k = max(gate of the track's S, π (v_max T)²) (``clutter_volume``; [A]:
   the gate alone cannot give the source's tables, see docs/reproduction.md);
 * two-point initiation from plots of consecutive scans only (``init_max_dt`` 1.5 T) no
-  track selected, with v_max = 50 m/s ([A], the spec's suggestion);
+  track selected, with v_max = 50 m/s ([A]: not in the thesis, [IMPL]);
 * confirmation at ψ ≥ 0.99 (single target) / 0.95 (multi-target); termination at
   ψ < 10⁻³ ([IMPL]); ψ_init per variant (calibrated, see ``calibration``).
 
 Run r (0-based) uses seed ``run_seed(seed, r)`` = seed·100003 + r for both the scenario
 (the thesis-mtt velocity randomisation) and the measurements, so every variant of a run
 sees the same plots. Times of run r are shifted by r·duration so that, with false tracks
-carried over (spec 03 §2 "Across runs"), run r + 1's first scan is one scan period after
+carried over ([thesis] §7.1), run r + 1's first scan is one scan period after
 run r's last one.
 """
 
@@ -42,18 +42,18 @@ PLANAR_SCENARIOS = (
 )
 
 #: The source's target number of confirmed false tracks per experiment of 500 runs
-#: (spec 03 §2 "ψ_init"): 20 single-target, 15 multi-target, each ± 10 %.
+#: ([thesis] §7.1): 20 single-target, 15 multi-target, each ± 10 %.
 SOURCE_RUNS = 500
 FALSE_TRACK_TARGET_STT = 20.0
 FALSE_TRACK_TARGET_MTT = 15.0
 
-#: Scan period of the planar scenarios, s (spec 03 §0).
+#: Scan period of the planar scenarios, s ([thesis] §7.3-7.4).
 SCAN_PERIOD = 1.0
 
 
 def initiation_region(v_max: float, period: float = SCAN_PERIOD) -> float:
-    """π (v_max T)², m²: the validation region of two-point initiation (spec 02 §5), the
-    reading of the thesis's V_k in (2.35) that reproduces its tables (issue 16)."""
+    """π (v_max T)², m²: the validation region of two-point initiation ([thesis] §7.1), the
+    reading of the thesis's V_k in (2.35) that reproduces its tables (docs/reproduction.md)."""
     return math.pi * (v_max * period) ** 2
 
 
@@ -104,7 +104,7 @@ class Experiment(BaseModel):
     )
     default_psi_init: float = Field(0.01, gt=0, lt=0.9, description="ψ_init of other variants")
     carry_false_tracks: bool = Field(
-        True, description="Carry false tracks into the next run (spec 03 §2)"
+        True, description="Carry false tracks into the next run ([thesis] §7.1)"
     )
     tracker_settings: dict[str, float | int | str] = Field(
         default_factory=dict,

@@ -2,7 +2,7 @@
 
 :class:`VariantRunner` keeps the tracker and the truth labeller of one
 :class:`~fusion.evaluation.experiment.Variant` across runs, because the source carries
-false tracks from one run into the next (spec 03 §2 "Across runs"). Per run r:
+false tracks from one run into the next ([thesis] §7.1). Per run r:
 
 1. ``build_scenario(scenario, seed=run_seed(seed, r))`` and the simulator's fast path give
    the scans (plots z, origin ``target_id``, −1 for clutter) and the true states at the

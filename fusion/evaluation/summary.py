@@ -1,6 +1,6 @@
-"""Measures of one variant's Monte Carlo histories (spec 03 §4): the retention row, the
+"""Measures of one variant's Monte Carlo histories ([thesis] ch. 7): the retention row, the
 CTT curve, the cumulative confirmed false tracks, the RMSE of confirmed true tracks with
-its posterior Cramér–Rao floor (:mod:`.bound`, spec 04 B.2) and GOSPA per scan, as plain
+its posterior Cramér–Rao floor (:mod:`.bound`, Tichavský et al. 1998) and GOSPA per scan, as plain
 JSON-ready values (lists with ``None`` for NaN).
 
 Two counts of confirmed false tracks are reported:
@@ -9,7 +9,7 @@ Two counts of confirmed false tracks are reported:
   track ever confirmed while labelled false, including a confirmed true track that lost
   its target (it is then a confirmed track on no target until terminated);
 * ``false_at_confirmation``: tracks labelled false **at the scan they were confirmed**
-  (:func:`false_at_confirmation`), the reading of spec 03 §4 "false tracks that reached
+  (:func:`false_at_confirmation`), the reading of the thesis's "false tracks that reached
   confirmation" used for the ψ_init calibration: ψ_init controls how fast a false track
   reaches confirmation (false-track discrimination), while the losses of true tracks are
   a retention matter (they show in nLost).
@@ -61,7 +61,7 @@ def false_at_confirmation_rows(tracks: TrackHistory) -> np.ndarray:
 
 
 def false_origin(tracks: TrackHistory, truth: TruthHistory) -> dict:
-    """Where the tracks false at confirmation are (issue 16): per such track the distance
+    """Where the tracks false at confirmation are: per such track the distance
     (m) at its confirming scan to the nearest target of the same run and scan (∞: no
     target), and whether it is labelled true within the next 3 scans of its run. A track
     on a target but failing the labelling test (7.1) at confirmation is near a target; a

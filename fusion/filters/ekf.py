@@ -1,5 +1,5 @@
 """Batched extended-Kalman predict and update for linear or nonlinear models and
-measurements (spec 01 §2, 004 eq. 8-9 and 13-14), Joseph-form covariance.
+measurements ([Dikić] eq. 8-9 and 13-14), Joseph-form covariance.
 
 * predict: the model's own ``predict(x, P, dt)`` of the same equations where it has one
   (CV, coordinated turn: compiled); otherwise linear models use F(dt), Q(dt)

@@ -1,9 +1,9 @@
-"""Initial track states from plots: one-point and two-point differencing (spec 02 §5,
-thesis 3.25-3.27; spec 01 §6 one-point initiation of the GNN baseline).
+"""Initial track states from plots: one-point and two-point differencing ([thesis] §3.5,
+(3.25-3.27); the one-point initiation of the GNN baseline of [MZD] §5).
 
 The single home of the initiation formulas. States are built in the constant-velocity
 layout [x, vx, y, vy(, z, vz)] (m, m/s) and can be embedded in the common Singer layout
-[x, vx, ax, y, vy, ay(, z, vz, az)] of spec 01 §4 by :func:`embed_common` (for the IMM and
+[x, vx, ax, y, vy, ay(, z, vz, az)] of [Dikić] eq. 22 by :func:`embed_common` (for the IMM and
 the Singer/CA filters).
 
 * Two-point: a plot z₁ and a later plot z₂, Δt apart, give per axis x̂ = [z₂, (z₂ − z₁)/Δt]

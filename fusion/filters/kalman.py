@@ -1,7 +1,7 @@
 """Linear Kalman filter, batched over n states (tracks or mixture components).
 
-Implements spec 02 §2 (thesis 2.21-2.27) with the Joseph-form covariance update of
-spec 02 §7 step 10 (5.14):
+Implements [thesis] §2.2 (2.21-2.27) with the Joseph-form covariance update of
+[thesis] (5.14):
 
 * predict:     x⁻ = F x,  P⁻ = F P Fᵀ + Q
 * innovation:  ẑ = H x⁻,  S = H P⁻ Hᵀ + R

@@ -1,10 +1,10 @@
 """Measurement models for the batched (E)KF: ``predict(x) -> (ẑ (n, m), H (n, m, d))`` and
 ``residual(z, ẑ)``.
 
-* :class:`PositionMeasurement` — converted measurements (spec 01 §2): z = H x + v with H
+* :class:`PositionMeasurement` — converted measurements ([Dikić] eq. 7-12): z = H x + v with H
   picking the position components (x east, y north[, z up]); R per plot from
   :func:`fusion.frames.convert_plots`.
-* :class:`PolarMeasurement` — the EKF alternative of spec 01 §2 (004 eq. 13-14, with the
+* :class:`PolarMeasurement` — the EKF alternative of [Dikić] (eq. 13-14, with the
   elevation formula corrected): relative to a sensor at position s in the frame,
   2-D h(x) = [ρ, ψ] with ρ = √(Δx² + Δy²), ψ = atan2(Δx, Δy) (clockwise from north);
   3-D h(x) = [D, ψ, θ], D = |Δ|, θ = atan2(Δz, ρ). The azimuth residual is wrapped to

@@ -1,5 +1,5 @@
 """Single-model batched filters over many tracks: the converted-measurement KF and the
-polar-measurement EKF (spec 01 §2; [Dikić] eq. 7-14).
+polar-measurement EKF ([Dikić] eq. 7-14).
 
 Both are :class:`ModelFilter` = a motion model (:mod:`fusion.models`) + a measurement
 model (:mod:`fusion.filters.measurement_models`), operating on a
@@ -55,10 +55,10 @@ class ModelFilter:
 
 
 def ConvertedMeasurementKF(model, name: str | None = None) -> ModelFilter:
-    """Linear KF on converted position measurements (spec 01 §2), per-plot R."""
+    """Linear KF on converted position measurements ([Dikić] eq. 7-12), per-plot R."""
     return ModelFilter(model, PositionMeasurement(model), name)
 
 
 def PolarEKF(model, sensor_position, ndim: int = 2, name: str | None = None) -> ModelFilter:
-    """EKF with the polar measurement h(x) of a sensor at ``sensor_position`` (spec 01 §2)."""
+    """EKF with the polar h(x) of a sensor at ``sensor_position`` ([Dikić] eq. 13-14)."""
     return ModelFilter(model, PolarMeasurement(model, sensor_position, ndim), name)

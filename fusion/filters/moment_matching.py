@@ -1,5 +1,5 @@
-"""Moment matching of Gaussian mixtures, grouped (spec 02 §7 step 11 [LIT], thesis
-4.66-4.68; spec 01 §5 IMM eq. 15-17 and 20-21).
+"""Moment matching of Gaussian mixtures, grouped ([LIT]; [thesis]
+(4.66-4.68); IMM mixing and output, [Dikić] eq. 15-17 and 20-21).
 
 One mechanism serves every merge in skyfuse: the Singer N-scan merge of ITS components,
 the track output of a mixture, the IMM mixing step and the IMM output. Components carry a

@@ -1,5 +1,5 @@
 """The largest eigenvalue of small symmetric matrices (n, k, k), batched: the reach
-gate's widest σ of the IMM (spec 01 §6).
+gate's widest σ of the IMM.
 
 For k = 2 the closed form λ_max = (a + c)/2 + √(((a − c)/2)² + b²) replaces LAPACK's
 ``eigvalsh``, whose per-matrix overhead costs several times the arithmetic over the tens

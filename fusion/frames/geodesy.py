@@ -1,4 +1,4 @@
-"""WGS-84 helpers that pymap3d does not give directly (spec 01 §3).
+"""WGS-84 helpers that pymap3d does not give directly ([LIT] WGS-84 geodesy).
 
 Geodetic ↔ ECEF ↔ ENU conversions themselves are pymap3d's (``geodetic2enu``,
 ``enu2geodetic``, ``enu2uvw``, ``uvw2enu``); this module adds the pieces the plot
@@ -40,7 +40,7 @@ def prime_vertical_radius(lat_deg) -> np.ndarray:
 def normal_section_radius(lat_deg, azimuth_rad) -> np.ndarray:
     """Euler's radius of curvature of the normal section at latitude φ in direction α
     (clockwise from north): 1/R_α = cos²α/M + sin²α/N, m. The local Earth radius used to
-    solve a 2-D radar's elevation along the plot's azimuth (spec 01 §3)."""
+    solve a 2-D radar's elevation along the plot's azimuth."""
     c2 = np.cos(azimuth_rad) ** 2
     return 1.0 / (c2 / meridian_radius(lat_deg) + (1.0 - c2) / prime_vertical_radius(lat_deg))
 

@@ -1,22 +1,22 @@
 """Convert one radar's plot batch into system-frame positions and covariances.
 
 The single entry point the tracker and the services call is :func:`convert_plots`.
-It implements the three steps of spec 01 §1 (004): (1) measurement → local ENU at the
+It implements the three steps of [Dikić] (system-frame choice): (1) measurement → local ENU at the
 radar, (2) ENU → system frame, (3) the measurement error (σ_D, σ_ψ, σ_θ or σ_h) →
 covariance in the system frame, R = J_f J R_s Jᵀ J_fᵀ with the analytic polar Jacobian J
-(spec 01 §2, 004 eq. 11-12) and the ENU → frame Jacobian J_f of
+([Dikić] eq. 11-12) and the ENU → frame Jacobian J_f of
 :meth:`SystemFrame.enu_jacobian`. Everything is vectorised over the plots of a batch.
 
 Output coordinates follow the tracker convention of :mod:`fusion.frames.system_frame`:
 x east, y north (, z up), metres.
 
-Plots near the radar (issue 17 §3): a 2-D plot whose height and slant range disagree
+Plots near the radar: a 2-D plot whose height and slant range disagree
 (|sin e| ≥ 1) or whose elevation is ill-conditioned is kept, converted to the moments
 of its position on the slant-range sphere (:func:`fusion.frames.polar.near_radar_moments`)
 with a covariance covering the disagreement, and flagged in ``near_radar``; only
 physically impossible values (range not > 0, no height and none assumed) are rejected.
 
-Registration (issue 17): a radar's estimated systematic errors
+Registration (docs/concepts/registration.md): a radar's estimated systematic errors
 (:class:`fusion.frames.sensor_bias.SensorBias`) are removed from the reported range,
 azimuth and time before step (1) (sensor_bias eq. 2), and the sensitivity of every
 converted position to range and azimuth, ∂z/∂(D, ψ) = J_f J[:, :2], is returned for the
@@ -62,7 +62,7 @@ class ConvertedPlots:
     bias: the correction that was applied (None: none).
     near_radar: (m,) bool, valid plots converted by the near-radar projection (height
       and slant range disagree, |sin e| ≥ 1, or the elevation is ill-conditioned close
-      to the radar; issue 17 §3) — kept, with a covariance covering the disagreement."""
+      to the radar) — kept, with a covariance covering the disagreement."""
 
     z: np.ndarray
     R: np.ndarray
@@ -129,11 +129,11 @@ def convert_plots(
     """Convert ``batch`` (plots of radar ``site``) into ``frame``.
 
     ndim: 2 → horizontal (x, y) only; 3 → (x, y, z) with z up.
-    debias: unbiased converted measurement (spec 01 §2 [LIT]); polar radars only.
+    debias: unbiased converted measurement ([LIT] Mo Longbin et al. 1998); polar radars only.
     assumed_altitude / sigma_assumed_altitude: height (m above the ellipsoid) used for
       2-D plots without a flight level (and 3-D plots without elevation or cartesian
       plots when ndim = 3); its standard deviation (m, default 3000) is carried through
-      the elevation solve into the horizontal covariance (issue 7).
+      the elevation solve into the horizontal covariance.
     k_earth: effective-Earth factor for the 2-D elevation solve (1 = geometric WGS-84,
       solved exactly on the ellipsoid; 4/3 = standard refraction, sphere of k·R_α).
     bias: the radar's estimated systematic errors, removed from range, azimuth and the
@@ -228,7 +228,7 @@ def _check_arguments(site, batch, ndim, assumed_altitude, sigma_assumed, k_earth
 
 
 def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
-    """Cartesian test sensor: (x east, y north) in the site plane, R = σ_c² I (spec 02 §1).
+    """Cartesian test sensor: (x east, y north) in the site plane, R = σ_c² I ([thesis] §7.3).
     The height is the assumed altitude (or the site height) when ndim = 3."""
     m = len(batch)
     enu = np.zeros((m, 3))
@@ -321,7 +321,7 @@ def _polar_inputs(site, batch, bias, assumed_altitude, sig_assumed) -> _Polar:
 
 
 def _enu_measured_elevation(P: _Polar, site, i3, debias) -> None:
-    """3-D radar plots with a measured elevation (spec 01 §2-3, 004 eq. 11-12)."""
+    """3-D radar plots with a measured elevation ([Dikić] eq. 7, 11-12)."""
     D, psi, th, sD = P.D[i3], P.psi[i3], P.elev[i3], site.sigma_range
     J = spherical_jacobian(D, psi, th)
     P.Jp[i3] = J
@@ -339,17 +339,17 @@ def _enu_measured_elevation(P: _Polar, site, i3, debias) -> None:
 
 
 def _enu_from_height(P: _Polar, site, i2, debias, k_earth) -> None:
-    """Plots whose elevation comes from a height (2-D radars; spec 01 §3): θ(D, h) on the
+    """Plots whose elevation comes from a height (2-D radars): θ(D, h) on the
     sphere, refined on the ellipsoid; where the height and the slant range disagree or
     θ is ill-conditioned (close to or over the radar) the near-radar projection of
-    :func:`fusion.frames.polar.near_radar_moments` instead (issue 17 §3)."""
+    :func:`fusion.frames.polar.near_radar_moments` instead."""
     radius = k_earth * normal_section_radius(site.lat, P.psi[i2])
     sol = elevation_from_altitude(P.D[i2], P.h[i2], site.alt, radius)
     D = P.D[i2]
     u_m = D * sol.sin_theta  # height above the site's tangent plane the altitude implies
     du_dh = (radius + P.h[i2]) / (radius + site.alt)  # ∂(D sinθ)/∂h on the sphere
     sig_u = _near_radar_sigma(D, u_m, du_dh * P.sig_h[i2], site.sigma_range)
-    # an assumed altitude (issue 7) keeps the linearised conversion unless impossible
+    # an assumed altitude keeps the linearised conversion unless impossible
     measured = P.h_measured[i2]
     near = (measured & _ill_conditioned(D, u_m, sig_u, site.sigma_range)) | ~sol.feasible
     if near.any():
@@ -415,7 +415,7 @@ def _ill_conditioned(D, u_m, sig_u, sigma_range):
 
 
 def _enu_near_radar(P: _Polar, site, idx, u_m, sig_u, sin_theta) -> None:
-    """Near-radar projection (issue 17 §3): the truncated-Gaussian moments of (ρ, u) on
+    """Near-radar projection: the truncated-Gaussian moments of (ρ, u) on
     the slant-range sphere (:func:`near_radar_moments`), then e = ρ sinψ, n = ρ cosψ with
 
         C = Var ρ r̂r̂ᵀ + (E[ρ²] σ_ψ² + 1 m²) t̂t̂ᵀ (+ Var u and Cov(ρ, u) r̂ vertically),

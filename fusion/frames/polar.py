@@ -1,15 +1,15 @@
-"""Radar polar measurements → local ENU at the radar, with covariance (spec 01 §2, §3).
+"""Radar polar measurements → local ENU at the radar, with covariance ([Dikić] eq. 7, 11-12).
 
 Conventions: slant range D (m); azimuth ψ clockwise from north (rad); elevation θ
 above the local horizontal (rad). Local ENU at the site:
 
-    e = D cosθ sinψ,   n = D cosθ cosψ,   u = D sinθ                    (spec 01 §3)
+    e = D cosθ sinψ,   n = D cosθ cosψ,   u = D sinθ
 
-(004 eq. 7a-c with x north, y east; here written east-first.) The covariance of a
+([Dikić] eq. 7a-c with x north, y east; here written east-first.) The covariance of a
 converted plot is R = J R_s Jᵀ with the analytic Jacobian J = ∂(e,n,u)/∂(D,ψ,θ)
-(004 eq. 11-12, reordered east-first). For a 2-D radar the third measured quantity is
+([Dikić] eq. 11-12, reordered east-first). For a 2-D radar the third measured quantity is
 the target height h (Mode C / flight level) instead of θ; θ(D, h) is solved on a
-sphere of local radius R (spec 01 §3) and its derivatives enter J.
+sphere of local radius R ([LIT]) and its derivatives enter J.
 
 Debiased ("unbiased converted measurement", Lerro & Bar-Shalom 1993; Mo Longbin et al.
 1998) conversion divides out E[cos w] = λ = e^{−σ²/2} of the angle errors and uses the
@@ -32,7 +32,7 @@ def spherical_to_enu(D, psi, theta) -> np.ndarray:
 
 
 def spherical_jacobian(D, psi, theta) -> np.ndarray:
-    """J = ∂(e, n, u)/∂(D, ψ, θ), shape (m, 3, 3) (004 eq. 11, east-first)."""
+    """J = ∂(e, n, u)/∂(D, ψ, θ), shape (m, 3, 3) ([Dikić] eq. 11, east-first)."""
     D, psi, theta = np.broadcast_arrays(*(np.asarray(a, float) for a in (D, psi, theta)))
     sp, cp, st, ct = np.sin(psi), np.cos(psi), np.sin(theta), np.cos(theta)
     J = np.empty((*D.shape, 3, 3))
@@ -44,7 +44,7 @@ def spherical_jacobian(D, psi, theta) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ElevationSolution:
-    """Elevation of a 2-D radar plot from its altitude (spec 01 §3).
+    """Elevation of a 2-D radar plot from its altitude.
 
     ``sin_theta`` may fall outside [−1, 1] when the geometry is impossible (slant range
     shorter than the height difference); ``feasible`` flags those plots."""
@@ -58,7 +58,7 @@ class ElevationSolution:
 
 def elevation_from_altitude(D, h_target, h_site, earth_radius) -> ElevationSolution:
     """Solve sinθ = ((R+h_T)² − (R+h_R)² − D²) / (2 (R+h_R) D) on a sphere of radius R
-    (spec 01 §3); ``earth_radius=np.inf`` gives the flat-Earth sinθ = (h_T − h_R)/D.
+    ([LIT]); ``earth_radius=np.inf`` gives the flat-Earth sinθ = (h_T − h_R)/D.
 
     Returns θ (rad) and ∂θ/∂D (rad/m), ∂θ/∂h_T (rad/m) for the covariance Jacobian.
     Use ``earth_radius = k·R_α`` with k = 4/3 for the standard refraction model."""
@@ -102,7 +102,7 @@ def debiased_enu(
     rho, u, C_rho_u, psi, sigma_psi, *, lam_vertical=None, moments_vertical=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Debiased ENU position and measurement-conditioned covariance from horizontal range ρ,
-    up u, azimuth ψ (spec 01 §2, [LIT] Mo Longbin et al. 1998, generalised to 3-D).
+    up u, azimuth ψ ([LIT] Mo Longbin et al. 1998, generalised to 3-D).
 
     ``rho, u``: measured horizontal range and height above the site plane, (m,);
     ``C_rho_u``: (m, 2, 2) covariance of (ρ, u) when they are (nearly) linear in the
@@ -150,7 +150,7 @@ _NEAR_SPAN = 8.0  # integrate the Gaussian of u over ±8σ (inside the sphere)
 
 def near_radar_moments(D, u_m, sigma_u):
     """Moments of (ρ, u) for a plot whose height disagrees with its slant range or
-    whose elevation is ill-conditioned (close to or over the radar; issue 17 §3).
+    whose elevation is ill-conditioned (close to or over the radar).
 
     The point lies on the sphere of radius D about the radar (e² + n² + u² = D², local
     ENU), so u ∈ [−D, D] and ρ = √(D² − u²). The height measurement says u ≈ u_m

@@ -1,4 +1,4 @@
-"""The stereographic system plane (spec 01 §1, §3).
+"""The stereographic system plane ([Dikić]; Mulholland & Stout 1982).
 
 Oblique conformal stereographic projection of the WGS-84 ellipsoid (double projection
 via the Gaussian conformal sphere), PROJ's ``+proj=sterea`` with ``k_0 = 1`` — the

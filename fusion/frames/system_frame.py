@@ -1,4 +1,4 @@
-"""The system frame the tracker works in, chosen by configuration (spec 01 §1, §3).
+"""The system frame the tracker works in, chosen by configuration ([Dikić]).
 
 **Tracker coordinates (one convention for every kind):** x east, y north, z up, metres
 (velocities m/s along the same axes). What "east/north/up" means per kind:
@@ -9,7 +9,7 @@
 * ``ned`` — the local tangent plane at the reference point (lat0, lon0, alt0):
   (x, y, z) = (east, north, up) of pymap3d's ENU at that point, i.e. exactly the NED
   frame of the wire convention (:class:`schemas.FrameKind`) with n = y, e = x, d = −z
-  (:meth:`SystemFrame.to_ned`). For deployments under ~30 km (spec 01 §1).
+  (:meth:`SystemFrame.to_ned`). For deployments under ~30 km ([Dikić]).
 * ``planar`` — planar test scenarios where the plane *is* the frame (the simulator's
   scenario plane): cartesian test sensors' (x, y) plots are plane offsets from the site's
   plane position, added without curvature or rotation, with R = σ² I unchanged. The
@@ -185,7 +185,7 @@ class SystemFrame:
 
         ``ned``: the constant rotation R_ref R_siteᵀ (exact); ``stereographic``/``planar``:
         the rotation from the site's ENU to the point's own ENU followed by
-        :meth:`local_plane_jacobian` (grid convergence and point scale, spec 01 §3)."""
+        :meth:`local_plane_jacobian` (grid convergence and point scale)."""
         return self.enu_to_frame_with_jacobian(enu, lat_s, lon_s, alt_s)[1]
 
     # --- velocities --------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Evaluation measures over NumPy arrays (spec 03 §2 and §4, spec 02 §8).
+"""Evaluation measures over NumPy arrays ([thesis] §7.1-7.2).
 
 One measure per module, no tracker objects: inputs are arrays of truth and track ids,
 positions, covariances and labels per scan.
@@ -6,9 +6,9 @@ positions, covariances and labels per scan.
 * ``point_pattern``: input checks, cut-off distance matrix, optimal assignment (shared).
 * ``gospa``: GOSPA per scan with its decomposition, and over time with a track-switch term.
 * ``ospa``: OSPA (Schuhmacher, Vo & Vo 2008).
-* ``labelling``: truth labelling of tracks (spec 03 §2, eq. 7.1).
+* ``labelling``: truth labelling of tracks ([thesis] §7.1, eq. 7.1).
 * ``mtt_measures``: CTT rate, cumulative confirmed false tracks, RMSE of confirmed true tracks.
-* ``retention``: the retention table (spec 03 §4, thesis §7.2.1).
+* ``retention``: the retention table ([thesis] §7.2.1).
 * ``label_metrics``: measures for recordings whose truth is only plot labels (Mode-S).
 * ``turn_phase``: truth samples in a turn or in straight flight (turn rate from velocities),
   RMSE per phase.

@@ -1,6 +1,6 @@
 """GOSPA: generalised optimal sub-pattern assignment metric, per scan and over time.
 
-Spec 03 §4 asks for OSPA/GOSPA over time with a track-switch term (issue 6).
+The evaluation reports OSPA/GOSPA over time with a track-switch term (docs/how-to/evaluate.md).
 
 Per scan (Rahmathullah, García-Fernández & Svensson, "Generalized optimal sub-pattern
 assignment metric", FUSION 2017, Def. 1), for truth X = {x_1..x_n}, estimates

@@ -4,7 +4,7 @@ One row per (run, scan, track) and per (run, scan, target), as flat NumPy column
 measures of ``mtt_measures`` and ``retention`` are vectorised over a whole Monte Carlo
 experiment. Scans are integer scan numbers (the thesis counts 1..40); runs are Monte Carlo
 run indices. Track ids must be unique within an experiment: a false track carried over
-into the next run (spec 03 §2 "Across runs") keeps its id, a new track never re-uses one.
+into the next run ([thesis] §7.1) keeps its id, a new track never re-uses one.
 Labels are those of ``labelling.TruthLabeller`` (target id, or ``FALSE`` = −1).
 """
 

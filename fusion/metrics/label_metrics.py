@@ -1,6 +1,6 @@
 """Measures for recordings whose only truth is a label on each plot (e.g. the Mode-S address).
 
-Issue 6 §1 (spec 03 §4 measures adapted to real data, where no true states exist). Input is
+The [thesis] ch. 7 measures adapted to real data, where no true states exist. Input is
 one row per plot: its time, its aircraft label (Mode-S 24-bit address, −1 if the plot has
 none), the id of the track it updated (−1 if none) and whether that track was confirmed at
 that time. Measures:

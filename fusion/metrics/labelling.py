@@ -1,6 +1,6 @@
 """Truth labelling of tracks: which target (if any) each track is following, scan by scan.
 
-Spec 03 §2 "True/false labels" and spec 02 §8 (thesis §7.1, eq. (7.1)):
+True/false labels of [thesis] §7.1, eq. (7.1):
 
 1. Every new track is false (``FALSE`` = −1) until it passes the test below.
 2. A false track becomes true for target t when the normalised distance of its state from
@@ -11,13 +11,13 @@ Spec 03 §2 "True/false labels" and spec 02 §8 (thesis §7.1, eq. (7.1)):
        d² = (x̂^τ_{k|k} − x^t_k)ᵀ (P_{2|2})⁻¹ (x̂^τ_{k|k} − x^t_k) < 20            (7.1)
 
    The state is the tracker state, interleaved ``[x, vx, y, vy(, z, vz)]`` (metres, m/s),
-   and P_{2|2} per axis is [[R, R/T], [R/T, 2R/T²]] (spec 03 §2 "Initialization"),
+   and P_{2|2} per axis is [[R, R/T], [R/T, 2R/T²]] ([thesis] (3.25-3.27)),
    ``two_point_covariance``. If several targets pass, the track takes the nearest (min d²).
    A new track is tested in its first scan.
 3. A true track for t stays true while it **selects** t's detections: in a scan in which any
    of the plots it selected (gated / was updated with) originated from t, it keeps the
    label and no distance test is made.
-4. Missed scans (spec [A]; the spec's suggestion): a scan in which a true track selects no
+4. Missed scans (not in the thesis; [IMPL]): a scan in which a true track selects no
    detection of t (t undetected, t absent, or only clutter / other targets' plots in the
    gate) keeps the label and counts a miss. After ``retest_after`` (3) consecutive misses,
    and in every further scan while the misses continue, (7.1) is re-tested: if t still
@@ -37,7 +37,7 @@ FALSE = -1
 
 
 def two_point_covariance(R: np.ndarray | float, T: float) -> np.ndarray:
-    """Fixed P_{2|2} of two-point differencing initiation (spec 03 §2; thesis (3.25-3.27)).
+    """Fixed P_{2|2} of two-point differencing initiation ([thesis] §3.5, (3.25-3.27)).
 
     ``R``: position measurement covariance, scalar (same variance on every axis; then 2-D)
     or ``(ndim, ndim)``, m². ``T``: time between the two plots, s. Returns the interleaved

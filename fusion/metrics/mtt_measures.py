@@ -1,4 +1,4 @@
-"""Per-scan measures of multi-target tracking over Monte Carlo runs (spec 03 §4).
+"""Per-scan measures of multi-target tracking over Monte Carlo runs ([thesis] ch. 7).
 
 * ``ctt_rate``: the confirmed-true-track (CTT) diagram: per scan, the percentage of
   (run, target) pairs present at that scan with at least one confirmed true track
@@ -9,7 +9,7 @@
   true track that was lost and became false (it is then a confirmed track on no target).
   A false track carried over into the next run keeps its id and is not counted again.
 * ``rmse_confirmed_true``: per scan, the RMS Euclidean position error of all confirmed
-  true tracks with respect to their target (duplicates included), over runs. Spec 03 §4
+  true tracks with respect to their target (duplicates included), over runs. The thesis
   leaves Euclidean vs per-axis open [A]: this is the Euclidean (radial) RMSE; the
   per-axis RMSE is this divided by √d.
 * ``gospa_curves``: GOSPA per scan (with the switch term) averaged over runs.
@@ -137,7 +137,7 @@ def gospa_curves(
     """GOSPA (α = 2) of the (confirmed) tracks against the truth, per scan, mean over runs.
 
     The runs are those present in ``truth`` or ``tracks``; scans with neither truth nor
-    tracks count as GOSPA 0. Switches are counted within each run (spec 03 §4; see
+    tracks count as GOSPA 0. Switches are counted within each run (see
     ``gospa`` for the switch rule)."""
     scans = _check_scans(scans)
     if len(scans) == 0:

@@ -1,7 +1,7 @@
 """OSPA: optimal sub-pattern assignment metric (Schuhmacher, Vo & Vo, "A consistent metric for
 performance evaluation of multi-object filters", IEEE TSP 56(8), 2008, Def. 1 and eq. (4)).
 
-Spec 03 §4 (issue 6: OSPA and GOSPA over time). For X = {x_1..x_n}, Y = {y_1..y_m},
+OSPA and GOSPA over time (docs/how-to/evaluate.md). For X = {x_1..x_n}, Y = {y_1..y_m},
 n <= m (otherwise swap), cut-off c > 0 and order 1 <= p < ∞::
 
     d̄_p^(c)(X, Y) = ( (1/m) · ( min_π Σ_{i=1..n} d^(c)(x_i, y_π(i))^p + c^p · (m − n) ) )^(1/p)

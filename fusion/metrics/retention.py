@@ -1,4 +1,4 @@
-"""Track retention table (spec 03 §4 "Retention table"; thesis §7.2.1).
+"""Track retention table ([thesis] §7.2.1).
 
 At scan ``k_start`` (14) the confirmed true track of each target is identified, in every
 Monte Carlo run; each such (run, target) pair is a **case** (nCases). At scan ``k_end``
@@ -10,7 +10,7 @@ Monte Carlo run; each such (run, target) pair is a **case** (nCases). At scan ``
 
 so nOK + nSwitched + nLost = nCases (reported as percentages of nCases). **merged** is the
 number of case tracks deleted by merging / duplicate removal in (k_start, k_end] (a count,
-a subset of the lost ones, spec 03 §4). If a target has several confirmed true tracks at
+a subset of the lost ones, [thesis] §7.2.1). If a target has several confirmed true tracks at
 ``k_start`` (duplicates), the case takes the one with the highest existence probability
 ψ (``TrackHistory.existence``), or the smallest track id (the oldest) when ψ is not given.
 CPU seconds are measured by the caller and carried in the row.

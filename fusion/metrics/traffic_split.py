@@ -1,9 +1,9 @@
-"""Airborne / surface split of the Mode-S label measures (issue 17 §4-5).
+"""Airborne / surface split of the Mode-S label measures (docs/reports/registration-log.md §4-5).
 
 Real airport-area recordings mix airborne aircraft with aircraft taxiing on the surface
 (low speed, sharp turns, flight level ≈ 0, often near the radar), whose tracks fragment
 for reasons of their own. Each plot is classed from its reported flight level and slant
-range (the classes of the issue's measurement):
+range (the classes of that page's measurement):
 
 * ``AIRBORNE`` — flight level ≥ ``min_flight_level`` (10) and slant range ≥
   ``min_range_nm`` (2 NM);

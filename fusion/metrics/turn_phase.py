@@ -1,5 +1,5 @@
 """Turn / straight-flight split of truth samples, for position errors by flight phase
-(issue 11: "RMSE during turns" of the regional scenario).
+(the "RMSE during turns" of the regional scenario).
 
 The truth of a simulated recording carries each target's horizontal velocity
 v = (v_east, v_north) (m/s) at every truth time, not its manoeuvre. The turn rate of a

@@ -1,4 +1,4 @@
-"""Nearly constant acceleration (CA / white-noise jerk), spec 01 §4 (004 eq. 3-4).
+"""Nearly constant acceleration (CA / white-noise jerk) ([Dikić] eq. 3-4).
 
 Per axis the state is [p, v, a] with F_T = [[1, T, T²/2], [0, 1, T], [0, 0, 1]] and the
 process covariance of a continuous white jerk of spectral density q (m²/s⁵):

@@ -1,11 +1,11 @@
 """State conversions to and from the common (Singer-format) state of the three-model
-IMM, spec 01 §4 (004 eq. 22), with covariances by the Jacobian of each conversion.
+IMM ([Dikić] eq. 22), with covariances by the Jacobian of each conversion.
 
 Common format: [x, vx, ax, y, vy, ay(, z, vz, az)] (the Singer/CA layout).
 * CV [x, vx, y, vy(, z, vz)] → common: accelerations a = 0 with zero variance; back:
-  drop the accelerations (004: "CV states get a_x = a_y = 0").
+  drop the accelerations ([Dikić]: "CV states get a_x = a_y = 0").
 * CT (x, y, ψ, ω, v(, z, vz)) → common: v_x = v cosψ, v_y = v sinψ, a_x = −ω v_y,
-  a_y = ω v_x (004 eq. 22); back: ψ = atan2(v_y, v_x), v = |v|, ω = (v_x a_y − v_y a_x)/v²
+  a_y = ω v_x ([Dikić] eq. 22); back: ψ = atan2(v_y, v_x), v = |v|, ω = (v_x a_y − v_y a_x)/v²
   (when |v| is within 3σ of zero, course and turn rate get an uninformative covariance).
   The vertical channel (z, vz) maps to (z, vz, az = 0). The CT conversions are compiled
   loops over the states (:mod:`fusion.models.coordinated_turn_kernels`).
@@ -62,7 +62,7 @@ def to_common(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def to_cv_layout(model, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The CV-layout entries [x, vx, y, vy(, z, vz)] of :func:`to_common` (Sᵀ x_c and
     Sᵀ P_c S with the CV selector S), without the accelerations: for the track output
-    (004 eq. 20-21), whose moments of these entries need only these entries. CT: the
+    ([Dikić] eq. 20-21), whose moments of these entries need only these entries. CT: the
     rows (x, v cosψ, y, v sinψ(, z, vz)) of the Jacobian of eq. 22."""
     if isinstance(model, ConstantVelocity):
         return x, 0.5 * (P + P.swapaxes(-1, -2))

@@ -1,9 +1,9 @@
-"""Nearly coordinated turn (CT) with polar velocity, spec 01 §4 (004, three-model IMM).
+"""Nearly coordinated turn (CT) with polar velocity ([Dikić], three-model IMM).
 
-State X_T = (x, y, ψ, ω, v) (004), optionally followed by an altitude channel (z, vz)
+State X_T = (x, y, ψ, ω, v) ([Dikić]), optionally followed by an altitude channel (z, vz)
 with nearly constant vertical velocity. x east, y north (m); ψ the course measured
 counter-clockwise from the x (east) axis (rad), so v_x = v cosψ, v_y = v sinψ as in
-004 eq. 22; ω the turn rate (rad/s, positive counter-clockwise = left turn); v the
+[Dikić] eq. 22; ω the turn rate (rad/s, positive counter-clockwise = left turn); v the
 speed (m/s). Discrete transition over T (exact for constant ω and v):
 
     x' = x + v (sin(ψ + ωT) − sin ψ)/ω,   y' = y + v (cos ψ − cos(ψ + ωT))/ω,

@@ -2,8 +2,8 @@
 common-format conversions, over n states of d = 5 (x, y, ψ, ω, v) or 7 (+ z, vz).
 
 The equations are those of :mod:`fusion.models.coordinated_turn` (transition, Jacobian,
-process noise Q = G diag(σ_a², σ_ω²) Gᵀ) and :mod:`fusion.models.conversions` (spec 01
-§4, 004 eq. 22 and its inverse, with covariances J P Jᵀ by the Jacobian of each
+process noise Q = G diag(σ_a², σ_ω²) Gᵀ) and :mod:`fusion.models.conversions`
+([Dikić] eq. 22 and its inverse, with covariances J P Jᵀ by the Jacobian of each
 conversion); the docstrings there state units and frames. Here each state is one pass
 of scalar arithmetic: in NumPy the same work was 20–40 array operations on arrays of a
 few dozen rows (the components of one sector batch), whose per-call cost, not the
@@ -114,7 +114,7 @@ def process_noise(
 @numba.njit(cache=True, nogil=True)
 def predict(x, P, t, var_a: float, var_w: float, vertical: bool, q_v: float):
     """The EKF prediction over t (n,) s in one call: x⁻ = f(x), P⁻ = sym(J P Jᵀ + Q(x))
-    with J = ∂f/∂x and Q of :func:`process_noise` at the prior states (spec 01 §2, 004
+    with J = ∂f/∂x and Q of :func:`process_noise` at the prior states ([Dikić]
     eq. 8-9; what :func:`fusion.filters.ekf.predict` does with :func:`transition`)."""
     xp, J = transition(x, t, vertical)
     Q = process_noise(x, t, var_a, var_w, vertical, q_v)
@@ -132,7 +132,7 @@ def predict(x, P, t, var_a: float, var_w: float, vertical: bool, q_v: float):
 @numba.njit(cache=True, nogil=True)
 def to_common(x: np.ndarray, P: np.ndarray, vertical: bool):
     """CT → common [x, vx, ax, y, vy, ay(, z, vz, az)]: v_x = v cosψ, v_y = v sinψ,
-    a_x = −ω v_y, a_y = ω v_x (004 eq. 22), covariance by the Jacobian."""
+    a_x = −ω v_y, a_y = ω v_x ([Dikić] eq. 22), covariance by the Jacobian."""
     n, d = x.shape
     dc = 9 if vertical else 6
     xc = np.zeros((n, dc))

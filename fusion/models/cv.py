@@ -1,6 +1,6 @@
 """Nearly constant velocity (CV / PCWPA: piecewise-constant white acceleration).
 
-Spec 01 §4 (003 eq. 5-7) and spec 02 §1: per axis F_T = [[1, T], [0, 1]] and
+[MZD] eq. 5-7 and [thesis] (3.38-3.39): per axis F_T = [[1, T], [0, 1]] and
 Q_T = q [[T⁴/4, T³/2], [T³/2, T²]] = Γ q Γᵀ with Γ = [T²/2, T]ᵀ, so q is the variance of
 the piecewise-constant acceleration (m²/s⁴). The state is interleaved per axis,
 ``[x, vx, y, vy]`` (2-D) or ``[x, vx, y, vy, z, vz]`` (3-D), metres and m/s.

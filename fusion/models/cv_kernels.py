@@ -1,5 +1,5 @@
 """Compiled (numba, ``cache=True``) Kalman prediction of n states of the nearly-constant-
-velocity model (:mod:`fusion.models.cv`; spec 01 §4, 003 eq. 5-7, spec 02 5.4):
+velocity model (:mod:`fusion.models.cv`; [MZD] eq. 5-7, [thesis] (5.4)):
 
     x⁻ = F x,   P⁻ = ½ (A + Aᵀ),   A = F P Fᵀ + Q,
 

@@ -1,4 +1,4 @@
-"""Singer (1970) exponentially correlated acceleration model, spec 01 §4 (003 eq. 8-10).
+"""Singer (1970) exponentially correlated acceleration model ([MZD] eq. 8-10).
 
 Per axis the state is [p, v, a]; the acceleration is a first-order Markov process
 ȧ = −α a + w with α = 1/τ (τ: manoeuvre time constant, s) and stationary variance σ_m²,

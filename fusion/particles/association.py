@@ -45,7 +45,7 @@ def lm_clutter_density(
     pdpg: np.ndarray,
     rho: np.ndarray,
 ) -> np.ndarray:
-    """Ω^τ_j per table row (A9–A10); ``rho`` per row, ``psi_pred``/``pdpg`` per track."""
+    """Ω^τ_j per table row (eq. 14-15); ``rho`` per row, ``psi_pred``/``pdpg`` per track."""
     return modified_clutter_density(
         table.tp_track, table.tp_plot, n_plots, table.p, rho, psi_pred, pdpg, "canonical"
     )
@@ -54,7 +54,7 @@ def lm_clutter_density(
 def ipf_association(
     table: ParticleGatedTable, psi_pred: np.ndarray, pdpg: np.ndarray, clutter: np.ndarray
 ) -> AssociationResult:
-    """ψ_{k|k}, β_0 (per track) and β_j (per row) by (A11–A13); ``clutter`` per row is ρ_j
+    """ψ_{k|k}, β_0 (per track) and β_j (per row) by eq. 16, 17, 12; ``clutter`` per row is ρ_j
     (IPF) or Ω^τ_j (LM-IPF)."""
     return associate_single(_problem(table, 0, psi_pred, pdpg, np.asarray(clutter, float)))
 
@@ -66,5 +66,5 @@ def lm_ipf_association(
     pdpg: np.ndarray,
     rho: np.ndarray,
 ) -> AssociationResult:
-    """LM-IPF: Ω for all tracks from the predictions first (A9–A10), then (A11–A13)."""
+    """LM-IPF: Ω for all tracks from the predictions first (eq. 14-15), then eq. 16, 17, 12."""
     return associate_lm(_problem(table, n_plots, psi_pred, pdpg, np.asarray(rho, float)))

@@ -1,4 +1,4 @@
-"""Auxiliary particle filter (APF, Pitt & Shephard; spec 04 B.2 Tab 3.4).
+"""Auxiliary particle filter (APF, Pitt & Shephard 1999; Arulampalam et al. 2002, Algorithm 5).
 
 One step on clouds x (n, N, d) with weights γ (n, N):
 
@@ -7,7 +7,7 @@ One step on clouds x (n, N, d) with weights γ (n, N):
    (default systematic resampling);
 3. propagate x_k^j ~ p(x_k | x_{k−1}^{i_j});
 4. second-stage weights γ^j ∝ p(y_k | x_k^j) / p(y_k | μ^{i_j}), normalised;
-5. MMSE mean and covariance (3.87–3.88) of the weighted cloud.
+5. MMSE mean and covariance of the weighted cloud.
 
 The look-ahead moves particles towards the observation before propagation, which helps
 when the likelihood is peaked relative to the prior.

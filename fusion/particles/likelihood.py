@@ -1,9 +1,9 @@
 """Per-particle Gaussian likelihoods of gated plots, all pairs × particles in one expression
-(spec 04 A6, spec 02 §6 step 3, thesis 3.43–3.45).
+([LM-IPF] eq. 7-8; [thesis] (3.43–3.45)).
 
 For gated pair (track τ, plot j) and particle i of τ's predicted cloud:
 
-    ϑ_{ij} = z_j − H x^i,   p^i_j = exp(−½ ϑᵀ R_j⁻¹ ϑ) / √det(2π R_j)      (A6, [TYPO] fixed)
+    ϑ_{ij} = z_j − H x^i,   p^i_j = exp(−½ ϑᵀ R_j⁻¹ ϑ) / √det(2π R_j)  ([LM-IPF] eq. 8, typos fixed)
 
 The plot's own R_j is used, not one R for all plots: in skyfuse every polar plot is
 converted into the system plane with its own covariance (it depends on the plot's range,

@@ -1,12 +1,12 @@
-"""The state-space model interface of the generic particle-filter steps (spec 04 B.2).
+"""The state-space model interface of the generic particle-filter steps (Arulampalam et al. 2002).
 
 A model acts on many clouds at once: particles x (n, N, d), one observation per cloud
 y (n, m). ``k`` is the time index of the step being taken (k = 1, 2, …), needed by
-time-varying models such as the scalar benchmark of spec 04 B.3.
+time-varying models such as the scalar benchmark of :mod:`.nonlinear_benchmark`.
 
 * ``propagate(x, k, rng)`` draws x_k ~ p(x_k | x_{k−1}) for every particle (the prior
-  proposal of SIR/SIS, Tab 3.1/3.3).
-* ``mean_transition(x, k)`` = μ = E[x_k | x_{k−1}] (the APF look-ahead point, Tab 3.4).
+  proposal of SIR/SIS).
+* ``mean_transition(x, k)`` = μ = E[x_k | x_{k−1}] (the APF look-ahead point).
 * ``log_likelihood(x, y, k)`` = log p(y_k | x_k), shape (n, N).
 """
 

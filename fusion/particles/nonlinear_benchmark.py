@@ -1,12 +1,12 @@
-"""The scalar nonlinear benchmark of spec 04 B.3 (thesis ch. 4.1): PF vs EKF.
+"""The scalar nonlinear benchmark (univariate nonstationary growth model): PF vs EKF.
 
     x_{k} = x_{k−1}/2 + 25 x_{k−1}/(1 + x_{k−1}²) + 8 cos(c (k − 1)) + ω_k,  ω ~ N(0, σ_ω²)
     y_k   = x_k · arctan(x_k²) + e_k,                                      e ~ N(0, σ_e²)
 
-(B8) as printed has 25x/(1 + x³) and cos(0.5k); that has a pole at x = −1 and the spec
-marks it [RECON], the classic univariate nonstationary growth model 25x/(1 + x²) with
+The PF thesis we follow (a Belgrade PhD dissertation, ch. 4.1) prints 25x/(1 + x³) and
+cos(0.5k), a pole at x = −1; the classic growth model (Gordon et al. 1993) 25x/(1 + x²) with
 c = 1.2 being the likely intent — that is what is implemented (c is a parameter).
-Jacobians: ∂f/∂x = ½ + 25(1 − x²)/(1 + x²)², ∂h/∂x = arctan(x²) + 2x²/(1 + x⁴) (B9).
+Jacobians: ∂f/∂x = ½ + 25(1 − x²)/(1 + x²)², ∂h/∂x = arctan(x²) + 2x²/(1 + x⁴).
 Thesis set-up: σ_ω² = 1, σ_e² = 10, x_0 = 0.1, 50 steps, N = 1000 (SIR), 20 runs;
 reported RMSE EKF 4.84, PF (true model) 3.48.
 
@@ -25,7 +25,7 @@ from skyfuse.fusion.filters import ekf
 
 @dataclass(frozen=True)
 class ScalarBenchmark:
-    """Model of B.3. q = σ_ω², r = σ_e² (dimensionless), c = forcing frequency (rad/step)."""
+    """The benchmark model. q = σ_ω², r = σ_e² (dimensionless), c = forcing frequency (rad/step)."""
 
     q: float = 1.0
     r: float = 10.0

@@ -1,4 +1,4 @@
-"""Posterior Cramér–Rao lower bound, Tichavský recursion (spec 04 B.2, thesis 3.74–3.81).
+"""Posterior Cramér–Rao lower bound, Tichavský recursion (Tichavský et al. 1998).
 
 For x_{k+1} = f(x_k) + v, v ~ N(0, Q), y = h(x) + e, e ~ N(0, R), the Fisher information
 J_k of the state (E[(x̂ − x)(x̂ − x)ᵀ] ≥ J_k⁻¹ for any estimator) recurses as

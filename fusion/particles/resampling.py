@@ -1,17 +1,17 @@
-"""Resampling of many particle clouds at once (spec 04 A15, B.2 Tab 3.2; spec 02 §6 step 9).
+"""Resampling of many particle clouds at once ([thesis] (3.51–3.55); Arulampalam et al. 2002).
 
 Every scheme takes normalised weights ``w`` (n_clouds, N) and returns ancestor indices
 (n_clouds, N) into each cloud's own particles, sorted ascending within a row; after
 resampling all weights are 1/N. All are unbiased, E[N_i] = N w_i for the offspring count
 N_i of particle i; they differ in Var N_i:
 
-* **systematic** (A15, 3.51–3.55): one u ~ U[0, 1/N) per cloud, u_l = u + (l − 1)/N, take
+* **systematic** ([thesis] (3.51–3.55)): one u ~ U[0, 1/N) per cloud, u_l = u + (l − 1)/N, take
   the i with c_{i−1} < u_l ≤ c_i (c = cumsum w). The number of u_l ≤ c_i is
   ⌊N c_i − N u⌋ + 1, so offspring counts are differences of that, exact and O(N) per
   cloud with no search. N_i ∈ {⌊N w_i⌋, ⌈N w_i⌉}: Var N_i = f(1 − f), f = frac(N w_i).
 * **stratified**: u_l ~ U[(l − 1)/N, l/N) independently; Var N_i = Σ_l a_l (1 − a_l)
   with a_l the length of stratum l inside (N c_{i−1}, N c_i].
-* **multinomial** by ordered uniforms (Tab 3.2): ũ_N = u_N^{1/N}, ũ_i = ũ_{i+1} u_i^{1/i}
+* **multinomial** by ordered uniforms: ũ_N = u_N^{1/N}, ũ_i = ũ_{i+1} u_i^{1/i}
   are the order statistics of N uniforms without a sort (computed as a reversed cumulative
   sum of log u_i / i); one walk over c gives N i.i.d. draws. Var N_i = N w_i (1 − w_i).
 * **residual**: ⌊N w_i⌋ copies deterministically, the remaining R = N − Σ⌊N w_i⌋ drawn
@@ -54,7 +54,7 @@ def _search_counts(c: np.ndarray, u: np.ndarray, valid: np.ndarray | None = None
 
 
 def systematic_counts(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Offspring counts (n, N) of systematic resampling (A15)."""
+    """Offspring counts (n, N) of systematic resampling ([thesis] (3.51–3.55))."""
     n, N = w.shape
     u = rng.random((n, 1))  # N u_1, in [0, 1)
     below = np.clip(np.floor(N * _cumulative(w) - u).astype(np.int64) + 1, 0, N)
@@ -62,7 +62,7 @@ def systematic_counts(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def systematic(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Systematic resampling (A15, 3.51–3.55): ancestor indices (n, N)."""
+    """Systematic resampling ([thesis] (3.51–3.55)): ancestor indices (n, N)."""
     return counts_to_indices(systematic_counts(w, rng))
 
 
@@ -74,7 +74,7 @@ def stratified(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def ordered_uniforms(rng: np.random.Generator, n: int, N: int, sizes=None) -> np.ndarray:
-    """Ascending order statistics of i.i.d. U(0, 1) per row without sorting (Tab 3.2).
+    """Ascending order statistics of i.i.d. U(0, 1) per row without sorting.
 
     log ũ_i = Σ_{j=i}^{M} log(u_j)/j for a row of M = ``sizes[r]`` (default N) uniforms;
     entries beyond M are 1 (to be masked by the caller). Returns (n, N)."""
@@ -86,7 +86,7 @@ def ordered_uniforms(rng: np.random.Generator, n: int, N: int, sizes=None) -> np
 
 
 def multinomial(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Multinomial resampling by the ordered-uniform walk of Tab 3.2: indices (n, N)."""
+    """Multinomial resampling by the ordered-uniform walk: indices (n, N)."""
     n, N = w.shape
     u = ordered_uniforms(rng, n, N)
     return counts_to_indices(_search_counts(_cumulative(w), u))

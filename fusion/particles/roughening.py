@@ -1,5 +1,5 @@
-"""Roughening (jitter) after resampling (Gordon, Salmond & Smith 1993 [LIT]; spec 04 B.2
-mentions jittering/roughening without a form).
+"""Roughening (jitter) after resampling (Gordon, Salmond & Smith 1993 [LIT]; the
+form of that paper: the PF thesis we follow names roughening without one).
 
 Each component d of every particle gets independent N(0, σ_d²) noise with
 σ_d = K · E_d · N^{−1/D}, E_d the spread (max − min) of component d in that cloud, N the

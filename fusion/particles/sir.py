@@ -1,11 +1,11 @@
-"""Sampling–importance–resampling (SIR, bootstrap filter; spec 04 B.2 Tab 3.1).
+"""Sampling–importance–resampling (SIR, bootstrap filter; Gordon et al. 1993).
 
 One step on n clouds of N equally weighted particles (the output of the previous step):
 
 1. x_k^i = f(x_{k−1}^i, ω^i) — propagate with the prior (model.propagate);
 2. γ_i ∝ p(y_k | x_k^i), normalised (model.log_likelihood, log-sum-exp);
-3. MMSE mean and covariance (3.87–3.88) from the weighted cloud, *before* resampling
-   (lower variance than after, spec 02 §6 [IMPL]);
+3. MMSE mean and covariance from the weighted cloud, *before* resampling
+   (lower variance than after, [IMPL]);
 4. resample N with replacement (default systematic), weights 1/N.
 """
 

@@ -1,7 +1,7 @@
-"""Sequential importance sampling with resampling on degeneracy (SIS; spec 04 B.2 Tab 3.3).
+"""Sequential importance sampling with resampling on degeneracy (SIS; Arulampalam et al. 2002).
 
-With the prior as proposal (3.98) the weights recurse γ_k^i ∝ γ_{k−1}^i p(y_k | x_k^i);
-a cloud is resampled only when N_eff = 1/Σγ² (3.99) falls below N_th. Weights are kept
+With the prior as proposal the weights recurse γ_k^i ∝ γ_{k−1}^i p(y_k | x_k^i);
+a cloud is resampled only when N_eff = 1/Σγ² (ibid. eq. 51) falls below N_th. Weights are kept
 in the linear domain between steps and combined in the log domain within a step.
 """
 

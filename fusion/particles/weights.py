@@ -2,9 +2,9 @@
 
 * normalise: w_i = exp(ℓ_i − max ℓ) / Σ_j exp(ℓ_j − max ℓ) per cloud (log-sum-exp, so that
   likelihoods far in the tails do not underflow to an all-zero cloud).
-* N_eff = 1 / Σ_i w_i² (spec 04 B.2, thesis 3.99); N_eff = N for equal weights, 1 for a
+* N_eff = 1 / Σ_i w_i² (Arulampalam et al. 2002, eq. 51); N_eff = N for equal weights, 1 for a
   single surviving particle.
-* MMSE moments (spec 04 A16, thesis 3.87–3.88): x̂ = Σ w_i x_i, P = Σ w_i (x_i − x̂)(x_i − x̂)ᵀ
+* MMSE moments ([thesis] (3.56–3.57)): x̂ = Σ w_i x_i, P = Σ w_i (x_i − x̂)(x_i − x̂)ᵀ
   (the centred form of Σ w x xᵀ − x̂ x̂ᵀ, which has no cancellation error far from the origin).
 
 Shapes: weights (n, N), particles (n, N, d); units are those of the state.
@@ -39,7 +39,7 @@ def effective_sample_size(w: np.ndarray) -> np.ndarray:
 
 def weighted_moments(x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MMSE mean (n, d) and covariance (n, d, d) of clouds x (n, N, d) with weights w (n, N)
-    (A16, 3.87–3.88)."""
+    ([thesis] (3.56–3.57))."""
     mean = np.einsum("...i,...id->...d", w, x)
     dx = x - mean[..., None, :]
     cov = np.swapaxes(dx * w[..., None], -1, -2) @ dx  # batched matmul: 4× the einsum

@@ -1,7 +1,7 @@
 """Online sensor registration: estimation of each radar's systematic errors (azimuth
 offset, range offset, range gain, time-stamping offset) from the targets that two or
 more radars see, with a reference radar or set of radars, and their correction in the
-plot conversion (issue 17).
+plot conversion (docs/concepts/registration.md).
 
 Method (see :mod:`.bias_filter`, :mod:`.common_target`): pairs of plots of one track
 from two radars give residuals linear in the biases (Fischer, Muehe & Cameron 1980;

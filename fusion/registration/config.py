@@ -1,4 +1,4 @@
-"""Configuration of the online sensor registration (issue 17 §2), loadable from TOML.
+"""Online sensor registration settings (docs/concepts/registration.md), loadable from TOML.
 
 Units: azimuth rad (flags in degrees where a name says ``_deg``), range m, range gain
 dimensionless (ppm where a name says ``_ppm``), time s.

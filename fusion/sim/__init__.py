@@ -1,4 +1,4 @@
-"""Seeded, deterministic scenario simulator (issue 2 §5).
+"""Seeded, deterministic scenario simulator.
 
 >>> from fusion.sim import build_scenario, Simulator
 >>> sc = build_scenario("thesis-mtt-5", seed=3)

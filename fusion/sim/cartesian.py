@@ -1,4 +1,4 @@
-"""The planar cartesian test sensor of the thesis scenarios (spec 02 §1, 03 §3, 04 A.4):
+"""The planar cartesian test sensor of the thesis scenarios ([thesis] §7.3-7.4, [LM-IPF] eq. 20-21):
 z = H x + w, H picks (x, y), w ~ N(0, σ² I) (R = 25 I m² for σ = 5 m), one snapshot per
 scan at the scan time, detection probability P_D, Poisson clutter uniform over the
 coverage rectangle and over density rectangles."""

@@ -28,7 +28,7 @@ class Scenario:
     * ``sites``: the wire ``RadarSite`` of every sensor (same order as ``sensors``).
     * ``frame``: PLANAR (x east, y north, m; lat0/lon0 = plane origin, mapped to WGS-84
       with the stereographic projection at that origin) or STEREOGRAPHIC (system plane
-      centred at lat0/lon0, spec 01 §1).
+      centred at lat0/lon0, [Dikić]).
     * ``duration`` s, ``start_time`` ns UTC, ``n_targets``; ``params``: every parameter
       with its value (for recording as metadata); ``truth_period`` s.
     * ``targets`` (trajectories in the plane + height), ``sensors`` (simulation config),

@@ -1,20 +1,20 @@
-"""Named scenarios (values from ``shared/spec``; ambiguous values are parameters).
+"""Named scenarios (values from the sources; ambiguous values are parameters).
 
-* ``thesis-stt`` (spec 03 §3.1, 02 §10): one target from x₀ = [100, 16, 100, 4] (m, m/s),
+* ``thesis-stt`` ([thesis] §7.3): one target from x₀ = [100, 16, 100, 4] (m, m/s),
   T = 1 s, 50 scans, P_D = 0.6, R = 25 I. Clutter: the 900 × 900 m area is split at
   x = 333.3 m into a weak region [0, 333.3] × [0, 900] (2e-5 m⁻², area 3.0e5 m², ≈6 per
   scan) and a strong one [333.3, 900] × [0, 900] (2e-4 m⁻², 5.1e5 m², ≈102 per scan): the
   target starts in weak clutter and enters the strong region at t ≈ 14.6 s. Truth process
-  noise q = 0.75 (spec 03 §3.1 "truth per (7.2), q = 0.75"; q = 0 gives the straight
+  noise q = 0.75 ([thesis] §7.3: truth per (7.2), q = 0.75; q = 0 gives the straight
   line through (900, 300) at scan 50).
-* ``thesis-mtt-5/-15/-50`` (spec 03 §3.2): 1000 × 1000 m, centre (500, 500); targets start
+* ``thesis-mtt-5/-15/-50`` ([thesis] §7.4): 1000 × 1000 m, centre (500, 500); targets start
   R₀ = 500 m out (475 m at scan 1), fly inward at 25 m/s, cross the centre at scan 20;
   spacing 10° (7° for 50); per-run velocity noise σ_v = √50/20 m/s per axis; P_D = 0.8,
   R = 25 I, 40 scans, clutter 0 (parameter ``clutter_density``).
-* ``lm-ipf-2/-15`` (spec 04 A.4): start on r = 450 m, 20°/10° apart, fly straight through
+* ``lm-ipf-2/-15`` ([LM-IPF], simulations): start on r = 450 m, 20°/10° apart, fly straight through
   c + δ, δ ~ N(0, 2R), at scan 20 (22.5 m/s nominal); the trajectories depend only on
   ``trajectory_seed`` (default 0), the same in every run.
-* ``crossing-4g`` (spec 01 §7): one radar at the plane origin (2d by default, σ_r = 20 m,
+* ``crossing-4g`` ([MZD] §2, §4): one radar at the plane origin (2d by default, σ_r = 20 m,
   σ_θ = 2.5 mrad, T = 4 s), two targets 50 km out at azimuths 45° and 46.1° flying at
   311 m/s towards it, opposite 4 g turns (each towards the other) from 34 to 42 s, so
   they cross at ≈38 s; 72 s.
@@ -27,14 +27,14 @@
   downlinking their track and turn (:mod:`fusion.sim.identity`); uniform clutter plus a
   ground-clutter ring around each radar; horizon test at 0°.
 
-Scan numbering of the planar thesis scenarios follows the spec: scan k (k = 1..K) is a
+Scan numbering of the planar thesis scenarios follows the thesis: scan k (k = 1..K) is a
 snapshot at t = k·T after the scenario start, and the targets' initial states are at
 t = 0 (so thesis-stt with q = 0 is at (900, 300) at scan 50, and the thesis-mtt / lm-ipf
 targets are at the centre at scan 20). Polar radars number their revolutions from 0.
 
 Randomness: the *trajectory* generator is seeded from ``seed`` (stream 0 of
 ``SeedSequence(seed)``), except for lm-ipf whose trajectories use ``trajectory_seed``
-(spec 04 A.4: the same trajectories in every run, new measurements per run). The
+([LM-IPF]: the same trajectories in every run, new measurements per run). The
 :class:`~fusion.sim.Simulator` draws measurements from independent streams of its own
 seed (one per sensor), so changing one sensor never changes another's plots.
 """
@@ -84,7 +84,7 @@ _PLANAR = {
 def _cartesian_common(pd: float) -> dict[str, Param]:
     return {
         "p_detection": Param(pd, "detection probability P_D", probability),
-        "sigma": Param(5.0, "measurement noise σ per axis, m (R = σ² I; spec: R = 25 I)", positive),
+        "sigma": Param(5.0, "measurement noise σ per axis, m (R = σ² I; [thesis]: 25 I)", positive),
         "scan_period": Param(1.0, "scan period T, s", positive),
         "clutter_density": Param(
             0.0, "uniform Poisson clutter over the area, plots per m² per scan", in_range(0, 1)
@@ -130,7 +130,7 @@ def _planar_frame(p: dict) -> tuple[FrameSpec, Stereographic]:
 
 
 # ------------------------------------------------------------------------------------
-# thesis-stt (spec 03 §3.1, 02 §10)
+# thesis-stt ([thesis] §7.3)
 # ------------------------------------------------------------------------------------
 _STT_PARAMS = {
     **_PLANAR,
@@ -142,7 +142,7 @@ _STT_PARAMS = {
     "q": Param(
         0.75,
         "truth process-noise intensity q, (m/s²)²: white acceleration, constant over each "
-        "scan interval, Q_T = q [[T⁴/4, T³/2], [T³/2, T²]] (spec 03 §3.1: q = 0.75, [A]); "
+        "scan interval, Q_T = q [[T⁴/4, T³/2], [T³/2, T²]] ([thesis] §7.3: q = 0.75, [A]); "
         "0 = straight line to (900, 300)",
         non_negative,
     ),
@@ -188,7 +188,7 @@ def _build_stt(p: dict, seed: int, duration: float, n: int) -> tuple:
 
 
 # ------------------------------------------------------------------------------------
-# thesis-mtt-N (spec 03 §3.2)
+# thesis-mtt-N ([thesis] §7.4)
 # ------------------------------------------------------------------------------------
 def _mtt_params(spacing: float) -> dict[str, Param]:
     return {
@@ -236,7 +236,7 @@ def _build_mtt(p: dict, seed: int, duration: float, n: int) -> tuple:
 
 
 # ------------------------------------------------------------------------------------
-# lm-ipf-N (spec 04 A.4)
+# lm-ipf-N ([LM-IPF], simulations)
 # ------------------------------------------------------------------------------------
 def _lmipf_params(spacing: float) -> dict[str, Param]:
     return {
@@ -278,7 +278,7 @@ def _build_lmipf(p: dict, seed: int, duration: float, n: int) -> tuple:
 
 
 # ------------------------------------------------------------------------------------
-# crossing-4g (spec 01 §7)
+# crossing-4g ([MZD] §2, §4)
 # ------------------------------------------------------------------------------------
 _CROSS_PARAMS = {
     **_PLANAR,
@@ -286,7 +286,7 @@ _CROSS_PARAMS = {
         "2d", "radar kind: 2d (range, azimuth, altitude) or 3d", choices=("2d", "3d")
     ),
     "sigma_range": Param(20.0, "σ_r, m", positive),
-    "sigma_az_mrad": Param(2.5, "σ_θ, mrad (spec cases: 2.5 and 6)", positive),
+    "sigma_az_mrad": Param(2.5, "σ_θ, mrad ([MZD] cases: 2.5 and 6)", positive),
     "sigma_el_mrad": Param(4.0, "σ_elevation (3d), mrad", positive),
     "sigma_altitude": Param(30.0, "altitude (Mode C) noise σ (2d), m", positive),
     "scan_period": Param(4.0, "antenna revolution period T, s", positive),
@@ -379,7 +379,7 @@ _REGIONAL_RADARS = (
                    70.0, 0.0030, 220_000.0, 0.61),
     _RegionalRadar("NOVISAD", "Novi Sad", 45.2671, 19.8335, 100.0, "3d", 12.0,
                    50.0, 0.0020, 200_000.0, 0.83),
-    # two more for a six-radar network (issue 13): Osijek and Szeged airports
+    # two more for a six-radar network (docs/performance.md): Osijek and Szeged airports
     _RegionalRadar("LDOS", "Osijek", 45.4627, 18.8103, 110.0, "3d", 6.0,
                    45.0, 0.0018, 200_000.0, 0.12),
     _RegionalRadar("LHUD", "Szeged", 46.2467, 20.0911, 104.0, "2d", 5.0,
@@ -616,31 +616,31 @@ class _Spec:
 
 SCENARIO_SPECS: dict[str, _Spec] = {
     "thesis-stt": _Spec(
-        "one CV target, 50 scans, P_D 0.6, two clutter regions (spec 03 §3.1)",
+        "one CV target, 50 scans, P_D 0.6, two clutter regions ([thesis] §7.3)",
         _STT_PARAMS, _build_stt, 50.0, 1,
     ),
     "thesis-mtt-5": _Spec(
-        "5 targets radially inward, crossing at scan 20, 40 scans (spec 03 §3.2)",
+        "5 targets radially inward, crossing at scan 20, 40 scans ([thesis] §7.4)",
         _mtt_params(10.0), _build_mtt, 40.0, 5,
     ),
     "thesis-mtt-15": _Spec(
-        "15 targets radially inward, crossing at scan 20, 40 scans (spec 03 §3.2)",
+        "15 targets radially inward, crossing at scan 20, 40 scans ([thesis] §7.4)",
         _mtt_params(10.0), _build_mtt, 40.0, 15,
     ),
     "thesis-mtt-50": _Spec(
-        "50 targets radially inward (7° apart), crossing at scan 20, 40 scans (spec 03 §3.2)",
+        "50 targets radially inward (7° apart), crossing at scan 20, 40 scans ([thesis] §7.4)",
         _mtt_params(7.0), _build_mtt, 40.0, 50,
     ),
     "lm-ipf-2": _Spec(
-        "2 targets 20° apart from r = 450 m through c + δ at scan 20 (spec 04 A.4)",
+        "2 targets 20° apart from r = 450 m through c + δ at scan 20 ([LM-IPF])",
         _lmipf_params(20.0), _build_lmipf, 40.0, 2,
     ),
     "lm-ipf-15": _Spec(
-        "15 targets 10° apart from r = 450 m through c + δ at scan 20 (spec 04 A.4)",
+        "15 targets 10° apart from r = 450 m through c + δ at scan 20 ([LM-IPF])",
         _lmipf_params(10.0), _build_lmipf, 40.0, 15,
     ),
     "crossing-4g": _Spec(
-        "one radar, two targets at 50 km in opposite 4 g turns that cross (spec 01 §7)",
+        "one radar, two targets at 50 km in opposite 4 g turns that cross ([MZD] §2, §4)",
         {**_CROSS_PARAMS, **bias_parameters(["radar"])}, _build_crossing, 72.0, 2,
     ),
     "regional": _Spec(

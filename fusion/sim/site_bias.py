@@ -1,4 +1,4 @@
-"""Per-radar systematic errors as scenario parameters (issue 17 §1).
+"""Per-radar systematic errors as scenario parameters (docs/concepts/registration.md).
 
 Every polar radar ``ID`` of a scenario gets four parameters (``--param ID.KEY=VALUE``):
 

@@ -1,16 +1,16 @@
 """Analytic, vectorised target trajectories for the scenario simulator.
 
 A trajectory is a chain of segments in a horizontal plane (x east, y north, metres:
-the planar scenario plane or the stereographic system plane of spec 01 §1) plus
+the planar scenario plane or the stereographic system plane of [Dikić]) plus
 height z above the WGS-84 ellipsoid (m). Each segment starts at time ``t0`` (s after
 the scenario start) with position ``p0`` and velocity ``v0`` and moves with
 
 * a constant turn rate ``omega`` (rad/s, positive = counter-clockwise = left turn):
   the horizontal velocity rotates, its magnitude is kept (a coordinated turn, the
-  constant-turn model of spec 01 §4), and/or
+  constant-turn model of [Dikić]), and/or
 * a constant acceleration ``acc`` (m/s², used for the piecewise-constant acceleration
   truth of the thesis scenarios: per-interval white acceleration gives exactly the
-  discrete process noise Q_T = q [[T⁴/4, T³/2], [T³/2, T²]] of spec 02 §1 / 04 A.4).
+  discrete process noise Q_T = q [[T⁴/4, T³/2], [T³/2, T²]] of [thesis] (3.39) / [LM-IPF] eq. 19).
 
 The vertical channel is ``z = z0 + vz τ + az τ²/2``. Closed forms, τ = t − t0, a = ωτ:
 

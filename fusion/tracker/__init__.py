@@ -1,6 +1,6 @@
 """Existence-based multi-target trackers ([thesis]; [LM-IPF]): IPDA, ITS with Singer N-scan
 memory, LM-IPDA/LM-ITS, JIPDA/JITS, GNN and the particle IPF/LM-IPF in one array-based
-framework (docs/tracker.md).
+framework (docs/concepts/tracker-parts.md).
 
 >>> from skyfuse.fusion.tracker import Tracker, TrackerConfig, MeasurementBatch
 >>> tracker = Tracker(TrackerConfig(tracker="lmits", depth=3))

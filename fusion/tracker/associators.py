@@ -7,7 +7,7 @@ the predicted existence) to an :class:`~fusion.tracker.ipda.AssociationResult`
 * ``lm`` — LM-IPDA/LM-ITS, other tracks as modulated clutter (6.11-6.22): :mod:`.lm_its`;
 * ``joint`` — JIPDA/JITS, exact joint events per cluster with the LM fallback above
   ``max_events`` (6.1-6.10): :mod:`.jits`;
-* ``gnn`` — the MAP joint event, one plot or none per track (spec 01 §6): :mod:`.gnn`.
+* ``gnn`` — the MAP joint event, one plot or none per track ([MZD] §5): :mod:`.gnn`.
 
 The registry (:mod:`fusion.tracker.registry`) maps these names to the functions.
 """
@@ -69,5 +69,5 @@ def associate_joint(a: AssociationProblem) -> AssociationResult:
 
 
 def associate_gnn(a: AssociationProblem) -> AssociationResult:
-    """GNN with existence: the MAP joint event (spec 01 §6)."""
+    """GNN with existence: the MAP joint event ([MZD] §5)."""
     return gnn_association(a.psi, a.pdpg, a.tp_track, a.tp_plot, a.nplots, a.ratio)

@@ -1,4 +1,4 @@
-"""Clutter density per track × plot row for the existence trackers (spec 02 §4).
+"""Clutter density per track × plot row for the existence trackers ([thesis] §2.3.1, (2.35)).
 
 * ``known``: the sensor's (or clutter map's) density at each plot, floored;
 * ``estimated``: the non-parametric per-track estimate (2.35 corrected,
@@ -6,7 +6,7 @@
   V = c_k g^{k/2} √det S̄ of the track-level innovation covariance S̄ = H P Hᵀ + R̄ (the
   predicted density's ``S0`` plus the batch's mean plot covariance). m̂ counts the plots
   inside that same ellipse around the track-level ȳ (``z_mean``), not the union of the
-  component gates (:func:`~fusion.tracker.ipda.plots_in_track_gate`, issue 16); an optional
+  component gates (:func:`~fusion.tracker.ipda.plots_in_track_gate`); an optional
   ``volume_floor`` reads V_k as max(gate, floor), e.g. the two-point initiation region
   π (v_max T)² of the thesis experiments (docs/reproduction.md).
 

@@ -1,4 +1,4 @@
-"""Track mixtures in flat arrays: Singer N-scan merge and pruning (spec 02 §7); the moment
+"""Track mixtures in flat arrays: Singer N-scan merge and pruning ([thesis] ch. 5); the moment
 matching itself is :mod:`fusion.filters.moment_matching`.
 
 Every track is a Gaussian mixture {ξ^c, x̂^c, P^c, h^c}. All components of all tracks
@@ -67,7 +67,7 @@ class Mixture:
 
 
 def singer_merge(mix: Mixture) -> Mixture:
-    """Singer N-scan memory (spec 02 §7 step 11): merge, per track, all components whose
+    """Singer N-scan memory ([thesis] §5.3): merge, per track, all components whose
     last-N-scan plot histories are equal. Depth 0 (no history columns) merges every track
     into one Gaussian, i.e. IPDA. Resulting counts: C_k = 1+m_k (N=1),
     (1+m_k)(1+m_{k−1}) (N=2) when every component selects every plot (5.26, 5.1a)."""
@@ -86,7 +86,7 @@ def singer_merge(mix: Mixture) -> Mixture:
 
 
 def normalise(mix: Mixture, ntracks: int) -> Mixture:
-    """Scale weights so they sum to 1 within each track (Σ_c ξ^c = 1, spec 02 §7)."""
+    """Scale weights so they sum to 1 within each track (Σ_c ξ^c = 1, [thesis] (4.71))."""
     if len(mix) == 0:
         return mix
     tot = np.bincount(mix.track, weights=mix.w, minlength=ntracks)
@@ -99,7 +99,7 @@ def prune_indices(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which components survive pruning, and their renormalised weights: delete ξ <
     ``threshold`` (keeping each track's strongest), keep at most ``max_per_track`` per
-    track by weight (spec 02 §7 step 11 [IMPL]). Returns (kept indices, weights)."""
+    track by weight ([IMPL]). Returns (kept indices, weights)."""
     if len(w) == 0:
         return np.zeros(0, np.int64), w
     if len(track) < 2 or (track[1:] > track[:-1]).all():

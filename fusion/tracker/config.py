@@ -44,7 +44,7 @@ class TrackerConfig(BaseModel):
     motion: MotionKind = Field(
         "imm-cv-ct",
         description="Motion density: " + motion_help() + " (imm-cv-ct chosen by measurement, "
-        "docs/tracker.md)",
+        "docs/reports/tracker-log.md)",
     )
     depth: int = Field(
         3, ge=0, le=12, description="Singer memory depth N of its/lmits/jits (0 = IPDA)"
@@ -169,8 +169,8 @@ class TrackerConfig(BaseModel):
     )
     duplicate_survivor: Literal["existence", "established"] = Field(
         "existence",
-        description="Of two confirmed duplicate tracks, keep the larger ψ (existence, spec "
-        "02 §8) or the one with more scans with a plot and its id (established)",
+        description="Of two confirmed duplicate tracks, keep the larger ψ (existence, [thesis] "
+        "§7.1) or the one with more scans with a plot and its id (established)",
     )
     coverage_sigma: float = Field(
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
@@ -293,7 +293,7 @@ class TrackerConfig(BaseModel):
         None,
         gt=0.0,
         le=1.0,
-        description="ipf/lmipf: resample a cloud when N_eff < this × N; None: every scan (A15)",
+        description="ipf/lmipf: resample a cloud when N_eff < this × N; None: every scan",
     )
     resampling: Literal["systematic", "stratified", "multinomial", "residual"] = Field(
         "systematic", description="ipf/lmipf: resampling scheme (source: systematic)"

@@ -5,19 +5,19 @@ A track whose lazily predicted position x̂ + v̂ dt lies inside the batch's ran
 σ² = tr P_pos + tr P_vel dt², is predicted to its illumination time (the sector's sweep
 time at its azimuth) and updated; the others are left untouched. Times in ns.
 
-Detection share (issue 17): a selected track's detection probability in the batch is
+Detection share: a selected track's detection probability in the batch is
 P_D · P_sector · P_range · P_cone (eqs. C2-C4 of :mod:`.measurements`: the probability,
 under its predicted Gaussian, that the track was in the swept sector, in range and
 below the radar's maximum elevation e_max, with the height of its last plot). A missed
 detection where the radar could not see the track then does not erode its existence
-(P_D → 0 gives δ_k → 0 in spec 02 (2.39), and (2.41) ψ_{k|k} → ψ_{k|k−1}), and a track
+(P_D → 0 gives δ_k → 0 in [thesis] (2.39), and (2.41) ψ_{k|k} → ψ_{k|k−1}), and a track
 whose uncertainty straddles several sectors is not eroded once per sector.
 
 Blind tracks: a track with P_cone below ``blind_share`` is in the cone of silence. It is
 not predicted or updated by that batch (it coasts lazily, as outside the coverage), and
 its ``max_coast`` clock restarts: a known gap, an aircraft in the cone comes out of it,
 unlike one that left the coverage, whose clock keeps running. Its existence is held
-over the blind time too (:func:`existence_clock`): the Markov chain (spec 02 (5.3))
+over the blind time too (:func:`existence_clock`): the Markov chain ([thesis] (5.3))
 predicts ψ only from the later of the track's last prediction and its last blind batch.
 With Δ11 = 0.98 per second a 100 s crossing of the cone would otherwise leave
 ψ ≤ 0.98¹⁰⁰ ≈ 0.13 at the exit, and the first misses at the cone's edge terminate the

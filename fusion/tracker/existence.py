@@ -1,4 +1,4 @@
-"""Target existence as a Markov chain (spec 02 §3; thesis 2.36, 3.40, 5.3, 5.18).
+"""Target existence as a Markov chain ([thesis] §2.3, §3.2; (2.36), (3.40), (5.3), (5.18)).
 
 The existence state of n tracks is held as an array ``(n, 2)`` of
 ``[p_detectable, p_undetectable]``: the probabilities that the target exists and can be
@@ -7,7 +7,7 @@ chain one). Existence ψ is their sum; the probability of non-existence is the r
 
 Association (IPDA, LM-IPDA, JIPDA) works with ψ_det = ``p_detectable``. It returns the
 posterior ψ_det' and :func:`ExistenceChain.update` applies it: for MC1 ψ' = ψ_det'; for
-MC2 (Musicki 1994, spec 02 §3 [LIT]) p_obs ← (1−δ)p_obs, p_unobs and p_non unchanged,
+MC2 (Musicki 1994 [LIT]) p_obs ← (1−δ)p_obs, p_unobs and p_non unchanged,
 then normalised by 1−δ p_obs, where δ follows from ψ_det' = (1−δ)ψ_det/(1−δψ_det)
 (2.41) as 1−δψ_det = (1−ψ_det)/(1−ψ_det').
 
@@ -140,7 +140,7 @@ def markov_chain_two(
     unobs_to_obs: float,
     period: float = 1.0,
 ) -> ExistenceChain:
-    """MC2 (spec 02 §3 [LIT]): a target that survives (Δ11) stays or becomes detectable
+    """MC2 (Musicki 1994 [LIT]): a target that survives (Δ11) stays or becomes detectable
     with the given per-period switching probabilities; a born target (Δ21) is detectable."""
     a, b = obs_to_unobs, unobs_to_obs
     Pi = np.array(

@@ -1,4 +1,4 @@
-"""GNN association with existence: the single most probable joint event (spec 01 §6).
+"""GNN association with existence: the single most probable joint event ([MZD] §5).
 
 The score of giving plot i to track τ instead of nothing is the log of the ratio of the
 joint-event factors of (6.2) *given that the tracks exist* (ψ = 1, the classical GNN: a

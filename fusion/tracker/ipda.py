@@ -1,4 +1,4 @@
-"""IPDA / ITS track-level existence and association probabilities (spec 02 §4, §7).
+"""IPDA / ITS track-level existence and association probabilities ([thesis] §2.3.1, ch. 5).
 
 Works on the *track–plot table*: one row per (track, plot) pair where at least one
 component of the track gated the plot, with the track likelihood p^τ_i = Σ_c ξ^c p^c_i
@@ -50,7 +50,7 @@ def plots_in_track_gate(
     """m_k of (2.35): per track, the track–plot rows inside the track-level gate
     V_k = {d̄² < g}, d̄² of each row from the track's moment-matched ȳ and S̄, the same
     region whose volume V_k divides m̂_k. Counting the union of the component gates
-    instead (plots only a weak, wide component reaches) overstates ρ̂ (issue 16). A track
+    instead (plots only a weak, wide component reaches) overstates ρ̂ (docs/reproduction.md). A track
     whose rows all lie outside V_k keeps ``union_count`` (its m over the union)."""
     inside = np.bincount(tp_track[d2 < g], minlength=n)
     return np.where(inside > 0, inside, union_count)

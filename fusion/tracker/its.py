@@ -1,10 +1,10 @@
-"""ITS component update (spec 02 §7 step 10; thesis 5.12-5.15, 4.70-4.71; spec 03 §1.1 step 6).
+"""ITS component update ([thesis] (5.12)-(5.15), (4.70)-(4.71); multi-target β: §6.2.1).
 
 Every predicted component c spawns a "no plot" child (ξ^{c,0} = β_0 ξ^c, x̂ and P
 unchanged, 5.12) and one child per plot i it gated (ξ^{c,i} = β_i ξ^c p^c_i / p^τ_i with the
 Kalman update and Joseph covariance, 5.14). With IPDA/ITS β this is (5.15); with JIPDA or
 LM-IPDA β it is the multi-target update. The child's plot history is the new plot's id
-(0 for none) followed by the first N−1 entries of the parent's history (spec 02 §7 step 11).
+(0 for none) followed by the first N−1 entries of the parent's history ([thesis] §5.3).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""JIPDA / JITS: exact joint association per cluster (spec 03 §1.1, eq. 6.1-6.10).
+"""JIPDA / JITS: exact joint association per cluster ([thesis] §6.2.1, eq. 6.1-6.10).
 
 Tracks that share gated plots form clusters (connected components of the track–plot
 graph). In each cluster every feasible joint event e (each track takes at most one of its

@@ -1,4 +1,4 @@
-"""Linear multi-target (LM-IPDA / LM-ITS) clutter modulation (spec 03 §1.2, eq. 6.11-6.22).
+"""Linear multi-target (LM-IPDA / LM-ITS) clutter modulation ([thesis] §6.2.2-6.2.3, eq. 6.11-6.22).
 
 Other tracks are treated as extra clutter: each track τ is updated as a single-target
 ITS/IPDA track with ρ_i replaced by the modified density

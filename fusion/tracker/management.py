@@ -1,4 +1,4 @@
-"""Track management: confirmation, termination and duplicate removal (spec 02 §8, 03 §2).
+"""Track management: confirmation, termination and duplicate removal ([thesis] §7.1-7.2).
 
 * Confirm when ψ_{k|k} ≥ τ_c (and the track had at least ``min_updates`` scans with a
   plot); confirmation is kept until termination (hysteresis).
@@ -12,7 +12,7 @@
   state estimates pass d² = Δx̂ᵀ (P₁ + P₂)⁻¹ Δx̂ < g_dup are one target (targets in
   formation keep their own plots and are not merged); the weaker is deleted
   and logged as merged into the other. "Weaker" ranks confirmed tracks above tentative
-  ones (so a confirmed track's id survives), then by existence (spec 02 §8, 03 §2: keep
+  ones (so a confirmed track's id survives), then by existence ([thesis] §7.1: keep
   the largest ψ). With ``established`` (``duplicate_survivor``), of two confirmed tracks
   the one with more scans with a plot survives with its id (the track number an operator
   has followed longest), ψ breaking ties; tentative pairs still by ψ.

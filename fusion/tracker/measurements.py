@@ -5,7 +5,7 @@ Positions are in the system frame (metres); covariances in m²; times in integer
 
 The cone of silence: a rotating surveillance radar's antenna does not illuminate targets
 above its maximum elevation e_max, so an aircraft flying over the radar is not detected
-for tens of seconds (issue 17). The elevation of a target at height h above the
+for tens of seconds (the cone of silence). The elevation of a target at height h above the
 ellipsoid and ground distance ρ from a site at height h_r, on a sphere of the effective
 Earth radius a = k R (the 4/3-Earth model of standard refraction, k = 4/3; the plot
 conversion's ``k_earth``), follows from the positions relative to the sphere's centre,

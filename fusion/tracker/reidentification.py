@@ -1,4 +1,4 @@
-"""Re-identification of a terminated track by kinematic continuity (docs/tracker.md,
+"""Re-identification of a terminated track by kinematic continuity (docs/reports/tracker-log.md,
 "Re-identification").
 
 An aircraft that the radar loses for a while (the cone of silence over the radar,

@@ -11,13 +11,13 @@ is not one row per track, such as a density's mixture components.
 **The track store** (``Tracker.tracks``) has one row per live track, in the order the
 tracks were started, and is the only place any part keeps per-track state:
 
-* the tracker (:mod:`.tracker`): id, existence-chain state (thesis 5.3, 6.15-6.17), times
+* the tracker (:mod:`.tracker`): id, existence-chain state ([thesis] (5.3), (6.15-6.17)), times
   (last update, last plot, coast clock, birth), confirmation, counters, radar mask,
   height of the last plot;
 * the track density (:mod:`.density`): its track-level estimate ``x``, ``P`` (the output
-  layout, thesis 4.66-4.68) and whatever else is one row per track (particle clouds and
+  layout, [thesis] (4.66-4.68)) and whatever else is one row per track (particle clouds and
   weights, [LM-IPF] eq. 3-4); a mixture density keeps its components (a variable number
-  per track, thesis 5.12-5.15) in its own component store, whose ``track`` column is kept
+  per track, [thesis] (5.12-5.15)) in its own component store, whose ``track`` column is kept
   in step with the rows by the density's ``appended`` / ``kept`` hooks, never by hand;
 * the IMM density's reachability gate (:mod:`.density.reach_gate`): the last fix;
 * the out-of-sequence update (:mod:`.oosm_pass`): the prior of each track's last

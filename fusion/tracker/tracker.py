@@ -1,5 +1,5 @@
 """The existence-based multi-target tracker: a short sequence of swappable parts
-([thesis] ch. 5-7; docs/tracker.md).
+([thesis] ch. 5-7; docs/concepts/tracker-parts.md).
 
 ``Tracker(config).step(batch) -> TrackerOutput`` applies one :class:`MeasurementBatch`
 (one radar sector or scan, system frame) to all tracks. Per batch:

@@ -3,7 +3,7 @@
 Scenarios are dispatched by name through :data:`EVALUATORS`; each evaluator registers its
 own options. Supported now:
 
-* ``crossing-4g`` — spec 01 §7 (003): two targets crossing with opposite 4 g turns, one
+* ``crossing-4g`` — [MZD] §2, §4: two targets crossing with opposite 4 g turns, one
   2-D radar, σ_r = 20 m, σ_θ 2.5 or 6 mrad, GNN association with the filters compared in
   the source (PCWPA KF, Singer KF, two-model IMM), plus the IMM with p22 = 0.9 and the
   three-model CV/Singer/CT IMM. Reports the position RMSE per scan per filter, the number
@@ -15,7 +15,7 @@ own options. Supported now:
 Every filter sees the same simulated plots in a run (seed + run index).
 
 * ``thesis-stt``, ``thesis-mtt-5/15/50``, ``lm-ipf-2/15`` — the existence trackers'
-  Monte Carlo evaluation of spec 03 §4
+  Monte Carlo evaluation of [thesis] ch. 7
   (:mod:`skyfuse.services.evaluation.montecarlo`): retention table (Markdown + JSON rows
   ``tracker``, ``depth``, ``nCases``, ``nOK``, ``nSwitched``,
   ``nLost``, ``merged``, ``cpu_s``), CTT / false-track / RMSE / GOSPA curves (PNG), the

@@ -3,7 +3,7 @@ resumable cache, ψ_init calibration, progress and the output files of ``skyfuse
 
 The computation is :mod:`fusion.evaluation`; this module schedules it:
 
-* **Parallel across variants.** False tracks are carried from run to run (spec 03 §2), so
+* **Parallel across variants.** False tracks are carried from run to run ([thesis] §7.1), so
   the runs of one variant form a chain; different variants are independent. Each variant
   advances in blocks of ``block`` runs; a finished block submits the next block of the
   same variant, with the runner's pickled state (tracker + labeller). Every variant's
@@ -61,7 +61,7 @@ from skyfuse.fusion.metrics.retention import ROW_KEYS, retention_markdown
 
 Advance = Callable[[int], None]
 #: Bumped when the tracker's numbers change for the same settings (2: m̂ of 2.35 counted
-#: in the track-level gate, issue 16), so that older cached blocks are not reused.
+#: in the track-level gate), so that older cached blocks are not reused.
 CACHE_VERSION = 2
 #: Version of the known-clutter runs alone (2: the runner tells a ``clutter = "known"``
 #: tracker the scenario's true density at each plot, it used to pass 0), so that the
@@ -108,7 +108,7 @@ class TrackerEvalConfig(BaseModel):
     block: int = Field(10, ge=1, description="Runs per cached block (resume granularity)")
     cache: Path | None = Field(None, description="Cache directory for resuming (default OUT/cache)")
     carry_false_tracks: bool = Field(
-        True, description="Carry false tracks into the next run (spec 03 §2); else delete all"
+        True, description="Carry false tracks into the next run ([thesis] §7.1); else delete all"
     )
     progress: bool | None = Field(None, description="Progress bar (default: on a terminal)")
 

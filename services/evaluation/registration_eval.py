@@ -1,5 +1,5 @@
 """Scoring the online sensor registration of an offline run against simulation truth
-(issue 17 §5): an observer of :func:`~skyfuse.services.evaluation.offline.run_offline`.
+as an observer of :func:`~skyfuse.services.evaluation.offline.run_offline`.
 
 :class:`RegistrationObserver` reads the simulated radars' systematic errors from the
 recording's ``Truth.radar_bias`` (truth is used only here, to score) and

@@ -1,9 +1,9 @@
-"""Online sensor registration in the fusion pipeline (docs/registration.md): the two calls
+"""Online sensor registration in the fusion pipeline (docs/concepts/registration.md): the two calls
 :class:`~skyfuse.services.fusion.pipeline.TrackPipeline` makes per plot batch, the
 configuration shared by ``skyfuse fusion``, ``skyfuse track`` and ``skyfuse eval FILE``,
 and the published :class:`~skyfuse.schemas.RegistrationStatus`.
 
-Per batch of radar r (method: :mod:`skyfuse.fusion.registration`, docs/registration.md):
+Per batch of radar r (method: :mod:`skyfuse.fusion.registration`, docs/concepts/registration.md):
 
 1. :meth:`RegistrationLink.before` — the current estimate β̂_r is the correction of the
    conversion (``convert_plots(bias=…)``, sensor_bias eq. 2). The radar's clock is
@@ -152,7 +152,7 @@ def add_registration_arguments(parser) -> None:
     g = parser.add_argument_group(
         "sensor registration",
         "Online estimation and correction of each radar's azimuth, range, range-gain and "
-        "time biases from common targets (docs/registration.md); also the [registration] "
+        "time biases from common targets (docs/concepts/registration.md); also the [registration] "
         "TOML table and SKYFUSE_REGISTRATION_<FIELD>",
     )
     add_model_arguments(g, RegistrationFlags)

@@ -891,7 +891,7 @@ class FusionCore:
             picture = self.pipeline.picture()
             total = len(picture)
             confirmed = int(np.count_nonzero(getattr(picture, "confirmed", [])))
-        reg = getattr(self.pipeline, "registration", None)  # registration_link (issue 17)
+        reg = getattr(self.pipeline, "registration", None)  # registration_link
         return Status(
             service="fusion",
             service_id=self.cfg.fusion_id,

@@ -1,4 +1,4 @@
-"""A restarted simulated sensor continues where it stopped (issue 14 §3).
+"""A restarted simulated sensor continues where it stopped (docs/reliability.md, restarts).
 
 The simulated radar's batches come from a deterministic scenario (fixed epoch, seed), so
 a sensor restarted from the beginning would publish again, with the same ``seq``, every

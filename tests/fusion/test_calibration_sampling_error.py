@@ -1,4 +1,4 @@
-"""Sampling error of the calibrated ψ_init (fusion.evaluation.calibration, issue 16 §2).
+"""Sampling error of the calibrated ψ_init (fusion.evaluation.calibration).
 
 For a count that is an exact power law μ(ψ) = A ψ^b the elasticity is b and the
 delta-method error is SE(log ψ*) = 1/(b √μ(ψ*)). A Monte Carlo of Poisson counts checks

@@ -1,7 +1,7 @@
 """Cone of silence and detection share (fusion.tracker.measurements eqs. C1-C4, coverage).
 
 References: pymap3d's geodetic→AER elevation on the WGS-84 ellipsoid (geometric, k = 1)
-for (C1); the closed-form IPDA existence update ψ' = ψ_pred when P_D = 0 (spec 02 2.41)
+for (C1); the closed-form IPDA existence update ψ' = ψ_pred when P_D = 0 ([thesis] (2.41))
 and ψ' = (1 − P_D P_G) ψ / (1 − P_D P_G ψ) for a full miss.
 """
 

@@ -61,7 +61,7 @@ class KalmanTable(GatedTable):
 
 
 class KalmanDensity:
-    """One Gaussian per track (CV): x, P columns; PDA update (thesis 2.37)."""
+    """One Gaussian per track (CV): x, P columns; PDA update ([thesis] (2.37))."""
 
     late_plots = "retrodict"
 

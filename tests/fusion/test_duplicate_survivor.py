@@ -45,7 +45,7 @@ def test_established_rule_keeps_the_older_confirmed_track_and_its_id():
 
 
 def test_existence_rule_keeps_the_larger_existence():
-    """The same scene under the spec's rule (keep the largest ψ): the young track."""
+    """The same scene under the thesis's rule (keep the largest ψ): the young track."""
     _, young, out = established_and_young("existence")
     assert list(out.ids) == [young]
 

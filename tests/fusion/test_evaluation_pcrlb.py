@@ -1,4 +1,4 @@
-"""PCRLB floor of the Monte Carlo evaluation (fusion.evaluation.bound, spec 04 B.2).
+"""PCRLB floor of the Monte Carlo evaluation (fusion.evaluation.bound, Tichavský et al. 1998).
 
 References: the least-squares line fit (q = 0, diffuse prior: position variance
 2σ²(2k − 1)/(k(k + 1)) per axis after k plots, scaled by 1/P_D with the information

@@ -1,5 +1,5 @@
 """Existence gain of one IPDA update under the non-parametric clutter estimate (2.35-2.41)
-against a closed form, for the gate-ellipse V_k and a larger validation volume (issue 16).
+against a closed form, for the gate-ellipse V_k and a larger validation volume.
 
 Many isolated tracks with a known prediction get at most their own plot, drawn from the
 predicted measurement density (a consistent filter). With m = 1, m̂ = 1 − P_D P_G ψ_{k|k−1}

@@ -125,7 +125,7 @@ def test_noise_free_plots_of_two_radars_agree_to_centimetres(kind_frame):
             b = _batch(s, sr, az, altitude=alt)
         c = convert_plots(frame, s, b, ndim=3)
         assert c.valid.all()
-        # near-radar plots (issue 17) are the posterior mean on the range sphere, not the
+        # near-radar plots are the posterior mean on the range sphere, not the
         # noise-free point: within a small fraction of their σ; the others to centimetres
         far = ~c.near_radar
         assert np.abs(c.z[far] - ref[far]).max() < 0.01  # each radar vs pymap3d/pyproj
@@ -226,7 +226,7 @@ def test_two_d_plot_without_altitude_is_invalid_or_uses_the_assumed_altitude():
     site = RadarSite(radar_id="r", lat=LAT0, lon=LON0, alt=100.0, kind="2d")
     b = _batch(site, [80e3, 120e3, 500.0], [10.0, 200.0, 5.0], altitude=[np.nan, 9000.0, 9000.0])
     c = convert_plots(frame, site, b)
-    # plot 2 (FL far above a 500 m slant range) is kept near the radar (issue 17 §3)
+    # plot 2 (FL far above a 500 m slant range) is kept near the radar
     assert c.valid.tolist() == [False, True, True]
     assert c.near_radar.tolist() == [False, False, True] and c.n_near_radar == 1
     assert "no assumed_altitude" in c.reasons[0]
@@ -278,7 +278,7 @@ def test_planar_frame_cartesian_and_flat_polar_plots():
     c = convert_plots(frame, radar, _batch(radar, [50e3], [45.0], altitude=[0.0]))
     # flat closed forms up to Earth curvature at 50 km (elevation −D/2R: < 1 m, 1e-3 in R)
     np.testing.assert_allclose(c.z[0], [50e3 * np.sin(th), 50e3 * np.cos(th)], atol=1.0)
-    # spec 01 §2 (003 eq. 2) closed form for the 2-D covariance
+    # [MZD] eq. 2 closed form for the 2-D covariance
     r, sr, st = 50e3, 20.0, 2.5e-3
     s, co = np.sin(th), np.cos(th)
     R = np.array(
@@ -322,7 +322,7 @@ def test_velocity_to_enu_matches_displacement_of_the_true_target(frame):
 
 
 def test_elevation_from_altitude_matches_sphere_geometry_and_its_derivatives():
-    """spec 01 §3 formula vs the elevation of a point placed on a sphere directly
+    """The 2-D elevation formula vs the elevation of a point placed on a sphere directly
     (radar at radius a, target at radius b, central angle γ), incl. the 4/3-Earth radius."""
     from skyfuse.fusion.frames.polar import elevation_from_altitude
 

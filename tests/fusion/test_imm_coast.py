@@ -1,4 +1,4 @@
-"""IMM long coasts (fusion/tracker/density/imm_mixture.py, step 2, issue 17): a
+"""IMM long coasts (fusion/tracker/density/imm_mixture.py, step 2): a
 prediction over dt > coast_after runs in ⌈dt / coast_step⌉ steps and the turn mode takes
 the CV mode's prediction. References: the CV Kalman prediction written out by hand and
 the one-step prediction for short dt."""

@@ -1,5 +1,5 @@
 """Reachability gate of the IMM density (fusion/tracker/density/imm_mixture.py ReachGate,
-eq. C1, issue 17): after a coast, a plot farther from the last fix than
+eq. C1): after a coast, a plot farther from the last fix than
 v_max Δt + √g (σ_f + σ_R) is not gated however loose the prediction has grown.
 References: the reach written out by hand with the closed-form largest eigenvalue of a
 2 × 2 covariance, and the same density with the gate off."""

@@ -1,5 +1,5 @@
-"""Fast paths of the IMM density and the sparse assignment (issue 11, fixed per-step cost):
-the stacked IMM mixing of every target mode (spec 01 §5 eq. 15-17), the one-child-per-track
+"""Fast paths of the IMM density and the sparse assignment (fixed per-step cost):
+the stacked IMM mixing of every target mode ([Dikić] eq. 15-17), the one-child-per-track
 Singer merge and track output (eq. 19-21), and the assignment's lean solver call.
 References: the moment-matching sums written as Python loops, the IMM equations written
 out for one track, and brute-force enumeration of assignments."""

@@ -1,4 +1,4 @@
-"""IPDA against numbers worked in the test from the spec's equations (spec 02 §4).
+"""IPDA against numbers worked in the test from the thesis's equations ([thesis] §2.3.1).
 
 The reference below is written from the equations directly (KF 2.21-2.27, p = N/P_G
 (2.40), Λ (5.16), ψ (2.41), β (2.38), the combined mean/covariance (2.37 corrected)) with
@@ -30,7 +30,7 @@ PG = 1 - math.exp(-G / 2)
 
 
 def ipda_reference(x, P, psi, plots):
-    """One IPDA scan, written from spec 02 §4 with explicit formulas."""
+    """One IPDA scan, written from [thesis] §2.3.1 with explicit formulas."""
     xp = F @ x
     Pp = F @ P @ F.T + Q
     psi_p = D11 * psi  # (3.40), Δ21 = 0

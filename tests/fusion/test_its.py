@@ -1,5 +1,5 @@
-"""ITS with Singer N-scan memory: component counts before pruning (spec 02 §7.11,
-thesis 5.26 / 5.1a) and the merge by moment matching."""
+"""ITS with Singer N-scan memory: component counts before pruning ([thesis]
+(5.26) / (5.1a)) and the merge by moment matching."""
 
 from __future__ import annotations
 

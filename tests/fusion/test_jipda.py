@@ -1,4 +1,4 @@
-"""JIPDA (spec 03 §1.1) against a brute-force enumeration of joint events written here."""
+"""JIPDA ([thesis] §6.2.1) against a brute-force enumeration of joint events written here."""
 
 from __future__ import annotations
 
@@ -113,7 +113,7 @@ def test_event_cap_falls_back_to_lm_and_counts_it():
 
 @pytest.mark.parametrize(("n", "m", "count"), [(5, 5, 1546), (5, 10, 63591), (1, 3, 4)])
 def test_event_count_formula(n, m, count):
-    assert event_count(n, m) == count  # spec 03 (6.9)-(6.10) examples
+    assert event_count(n, m) == count  # [thesis] (6.9)-(6.10) examples
 
 
 @pytest.mark.parametrize(("n", "m"), [(2, 3), (3, 3), (3, 4)])

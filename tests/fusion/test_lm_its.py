@@ -1,4 +1,4 @@
-"""LM-ITS / LM-IPDA (spec 03 §1.2): ≡ ITS when tracks are far apart; the modified clutter
+"""LM-ITS / LM-IPDA ([thesis] §6.2.2-6.2.3): ≡ ITS when tracks are far apart; the modified clutter
 density (6.12-6.14) against a hand computation when they share plots."""
 
 from __future__ import annotations

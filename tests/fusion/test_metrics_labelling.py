@@ -1,4 +1,4 @@
-"""Truth labelling (spec 03 §2, eq. 7.1) on hand-worked examples."""
+"""Truth labelling ([thesis] §7.1, eq. 7.1) on hand-worked examples."""
 
 from __future__ import annotations
 

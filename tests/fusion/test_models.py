@@ -132,7 +132,7 @@ def test_ct_common_format_conversion_round_trip_and_jacobians():
     A = rng.normal(size=(5, 5, 5))
     P = A @ np.swapaxes(A, -1, -2) * 1e-3
     xc, Pc = to_common(model, x, P)
-    # 004 eq. 22
+    # [Dikić] eq. 22
     np.testing.assert_allclose(xc[:, 1], x[:, 4] * np.cos(x[:, 2]))
     np.testing.assert_allclose(xc[:, 5], x[:, 3] * xc[:, 1])
     np.testing.assert_allclose(xc[:, 2], -x[:, 3] * xc[:, 4])

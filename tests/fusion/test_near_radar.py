@@ -1,4 +1,4 @@
-"""Plots near the radar (issue 17 §3): where a 2-D radar's flight level and slant range
+"""Plots near the radar: where a 2-D radar's flight level and slant range
 disagree (|sin e| ≥ 1) or the elevation is ill-conditioned, the plot is kept, projected
 on the slant-range sphere with a covariance that covers the disagreement.
 

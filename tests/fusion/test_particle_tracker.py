@@ -1,5 +1,5 @@
-"""The particle trackers ``ipf`` / ``lmipf`` through the full :class:`Tracker` (spec 02 §6,
-spec 04 A.2-A.3): association, existence chain, initiation, management, per-plot R.
+"""The particle trackers ``ipf`` / ``lmipf`` through the full :class:`Tracker` ([thesis] §3.4-3.6,
+[LM-IPF]): association, existence chain, initiation, management, per-plot R.
 
 References are independent of the particle code: the IPDA tracker (a Kalman density,
 itself checked against hand-worked equations in ``tests/test_ipda.py``) and closed-form

@@ -1,7 +1,7 @@
-"""ParticleDensity (spec 04 A.2) against independent references: a Kalman filter for one
+"""ParticleDensity ([LM-IPF]) against independent references: a Kalman filter for one
 track without clutter, scipy's multivariate normal for the per-plot likelihoods, brute
 force for the moment-matched gate, and a single-target IPDA loop written here from the
-spec's formulas (spec 02 §4/§6: Λ, β, ψ with P_D, P_G, ρ).
+thesis's formulas ([thesis] §2.3.1, §3.4: Λ, β, ψ with P_D, P_G, ρ).
 
 Kalman bound: T = 100 identical converged tracks × N = 2000 particles get the same plots;
 per scan and state component the mean over tracks of (PF − KF) lies within 5 standard
@@ -117,7 +117,7 @@ def test_gate_uses_moment_matched_cloud_and_track_likelihood_is_weighted_sum():
 
 
 def _ipda_run(dens, plots_per_scan, rho, pd=0.9, p11=0.98, psi0=0.5):
-    """Single-target IPDA existence loop from spec 02 §4 / §6 formulas."""
+    """Single-target IPDA existence loop from [thesis] §2.3.1 / §3.4 formulas."""
     psi, pg = psi0, 0.99
     history = []
     for z in plots_per_scan:
@@ -184,7 +184,7 @@ def test_add_keep_and_three_dimensional_positions():
 
 
 def test_update_weights_follow_a14_before_resampling():
-    """Stored MMSE = Σ w_j x_j with w_j ∝ w_j (β_0 + Σ_i β_i p_i(x_j)/p_i) (A14, A16),
+    """Stored MMSE = Σ w_j x_j with w_j ∝ w_j (β_0 + Σ_i β_i p_i(x_j)/p_i) ([LM-IPF] eq. 11, 13),
     evaluated here with explicit loops over plots and particles."""
     rng = np.random.default_rng(9)
     dens = ParticleDensity(CV, 60, seed=5)

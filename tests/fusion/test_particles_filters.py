@@ -1,5 +1,5 @@
-"""SIR, SIS and APF steps (spec 04 B.2 Tab 3.1/3.3/3.4) against the Kalman filter on a
-scalar linear-Gaussian model, and PF vs EKF on the nonlinear benchmark of spec 04 B.3.
+"""SIR, SIS and APF steps (Arulampalam et al. 2002) against the Kalman filter on a
+scalar linear-Gaussian model, and PF vs EKF on the nonlinear growth-model benchmark.
 
 Linear-Gaussian check: C = 200 independent clouds of N = 2000 particles filter the same
 observations. Bounds: the mean over clouds of (PF mean − KF mean) within 5 standard
@@ -102,7 +102,7 @@ def test_roughening_sigma_and_spread():
 
 
 def test_pf_beats_ekf_on_the_scalar_nonlinear_benchmark():
-    """Spec 04 B.3: 40 runs × 50 steps, SIR with N = 1000. Per-run MSEs are paired; the
+    """The nonlinear benchmark: 40 runs × 50 steps, SIR with N = 1000. Per-run MSEs are paired; the
     EKF − PF differences are heavy-tailed (EKF divergences), so the bound is a one-sided
     Wilcoxon signed-rank test at p < 1e-3, plus overall RMSE(PF) < 0.8 RMSE(EKF). The PF's
     MSE must stay above 0.9 × the PCRLB (Tichavský recursion along the true trajectories)."""

@@ -1,4 +1,4 @@
-"""LM-IPF step (spec 04 A9–A13) over the particle gated table: far-apart tracks give the
+"""LM-IPF step ([LM-IPF] eq. 12-17) over the particle gated table: far-apart tracks give the
 IPF inputs exactly; close tracks match the formulas evaluated by brute-force loops."""
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def test_far_apart_tracks_give_exactly_the_ipf_inputs():
 
 
 def _brute_force(table, psi, pdpg, rho_plot):
-    """(A9), (A10), (A11)–(A13) with explicit loops over tracks and plots."""
+    """[LM-IPF] eq. 14, 15, 16, 17, 12 with explicit loops over tracks and plots."""
     rows = list(zip(table.tp_track.tolist(), table.tp_plot.tolist()))
     p = {tj: table.p[r] for r, tj in enumerate(rows)}
     tracks = sorted({t for t, _ in rows})

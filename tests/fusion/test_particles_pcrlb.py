@@ -1,4 +1,4 @@
-"""PCRLB (spec 04 B.2, 3.74–3.81): in the linear-Gaussian case the bound J_k⁻¹ equals the
+"""PCRLB (Tichavský et al. 1998): in the linear-Gaussian case the bound J_k⁻¹ equals the
 Kalman filter's P_{k|k} (fusion.filters.kalman, an independent implementation), in the
 Tichavský form (invertible Q) and the information form (the CV model's singular Q)."""
 

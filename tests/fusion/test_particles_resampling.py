@@ -1,4 +1,4 @@
-"""Resampling schemes (spec 04 A15, Tab 3.2) against closed forms, many clouds per call.
+"""Resampling schemes ([thesis] (3.51–3.55) and others) against closed forms, many clouds per call.
 
 Each scheme resamples the same weights in n = 4000 clouds at once. Offspring counts N_i
 must be unbiased (E N_i = N w_i) and have the closed-form variance of the scheme

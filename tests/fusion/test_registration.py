@@ -1,4 +1,4 @@
-"""Online registration (issue 17 §2): on a synthetic two-radar case (regional scenario,
+"""Online registration: on a synthetic two-radar case (regional scenario,
 the Beograd radar as reference, Vršac biased) the estimator recovers the simulated
 biases within its stated uncertainty, and gives estimates consistent with zero for an
 unbiased radar. Associations come from the simulator's target ids and velocities from

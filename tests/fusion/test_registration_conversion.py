@@ -1,4 +1,4 @@
-"""The plot conversion's side of registration (issue 17 §2): the bias correction inverts
+"""The plot conversion's side of registration: the bias correction inverts
 the simulator's bias model exactly (pymap3d truth), and the returned sensitivity
 ∂z/∂(D, ψ) matches central finite differences of the conversion itself."""
 

@@ -1,4 +1,4 @@
-"""Registration fed by the tracker (issue 17 §2): ``observe_tracker_output`` takes the
+"""Registration fed by the tracker: ``observe_tracker_output`` takes the
 plots confirmed tracks selected in ``Tracker.step`` — no truth — and the estimate of a
 biased radar converges to the simulated bias within its stated uncertainty."""
 

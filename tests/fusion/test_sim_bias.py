@@ -1,4 +1,4 @@
-"""Simulated radar biases (issue 17 §1): the plots of a biased radar, compared with the
+"""Simulated radar biases: the plots of a biased radar, compared with the
 truth geometry (pymap3d), show the configured offsets — statistical tests at 5 σ of the
 sample mean — and the truth messages carry the biases."""
 

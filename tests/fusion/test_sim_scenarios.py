@@ -1,4 +1,4 @@
-"""Named scenarios: they build and run, carry the spec's geometry, are deterministic, and
+"""Named scenarios: they build and run, carry the sources' geometry, are deterministic, and
 reject bad parameters with errors that name them."""
 
 from __future__ import annotations
@@ -255,7 +255,7 @@ def test_run_for_one_radar_gives_the_same_batches_as_the_full_run():
 
 
 def test_regional_scenario_takes_up_to_six_radars_at_their_scan_periods():
-    """Six radars (issue 13's network): every radar scans at its own period, so over 60 s
+    """Six radars: every radar scans at its own period, so over 60 s
     a radar makes ⌊60 / T⌋ (± 1 for its phase) revolutions; seven are refused."""
 
     sc = build_scenario("regional", seed=3, duration=60.0, targets=20, radars=6)

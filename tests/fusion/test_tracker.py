@@ -52,7 +52,7 @@ def test_detected_target_is_initiated_and_confirmed(kind, chain):
     rng = np.random.default_rng(12)
     c = cfg(tracker=kind, depth=2, existence_chain=chain)
     tr = Tracker(c)
-    x = np.array([100.0, 16.0, 100.0, 4.0])  # the thesis STT target (spec 02 §10)
+    x = np.array([100.0, 16.0, 100.0, 4.0])  # the thesis STT target ([thesis] §7.3)
     confirmed_at = None
     for k in range(1, 30):
         x = x + np.array([x[1], 0, x[3], 0])

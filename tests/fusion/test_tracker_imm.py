@@ -2,7 +2,7 @@
 
 References: the single-mode IMM equals the Gaussian-mixture density (IPDA/ITS/…) on the
 same plots; the mode probabilities and existence of a two-model IMM-IPDA equal a
-hand-written per-axis scalar recursion (spec 01 §5 eq. 15-19 with IPDA β, spec 02 5.16-5.18);
+hand-written per-axis scalar recursion ([Dikić] eq. 15-19 with IPDA β, [thesis] (5.16)-(5.18));
 IMM-CV-CT beats CV during a 3 g turn; the transition matrix power composes.
 """
 
@@ -58,7 +58,7 @@ def test_single_mode_imm_equals_gaussian_mixture(kind, ndim):
 
 
 def _cv_predict(m, P, T, q):
-    """[x, vx, y, vy] CV prediction written out (003 eq. 5-7)."""
+    """[x, vx, y, vy] CV prediction written out ([MZD] eq. 5-7)."""
     f = np.array([[1.0, T], [0.0, 1.0]])
     g = q * np.array([[T**4 / 4, T**3 / 2], [T**3 / 2, T**2]])
     F, Q = np.zeros((4, 4)), np.zeros((4, 4))
@@ -75,8 +75,8 @@ def _gauss(nu, S):
 
 def test_two_model_mode_probabilities_match_hand_written_recursion():
     """One track, one plot per scan, IPDA β; two CV modes (q = 1 and 400 m²/s⁴) with
-    Π per 4 s = [[0.9, 0.1], [0.2, 0.8]]; the loop-by-loop reference below (spec 01 §5
-    eq. 15-19, spec 02 5.16-5.18, 2.38) is independent of the tracker's array code."""
+    Π per 4 s = [[0.9, 0.1], [0.2, 0.8]]; the loop-by-loop reference below ([Dikić]
+    eq. 15-19, [thesis] (5.16)-(5.18), (2.38)) is independent of the tracker's array code."""
     qs, tpm, T, r, pd, rho = (1.0, 400.0), np.array([[0.9, 0.1], [0.2, 0.8]]), 4.0, 100.0, 0.9, 1e-9
     cfg = TrackerConfig(tracker="ipda", motion="cv", q=1.0, initiation="none", p_gate=0.999999,
                         clutter="known", delta11=1.0)  # fmt: skip

@@ -1,4 +1,4 @@
-"""Airborne / surface split of the label measures (issue 17 §4): hand-built rows whose
+"""Airborne / surface split of the label measures: hand-built rows whose
 measures are counted by hand."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The registration key and payload (issue 17): ``skyfuse/@v1/fusion/{id}/registration``
+"""The registration key and payload: ``skyfuse/@v1/fusion/{id}/registration``
 carries a ``RegistrationStatus``; the recorder keeps it and the MCAP reader decodes it."""
 
 from __future__ import annotations

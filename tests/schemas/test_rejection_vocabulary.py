@@ -88,7 +88,7 @@ def test_raw_bytes_never_raise(payload):
 
 
 def test_out_of_int64_time_is_a_rejection_of_field_time():
-    # the OverflowError of issue 14: a plot time beyond int64 escaped validation
+    # the OverflowError the time guards fixed: a plot time beyond int64 escaped validation
     for bad in (2**63, 2**64, -(2**63) - 1):
         _, exc = decode(PlotBatch, json.dumps({**GOOD, "time": [bad, bad]}))
         assert rejection_reason(PlotBatch, exc) == "invalid PlotBatch: time"

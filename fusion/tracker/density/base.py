@@ -1,5 +1,5 @@
 """The track-density interface of the existence trackers: the "predictor/updater" of Stone
-Soup's separation, over arrays of tracks (docs/tracker.md, "The track-density interface").
+Soup's separation, over arrays of tracks (docs/concepts/tracker-parts.md).
 
 A :class:`TrackDensity` holds the kinematic state of *all* tracks of a
 :class:`fusion.tracker.Tracker`. Its per-track state is columns of the tracker's track

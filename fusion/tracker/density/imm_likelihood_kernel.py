@@ -1,5 +1,5 @@
 """Per-mode likelihoods of the gated (component, plot) pairs of the IMM density, one
-compiled loop (numba, ``cache=True``; spec 01 §5 eq. 18-19, spec 02 §7 step 4 eq. 5.7).
+compiled loop (numba, ``cache=True``; [Dikić] eq. 18-19, [thesis] (5.7)).
 
 For pair q = (component c, plot i) and every mode j of c:
 

@@ -1,6 +1,6 @@
 """IMM mixture track density: every ITS component is an IMM (IMM-IPDA, IMM-ITS,
 IMM-LM-ITS, IMM-JITS): the IMM of [Dikić] (eq. 15-21) inside the ITS components of
-[thesis] ch. 5-6 (docs/tracker.md, "IMM inside the existence trackers").
+[thesis] ch. 5-6 (docs/reports/tracker-log.md, "IMM inside the existence trackers").
 
 Each component c of a track carries a weight ξ^c, a plot history h^c (Singer N-scan
 memory, depth 0 = one IMM per track) and, per mode j, a mode probability μ^c_j and a
@@ -16,7 +16,7 @@ Per batch, for the components of the tracks in coverage over their dt:
    μ_{i|j} = Π_ij μ_i / c_j, x̂⁰_j, P⁰_j = moment match of the modes with μ_{·|j} in the
    common Singer layout (the conversions of [Dikić] eq. 22), converted back to mode j.
 2. **Mode-matched prediction** of every mode (KF or EKF, :func:`fusion.filters.ekf.predict`).
-   **Long coasts** [IMPL] (docs/tracker.md, "Re-identification, held existence and
+   **Long coasts** [IMPL] (docs/reports/tracker-log.md, "Re-identification, held existence and
    straight coasts"): a component predicted over dt > ``coast_after``
    (a track outside every radar's coverage, in a cone of silence, or missed for several
    scans) is predicted in ⌈dt / coast_step⌉ equal steps, and afterwards every

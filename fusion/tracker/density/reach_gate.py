@@ -1,4 +1,4 @@
-"""Reachability gate of the IMM density from the last plot [IMPL] (docs/tracker.md,
+"""Reachability gate of the IMM density from the last plot [IMPL] (docs/reports/tracker-log.md,
 "Reachability gate"): a plot z_i can be the track's aircraft only if
 
     ‖z_i − p_f‖ ≤ v_max Δt + √g (σ_f + σ_i),                                        (C1)

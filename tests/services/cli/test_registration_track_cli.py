@@ -1,4 +1,4 @@
-"""``skyfuse track`` with online sensor registration (issue 17): on a simulated
+"""``skyfuse track`` with online sensor registration: on a simulated
 three-radar recording with two biased radars, the estimates published in the JSON
 summary recover the simulated biases (the simulator's parameters, never seen by the
 estimator) within their stated uncertainty; the reference stays at 0; with

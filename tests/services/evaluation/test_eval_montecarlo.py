@@ -1,4 +1,4 @@
-"""Monte Carlo tracker evaluation (issue 6 §2-§4): determinism whatever the number of
+"""Monte Carlo tracker evaluation ([thesis] ch. 7): determinism whatever the number of
 workers, resuming from the cache, the command's JSON rows, ψ_init calibration, and the
 metric wiring of the per-run loop on a scripted case."""
 
@@ -257,7 +257,7 @@ def test_scheduler_needs_the_dask_engine():
 
 
 def test_thesis_experiments_read_v_k_as_the_initiation_region():
-    """V_k of (2.35) in the thesis experiments: at least π (v_max T)² (issue 16)."""
+    """V_k of (2.35) in the thesis experiments: at least π (v_max T)² (docs/reproduction.md)."""
     v = Variant("its", 1)
     assert _small().tracker_config(v).clutter_volume == pytest.approx(math.pi * 50.0**2)
     slow = _small().model_copy(update={"tracker_settings": {"v_max": 30.0}})

@@ -1,4 +1,4 @@
-"""``skyfuse eval FILE`` on a biased simulated recording (issue 17 §5): bias estimates
+"""``skyfuse eval FILE`` on a biased simulated recording: bias estimates
 against the recording's truth (``Truth.radar_bias``) over time and at the end, duplicate
 tracks per aircraft and RMSE with registration on and off; and the airborne / surface
 split of the label measures, checked against a direct count of the recording's plots."""

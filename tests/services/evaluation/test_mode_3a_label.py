@@ -1,4 +1,4 @@
-"""Scoring labels: Mode-S address, else a discrete Mode-3/A code (issue 17, real data)."""
+"""Scoring labels: Mode-S address, else a discrete Mode-3/A code (real data)."""
 
 import numpy as np
 from skyfuse.services.evaluation.observers import MODE_3A_LABEL_BASE, mode_3a_fallback

@@ -1,5 +1,5 @@
 """Plots without a flight level are converted at the radar site's height (± 3000 m) by
-default, live and offline (issue 17 §3): checked against the closed-form ground range of
+default, live and offline: checked against the closed-form ground range of
 a plot on the slant-range sphere (pymap3d for the geodesy)."""
 
 from __future__ import annotations

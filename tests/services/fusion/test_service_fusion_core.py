@@ -136,8 +136,8 @@ def test_liveliness_updates_radar_health(alive):
 
 
 def test_assumed_altitude_lets_primary_only_plots_through_the_real_pipeline():
-    """2-D plots without a flight level: tracked at the site's height by default (issue
-    17) and at an assumed altitude when the fusion configuration gives one; never
+    """2-D plots without a flight level: tracked at the site's height by default
+    and at an assumed altitude when the fusion configuration gives one; never
     rejected."""
     from skyfuse.fusion.tracker.config import TrackerConfig
     from skyfuse.services.fusion.server import make_pipeline_factory

@@ -1,4 +1,4 @@
-"""A live ``skyfuse fusion`` process with online sensor registration (issue 17): fed a
+"""A live ``skyfuse fusion`` process with online sensor registration: fed a
 replay of a recording with two biased radars, it publishes ``RegistrationStatus`` on
 ``skyfuse/@v1/fusion/{id}/registration`` and the same estimates in ``Status``, with the
 ``plots_near_radar`` counter; its final estimates equal those of the offline

@@ -63,7 +63,7 @@ def test_fusion_survives_poison_future_lagging_and_leading_clocks(start_skyfuse,
         for i, r in enumerate(lags):
             declare_publisher(s, keys.radar_site(r)).put(site(r, 45.0 + 0.2 * i).to_json_bytes())
         time.sleep(0.5)
-        # the int64 overflow that crashed fusion and recorder (exit 1) before issue 14
+        # the int64 overflow that crashed fusion and recorder (exit 1) before the time guards
         overflow = batch("R1", 99, time.time_ns(), rng).model_dump()
         overflow["time"] = [2**64] * 3
         pubs["R1"].put(json.dumps(overflow).encode())

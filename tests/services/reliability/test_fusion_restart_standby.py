@@ -35,7 +35,7 @@ pytestmark = pytest.mark.service
 GEOD = Geod(ellps="WGS84")
 REGIONAL = ("--scenario", "regional", "--seed", "3", "--duration", "70", "--param", "radars=3")
 #: 150 aircraft replayed ×4: a restart of ≈ 2.5 s wall is 8-11 s of data, over which the
-#: resumed tracks coast (before the reach gate of issue 17, one resumed id in about three
+#: resumed tracks coast (before the IMM reach gate, one resumed id in about three
 #: runs took a neighbour's plot 8-18 km away)
 HEAVY = (*REGIONAL, "--targets", "150")
 

@@ -1,5 +1,5 @@
 """The fusion intake and the recorder never crash on input, count every rejection under a
-bounded vocabulary, and keep every buffer and counter bounded (issue 14, part 1)."""
+bounded vocabulary, and keep every buffer and counter bounded (docs/reliability.md §1)."""
 
 from __future__ import annotations
 

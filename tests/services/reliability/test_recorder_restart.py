@@ -1,4 +1,4 @@
-"""Restart basics of ``skyfuse record`` (issue 14, part 3), as real processes on loopback:
+"""Restart basics of ``skyfuse record`` (docs/reliability.md §3), as real processes on loopback:
 a recorder killed with SIGKILL leaves a readable MCAP holding every message received
 before its last flush, and a recorder restarted with the same ``--out`` never overwrites
 the existing file (it records to ``NAME-1.mcap``)."""

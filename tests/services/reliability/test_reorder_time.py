@@ -1,4 +1,4 @@
-"""Time that cannot be hijacked (issue 14, part 2): the reorder buffer keeps one
+"""Time that cannot be hijacked (docs/reliability.md §2): the reorder buffer keeps one
 watermark per radar, refuses batches from the future of the receiver's clock, applies a
 lagging radar's batches (marked late) within ``max_lateness`` and refuses older ones,
 and estimates each radar's clock offset. The arrival clock and the receiver's wall clock

@@ -1,4 +1,4 @@
-"""The secure deployment (issue 14, part 4), as real processes on loopback: a ``skyfuse
+"""The secure deployment (docs/reliability.md §4), as real processes on loopback: a ``skyfuse
 router`` with mutual TLS and the access policy written by ``skyfuse certs``, a ``skyfuse
 fusion`` client of it, an authorised sensor and track client — and hostile peers: a
 listed sensor injecting plots and a moved site under another radar's id and publishing

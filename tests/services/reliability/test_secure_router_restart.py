@@ -20,7 +20,7 @@ import sys
 import time
 
 import pytest
-from service_support import wait_for_router
+from service_support import last_payload, wait_for_router
 from skyfuse.schemas import keys
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime import security
@@ -35,15 +35,6 @@ from skyfuse.services.runtime.transport import (
 
 pytestmark = pytest.mark.service
 OUTAGE_S = 4.0
-
-
-def _last(inbox: Inbox, seconds: float) -> dict | None:
-    out, end = None, time.monotonic() + seconds
-    while time.monotonic() < end:
-        item = inbox.get(0.1)
-        if item is not None:
-            out = json.loads(item.payload)
-    return out
 
 
 def test_router_restart_loses_nothing_through_the_access_policy(start_skyfuse, tmp_path, until):
@@ -69,7 +60,7 @@ def test_router_restart_loses_nothing_through_the_access_policy(start_skyfuse, t
             "--scenario", "regional", "--param", "radars=3", "--targets", "8",
             "--duration", "64", "--speed", "4", "--resume-max-age", "off", log="sensor",
         )  # fmt: skip
-        cycles = lambda: (_last(status, 0.6) or {}).get("counters", {}).get("cycles", 0)  # noqa: E731
+        cycles = lambda: (last_payload(status, 0.6) or {}).get("counters", {}).get("cycles", 0)  # noqa: E731
         assert until(lambda: cycles() > 4, 30)
     router.send_signal(signal.SIGKILL)
     router.wait()
@@ -83,7 +74,7 @@ def test_router_restart_loses_nothing_through_the_access_policy(start_skyfuse, t
         final = {}
 
         def settled() -> bool:
-            st = _last(status, 1.1) or {}
+            st = last_payload(status, 1.1) or {}
             final.update(st)
             r = next((r for r in st.get("radars", []) if r["radar_id"] == "LYBE"), None)
             return r is not None and st["counters"]["queued"] == 0 and r["batches"] >= 240

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import json
 import signal
-import time
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from service_support import last_payload
 from skyfuse.schemas import PlotBatch, Status, keys
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime.seen_batches import LEGACY_RECENT, SeenBatches
@@ -31,15 +31,6 @@ from skyfuse.services.runtime.transport import (
     service_alive_key,
     wait_for_tokens,
 )
-
-
-def _latest_status(inbox: Inbox, seconds: float) -> Status | None:
-    out, deadline = None, time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        item = inbox.get(0.1)
-        if item is not None:
-            out = Status.from_json_bytes(item.payload)
-    return out
 
 
 @pytest.mark.service
@@ -66,9 +57,9 @@ def test_a_file_published_again_is_refused_as_duplicates(start_skyfuse, tmp_path
         names = [service_alive_key("recorder"), service_alive_key("fusion")]
         assert wait_for_tokens(s, names, 30.0) == []
         assert start_skyfuse(*sensor, log="sensor-1").wait(timeout=120) == 0
-        first = _latest_status(status, 2.0)
+        first = last_payload(status, 2.0, Status.from_json_bytes)
         assert start_skyfuse(*sensor, log="sensor-2").wait(timeout=120) == 0  # same file again
-        second = _latest_status(status, 2.0)
+        second = last_payload(status, 2.0, Status.from_json_bytes)
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(timeout=30) == 0
         fusion.send_signal(signal.SIGTERM)

@@ -3,7 +3,7 @@ sequence (``services.sensors.continuation``), and the ``skyfuse record`` process
 it stores every batch once: the recording holds each ``(seq, time_end)`` of the radar at
 most once, in increasing order, the restarted sensor's first batch continues after the
 first run's last (no restart at seq 0), and the repeats of the last second before the
-kill are counted as ``duplicate batch``. Before issue 14 the recorder stored 500
+kill are counted as ``duplicate batch``. Before this guard the recorder stored 500
 duplicates of a restarted sensor."""
 
 from __future__ import annotations

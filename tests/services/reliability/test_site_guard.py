@@ -1,5 +1,5 @@
 """A site message that moves a known radar beyond ``site_tolerance`` is held and reported,
-never applied silently; small corrections are applied (issue 14, part 4)."""
+never applied silently; small corrections are applied (docs/reliability.md §4)."""
 
 from __future__ import annotations
 

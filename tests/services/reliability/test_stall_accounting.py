@@ -19,6 +19,7 @@ import signal
 import time
 
 import pytest
+from service_support import last_payload
 from skyfuse.schemas import keys
 from skyfuse.services.recording.mcap_io import iter_recording
 from skyfuse.services.runtime.transport import (
@@ -32,16 +33,6 @@ from skyfuse.services.runtime.transport import (
 
 pytestmark = pytest.mark.service
 STALL_S = 10.0
-
-
-def _last(inbox: Inbox, seconds: float) -> dict | None:
-    """The last payload (as JSON) received within ``seconds``."""
-    out, end = None, time.monotonic() + seconds
-    while time.monotonic() < end:
-        item = inbox.get(0.1)
-        if item is not None:
-            out = json.loads(item.payload)
-    return out
 
 
 def test_a_ten_second_stall_of_the_fusion_loses_nothing(start_skyfuse, tmp_path, until):
@@ -64,17 +55,17 @@ def test_a_ten_second_stall_of_the_fusion_loses_nothing(start_skyfuse, tmp_path,
             "--targets", "8", "--duration", "56", "--speed", "2", "--connect", ep,
             "--resume-max-age", "off", "--status-interval", "0.5", log="sensor",
         )  # fmt: skip
-        assert until(lambda: _last(fusion_status, 0.6) is not None, 20)
+        assert until(lambda: last_payload(fusion_status, 0.6) is not None, 20)
         time.sleep(3.0)
         fusion.send_signal(signal.SIGSTOP)
         time.sleep(STALL_S)
         fusion.send_signal(signal.SIGCONT)
         assert sensor.wait(timeout=60) == 0
-        published = _last(sensor_status, 2.0)["counters"]["batches"]
+        published = last_payload(sensor_status, 2.0)["counters"]["batches"]
         settled = {}
 
         def accounted() -> bool:
-            st = _last(fusion_status, 1.1)
+            st = last_payload(fusion_status, 1.1)
             radar = next(r for r in st["radars"] if r["radar_id"] == "LYBE")
             settled.update(radar, queued=st["counters"]["queued"])
             got = radar["batches"] + radar.get("batches_refused", 0) + radar.get("batches_lost", 0)
