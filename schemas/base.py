@@ -7,11 +7,15 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of the payload models (in the Zenoh encoding, ``skyfuse.{Model}/{version}``):
 1 the first; 2 adds the secondary-surveillance plot columns and the track identity
-fields (:mod:`schemas.identity`). Models forbid unknown fields, so a consumer of an older
-version rejects a message that uses the new ones."""
+fields (:mod:`schemas.identity`); 3 adds sensors beyond the rotating radar — the
+``RadarSite`` kind ``wgs84``, its ``detection`` semantics (``sweep``/``reports``),
+``report_timeout``, ``coverage`` polygon and ``max_altitude``, and the ``PlotBatch``
+columns ``lat``/``lon`` (WGS-84 plots), ``sigma`` (per-plot horizontal σ) and
+``v_east``/``v_north``/``sigma_velocity`` (reported velocity). Models forbid unknown
+fields, so a consumer of an older version rejects a message that uses the new ones."""
 
 INT64_MIN = -(2**63)
 INT64_MAX = 2**63 - 1

@@ -46,8 +46,9 @@ def assumed_height(site: RadarSite, configured: float | None) -> float | None:
     """Height given to a radar's plots without one (m above the ellipsoid, σ 3000 m):
     ``configured``, else the site's height (its ground level: the aircraft without a
     flight level are mostly on the surface near the radar, docs/registration.md §4).
-    Cartesian sensors keep their own rule (the site height with σ_cartesian)."""
-    if configured is not None or site.kind is RadarKind.CARTESIAN:
+    Cartesian and WGS-84 sensors keep their own rule (the site height with σ_cartesian;
+    their horizontal positions do not depend on it)."""
+    if configured is not None or site.kind in (RadarKind.CARTESIAN, RadarKind.WGS84):
         return configured
     return site.alt
 
