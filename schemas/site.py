@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from enum import StrEnum
+from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -82,6 +83,13 @@ class RadarSite(WireModel):
         "movement radar); reports: the sensor reports the targets it tracks (ADS-B, "
         "multilateration): a track it has not reported within report_timeout is not missed",
     )
+    timing: Literal["sweep", "plots"] = Field(
+        "sweep",
+        description="Polar sensors: sweep — a batch's plots were swept across its sector from "
+        "time_start to time_end, each track is predicted to the time the beam crossed it; "
+        "plots — to the time of the batch plot nearest to it (a surface movement radar whose "
+        "revolutions start at an unknown azimuth). Report-based sensors always use plots",
+    )
     report_timeout: float = Field(
         10.0,
         gt=0.0,
@@ -122,6 +130,14 @@ class RadarSite(WireModel):
         le=10_000.0,
         description="Per-axis horizontal position noise standard deviation (cartesian and "
         "wgs84, unless a plot carries its own sigma), m",
+    )
+    sigma_growth: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="Cartesian sensors, plots without their own sigma: the per-axis σ grows "
+        "with the distance ρ from the site as √(sigma_cartesian² + (sigma_growth · ρ)²), m "
+        "per m (a multilateration system's geometry degrades away from its receivers)",
     )
     scan_period: float = Field(
         4.0, gt=0.0, le=600.0, description="Antenna revolution (or report cycle) period, s"

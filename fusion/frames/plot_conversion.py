@@ -16,7 +16,9 @@ Sensors beyond the rotating radar (``RadarSite.kind``):
   sensor): (x east, y north) in the site's local tangent plane, the height the plot's
   ``altitude`` (else the assumed altitude, else the site's height) as u = h − h_site;
   C = diag(σ², σ², σ_h²) in the site's ENU with σ the plot's ``sigma`` (else the
-  site's ``sigma_cartesian``), then steps (2)-(3) as for a radar;
+  site's σ_c = ``sigma_cartesian``, grown with the distance ρ from the site as
+  √(σ_c² + (g ρ)²), g = ``sigma_growth``: a multilateration system's geometry), then
+  steps (2)-(3) as for a radar;
 * ``wgs84`` (ADS-B): latitude/longitude and the same height rule, converted by the
   frame's geodesy (:meth:`SystemFrame.from_geodetic`), with C = diag(σ², σ², σ_h²) in the
   *plot's own* local ENU and R = J C Jᵀ, J = :meth:`SystemFrame.local_plane_jacobian`
@@ -232,12 +234,18 @@ def _heights(site, batch, assumed_altitude, sig_assumed):
 
 
 def _plot_sigma(site, batch) -> np.ndarray:
-    """Per-plot horizontal σ per axis (m,): the plot's ``sigma``, else the site's."""
+    """Per-plot horizontal σ per axis (m,): the plot's ``sigma``, else the site's
+    σ_c, for cartesian plots √(σ_c² + (g ρ)²) with g = ``sigma_growth`` and ρ the plot's
+    distance from the site."""
     m = len(batch)
+    base = np.full(m, site.sigma_cartesian)
+    if m and site.sigma_growth > 0 and batch.is_cartesian:
+        rho = np.hypot(batch.column("x"), batch.column("y"))
+        base = np.sqrt(site.sigma_cartesian**2 + (site.sigma_growth * rho) ** 2)
     sig = batch.column("sigma") if m else None
     if sig is None:
-        return np.full(m, site.sigma_cartesian)
-    return np.where(np.isfinite(sig), sig, site.sigma_cartesian)
+        return base
+    return np.where(np.isfinite(sig), sig, base)
 
 
 def _geodetic_plots(frame, site, batch, ndim, assumed_altitude, sig_assumed):

@@ -36,10 +36,16 @@ number, else the address): a repeat closes the batch before it
 by time inside a batch.
 
 **Columns.** The plot geometry is the site's kind: ``cartesian`` from I042 (x east, y north
-of the site, m), ``2d`` from I040 (ρ, θ: an SMR's polar plots, placed at the site's height,
-the airport surface: give the SMR's ``alt`` as the surface height), ``wgs84`` from I041 /
-CAT021's position; a report without that geometry is counted
-(``report_no_position_for_kind``). ``altitude``: the geometric height when reported (CAT021
+of the site, m), ``2d`` from I040 (ρ, θ: polar plots, placed at the site's height, the
+airport surface: give an SMR's ``alt`` as the surface height), ``wgs84`` from I041 /
+CAT021's position (default: the first report's, I042 first); a report without that
+geometry is counted (``report_no_position_for_kind``). An SMR plot is the centroid of its
+target's echo, while multilateration and ADS-B report the aircraft's antenna, anywhere
+along its length L (I270: median 19 m, p90 46 m at LEBL): its σ per axis is
+√(σ_c² + L²/12) (the variance of a point uniform along L), so that the plots of one
+aircraft from the three sensors meet in one track's gate.
+
+``altitude``: the geometric height when reported (CAT021
 geometric height, CAT020 I110, CAT010 I091), else the flight level as a height (as for
 CAT048); ``sigma``: multilateration I500 √((σx² + σy²)/2), ADS-B the σ of its NACp/NUCp
 (:mod:`.adsb_quality`) or ``adsb_sigma`` (an empirical σ for every ADS-B report); an ADS-B
@@ -86,9 +92,10 @@ message."""
 
 SENSOR_DEFAULTS: dict[str, dict] = {
     MLAT: {"detection": "reports", "report_timeout": 5.0, "p_detection": 0.9,
-           "sigma_cartesian": 5.0, "max_range": 60_000.0},
-    SMR: {"kind": "2d", "detection": "sweep", "p_detection": 0.8, "sigma_range": 7.5,
-          "sigma_azimuth": 0.0015, "sigma_altitude": 5.0, "max_range": 8_000.0},
+           "sigma_cartesian": 5.0, "sigma_growth": 2.5e-3, "max_range": 60_000.0},
+    SMR: {"detection": "sweep", "timing": "plots", "p_detection": 0.8, "sigma_cartesian": 6.0,
+          "sigma_range": 7.5, "sigma_azimuth": 0.0015, "sigma_altitude": 5.0,
+          "max_range": 8_000.0},
     ADSB: {"kind": "wgs84", "detection": "reports", "report_timeout": 10.0,
            "p_detection": 0.9, "sigma_cartesian": 38.0, "max_range": 250_000.0},
 }  # fmt: skip
@@ -374,9 +381,7 @@ def _report_type(r) -> int:
 
 def _geometry_of(r) -> RadarKind:
     """The plot geometry a sensor's first report gives: I042 cartesian, else WGS-84, else
-    polar (an SMR's own site kind is 2d, :data:`SENSOR_DEFAULTS`)."""
-    if sensor_kind(r) == SMR and getattr(r, "rho_m", None) is not None:
-        return RadarKind.TWO_D
+    polar."""
     if getattr(r, "x_m", None) is not None:
         return RadarKind.CARTESIAN
     if r.lat is not None:
@@ -402,12 +407,23 @@ def _columns(kind: str, geometry: RadarKind, reports: list, site, adsb_sigma, st
     if kind == SMR:
         if geometry is RadarKind.TWO_D and site is not None:
             cols["altitude"] = [float(site.alt)] * len(reports)
+        if site is not None and any(r.length_m for r in reports):
+            cols["sigma"] = [_extent_sigma(r, site) for r in reports]
         return cols
     cols["altitude"] = [_altitude(r, stats) for r in reports]
     cols["sigma"] = [_sigma(r, adsb_sigma) for r in reports]
     cols.update(_velocity(reports))
     cols.update(_identity(reports, stats))
     return cols
+
+
+def _extent_sigma(r, site) -> float | None:
+    """An SMR plot's σ per axis with its target's extent: the echo's centroid, while the
+    other sensors report the aircraft's antenna, anywhere along its length L (I270):
+    √(σ_c² + L²/12) (module docstring); null without a length."""
+    if not r.length_m:
+        return None
+    return math.sqrt(site.sigma_cartesian**2 + r.length_m**2 / 12.0)
 
 
 def _altitude(r, stats) -> float | None:
