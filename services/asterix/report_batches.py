@@ -93,7 +93,7 @@ message."""
 SENSOR_DEFAULTS: dict[str, dict] = {
     MLAT: {"detection": "reports", "report_timeout": 5.0, "p_detection": 0.9,
            "sigma_cartesian": 5.0, "sigma_growth": 2.5e-3, "max_range": 60_000.0},
-    SMR: {"detection": "sweep", "timing": "plots", "p_detection": 0.8, "sigma_cartesian": 6.0,
+    SMR: {"detection": "sweep", "timing": "plots", "p_detection": 0.8, "sigma_cartesian": 12.0,
           "sigma_range": 7.5, "sigma_azimuth": 0.0015, "sigma_altitude": 5.0,
           "max_range": 8_000.0},
     ADSB: {"kind": "wgs84", "detection": "reports", "report_timeout": 10.0,

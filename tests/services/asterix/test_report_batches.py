@@ -78,25 +78,29 @@ def test_multilateration_batches_are_its_update_cycles_without_field_monitors(le
     assert sum(len(b) for b in res.batches) == len(by_time)
 
 
-def test_surface_radar_batches_are_polar_at_the_surface_sorted_without_track_ends(lebl):
+def test_surface_radar_batches_are_cartesian_sorted_without_track_ends(lebl):
+    """The SMR's plots are its I042 positions (x east, y north of its site), σ per axis
+    √(σ_c² + L²/12) with L its target's length, in time order; track ends dropped."""
     files, sites, _ = lebl
     res = read_asterix(files["smr"], date=DAY, sites=sites)
     reports = [r for r in _reports(files["smr"]) if isinstance(r, cat010.Cat010Report)]
-    ends = [r for r in reports if r.rho_m is None]
+    ends = [r for r in reports if r.rho_m is None and r.x_m is None]
     assert res.stats["report_track_ends"] == len(ends) == 109
     site = res.sites["0-7"]
-    assert site.kind is RadarKind.TWO_D and site.detection == "sweep"
+    assert site.kind is RadarKind.CARTESIAN and site.detection == "sweep"
     assert site.max_altitude == pytest.approx(site.alt + 300.0)
-    plotted = {(r.time_ns, r.rho_m, round(math.radians(r.theta_deg), 12)) for r in reports
-               if r.rho_m is not None}  # fmt: skip
+    plotted = {(r.time_ns, r.x_m, r.y_m): r for r in reports if r.x_m is not None}
     seen = set()
     for b in res.batches:
         assert (np.diff(b.column("time")) >= 0).all()
-        assert b.altitude is None or set(b.altitude) == {site.alt}
-        seen |= {(t, r, round(a, 12)) for t, r, a in zip(b.time, b.range or [], b.azimuth or [])}
-    assert seen == plotted
+        for t, x, y, s in zip(b.time, b.x, b.y, b.sigma or [None] * len(b)):
+            seen.add((t, x, y))
+            L = plotted[(t, x, y)].length_m
+            want = math.sqrt(site.sigma_cartesian**2 + L**2 / 12) if L else None
+            assert s == pytest.approx(want) if want else s is None
+    assert seen == set(plotted)
     # the stream steps back in time within a cycle (sweep order); the batches do not
-    times = [r.time_ns for r in reports if r.rho_m is not None]
+    times = [r.time_ns for r in reports if r.x_m is not None]
     assert (np.diff(times) < 0).sum() > 900
 
 
