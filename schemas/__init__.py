@@ -12,7 +12,7 @@ from .base import SCHEMA_VERSION, WireModel
 from .identity import Emergency
 from .plots import PlotBatch
 from .registration import RadarBiasEstimate, RegistrationStatus
-from .site import RadarKind, RadarSite
+from .site import Detection, RadarKind, RadarSite
 from .status import (
     Backlog,
     IdentityStatus,
@@ -64,6 +64,7 @@ __all__ = [
     "MODELS",
     "SCHEMA_VERSION",
     "Backlog",
+    "Detection",
     "Emergency",
     "FeedKind",
     "FrameKind",

@@ -7,12 +7,16 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 """Version of the payload models (in the Zenoh encoding, ``skyfuse.{Model}/{version}``):
 1 the first; 2 adds the secondary-surveillance plot columns and the track identity
 fields (:mod:`schemas.identity`); 3 the identity events (``identity_changed``,
 ``identity_conflict``, ``emergency``, ``spi``, with ``attribute``, ``value``,
-``previous``), ``Track.mode_3a_changed`` and the identity counters of ``Status``.
+``previous``), ``Track.mode_3a_changed`` and the identity counters of ``Status``; 4 adds
+sensors beyond the rotating radar — the ``RadarSite`` kind ``wgs84``, its ``detection``
+semantics (``sweep``/``reports``), ``report_timeout``, ``coverage`` polygon and
+``max_altitude``, and the ``PlotBatch`` columns ``lat``/``lon`` (WGS-84 plots), ``sigma``
+(per-plot horizontal σ) and ``v_east``/``v_north``/``sigma_velocity`` (reported velocity).
 Models forbid unknown fields, so a consumer of an older version rejects a message that
 uses the new ones."""
 

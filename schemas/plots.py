@@ -4,8 +4,12 @@ One message carries many plots as parallel columns, one list per field, because 
 message per plot is far too slow (stack-notes: serialisation dominates). Column i of
 every present field describes plot i.
 
-Geometry is either polar (``range`` + ``azimuth``, with ``elevation`` for 3-D radars
-or ``altitude`` for 2-D radars) or planar (``x`` + ``y`` for the cartesian test sensor).
+Geometry is polar (``range`` + ``azimuth``, with ``elevation`` for 3-D radars or
+``altitude`` for 2-D radars), planar (``x`` + ``y``: a cartesian sensor's plane, e.g.
+multilateration relative to its reference point) or geodetic (``lat`` + ``lon``:
+ADS-B), as the site's ``kind`` says. Report-based sensors may give each plot its own
+horizontal accuracy (``sigma``, m per axis: an ADS-B NACp/NUCp, a multilateration
+I500) and a reported velocity (``v_east``, ``v_north`` with ``sigma_velocity``).
 
 Secondary-surveillance columns (:mod:`schemas.identity`: names, units, bounds): the
 identity of the reply (``mode_3a`` with its flags, ``mode_s``, ``callsign``,
@@ -27,7 +31,10 @@ from . import identity as ident
 from .base import INT64_MAX, Int64, NonNegInt64, WireModel
 from .keys import ID_PATTERN
 
-_FLOAT_COLUMNS = ("range", "azimuth", "elevation", "altitude", "x", "y", "doppler", "amplitude")
+_FLOAT_COLUMNS = (
+    "range", "azimuth", "elevation", "altitude", "x", "y", "lat", "lon", "sigma",
+    "v_east", "v_north", "sigma_velocity", "doppler", "amplitude",
+)  # fmt: skip
 FLAG_COLUMNS = (
     "mode_3a_not_validated", "mode_3a_garbled", "mode_3a_smoothed",
     "flight_level_not_validated", "flight_level_garbled", "spi",
@@ -55,6 +62,12 @@ _RANGES = (  # column, lower bound, upper bound, upper bound open, null allowed,
     ("azimuth", 0.0, 2 * math.pi, True, False, "rad"),
     ("elevation", -math.pi / 2, math.pi / 2, False, True, "rad"),
     ("altitude", -1_000.0, 100_000.0, False, True, "m"),
+    ("lat", -90.0, 90.0, False, False, "deg"),
+    ("lon", -180.0, 180.0, False, False, "deg"),
+    ("sigma", 0.01, 100_000.0, False, True, "m"),
+    ("v_east", -2_000.0, 2_000.0, False, True, "m/s"),
+    ("v_north", -2_000.0, 2_000.0, False, True, "m/s"),
+    ("sigma_velocity", 0.001, 1_000.0, False, True, "m/s"),
 )
 
 
@@ -124,6 +137,26 @@ class PlotBatch(WireModel):
     )
     x: list[float] | None = Field(None, description="Cartesian sensor: east, m, site plane")
     y: list[float] | None = Field(None, description="Cartesian sensor: north, m, site plane")
+    lat: list[float] | None = Field(
+        None, description="WGS-84 sensor (ADS-B): latitude, degrees in [-90, 90]"
+    )
+    lon: list[float] | None = Field(
+        None, description="WGS-84 sensor (ADS-B): longitude, degrees in [-180, 180]"
+    )
+    sigma: list[float | None] | None = Field(
+        None,
+        description="Horizontal position σ per axis of each plot, m (> 0; e.g. from ADS-B "
+        "NACp/NUCp or multilateration I500); null: the site's",
+    )
+    v_east: list[float | None] | None = Field(
+        None, description="Reported ground velocity, east, m/s; null = not reported"
+    )
+    v_north: list[float | None] | None = Field(
+        None, description="Reported ground velocity, north, m/s; null = not reported"
+    )
+    sigma_velocity: list[float | None] | None = Field(
+        None, description="σ per axis of the reported velocity, m/s; null = unknown"
+    )
     doppler: list[float | None] | None = Field(
         None, description="Radial velocity, m/s, positive receding; null = not measured"
     )
@@ -203,6 +236,10 @@ class PlotBatch(WireModel):
     def is_cartesian(self) -> bool:
         return self.x is not None
 
+    @property
+    def is_geodetic(self) -> bool:
+        return self.lat is not None
+
     @model_validator(mode="after")
     def _check_columns(self) -> PlotBatch:
         if self.time_end < self.time_start:
@@ -212,18 +249,7 @@ class PlotBatch(WireModel):
         n = col.check_equal_lengths({k: getattr(self, k) for k in _ALL_COLUMNS})
         if len(self.time) != n:
             raise ValueError(f"column 'time' has {len(self.time)} values but the batch has {n}")
-        polar = self.range is not None or self.azimuth is not None
-        planar = self.x is not None or self.y is not None
-        if polar and planar:
-            raise ValueError("a batch carries either range/azimuth or x/y columns, not both")
-        if n > 0 and not (polar or planar):
-            raise ValueError("plots need range and azimuth (radar) or x and y (cartesian sensor)")
-        if polar and (self.range is None or self.azimuth is None):
-            missing = "range" if self.range is None else "azimuth"
-            raise ValueError(f"column {missing!r} is missing: polar plots need range and azimuth")
-        if planar and (self.x is None or self.y is None):
-            missing = "x" if self.x is None else "y"
-            raise ValueError(f"column {missing!r} is missing: cartesian plots need x and y")
+        self._check_geometry(n)
         if n == 0:
             return self
         self._check_time()
@@ -240,6 +266,28 @@ class PlotBatch(WireModel):
                 col.check_codes(name, getattr(self, name), hi)
         self._check_secondary()
         return self
+
+    def _check_geometry(self, n: int) -> None:
+        """One geometry: range/azimuth, x/y or lat/lon, each pair complete."""
+        pairs = (("range", "azimuth", "polar plots"), ("x", "y", "cartesian plots"),
+                 ("lat", "lon", "WGS-84 plots"))  # fmt: skip
+        present = [
+            p for p in pairs if getattr(self, p[0]) is not None or getattr(self, p[1]) is not None
+        ]
+        if len(present) > 1:
+            raise ValueError(
+                "a batch carries one geometry (range/azimuth, x/y or lat/lon), not both "
+                + " and ".join(f"{a}/{b}" for a, b, _ in present)
+            )
+        if n > 0 and not present:
+            raise ValueError(
+                "plots need range and azimuth (radar), x and y (cartesian sensor) or lat and "
+                "lon (WGS-84 sensor)"
+            )
+        for a, b, what in present:
+            if getattr(self, a) is None or getattr(self, b) is None:
+                missing = a if getattr(self, a) is None else b
+                raise ValueError(f"column {missing!r} is missing: {what} need {a} and {b}")
 
     def _check_secondary(self) -> None:
         """The bounded secondary-surveillance columns (null allowed; NaN and inf were

@@ -10,6 +10,25 @@ covariance in the system frame, R = J_f J R_s Jᵀ J_fᵀ with the analytic pola
 Output coordinates follow the tracker convention of :mod:`fusion.frames.system_frame`:
 x east, y north (, z up), metres.
 
+Sensors beyond the rotating radar (``RadarSite.kind``):
+
+* ``cartesian`` (multilateration relative to its reference point, the planar test
+  sensor): (x east, y north) in the site's local tangent plane, the height the plot's
+  ``altitude`` (else the assumed altitude, else the site's height) as u = h − h_site;
+  C = diag(σ², σ², σ_h²) in the site's ENU with σ the plot's ``sigma`` (else the
+  site's σ_c = ``sigma_cartesian``, grown with the distance ρ from the site as
+  √(σ_c² + (g ρ)²), g = ``sigma_growth``: a multilateration system's geometry), then
+  steps (2)-(3) as for a radar;
+* ``wgs84`` (ADS-B): latitude/longitude and the same height rule, converted by the
+  frame's geodesy (:meth:`SystemFrame.from_geodetic`), with C = diag(σ², σ², σ_h²) in the
+  *plot's own* local ENU and R = J C Jᵀ, J = :meth:`SystemFrame.local_plane_jacobian`
+  at the plot (no detour through a site's tangent plane: a report 90 km out would
+  otherwise mix its height uncertainty into the horizontal through the 0.8° between the
+  two verticals).
+
+A reported velocity (``v_east``/``v_north``, σ ``sigma_velocity``) is carried into the
+frame with the same Jacobian's horizontal block (``ConvertedPlots.velocity``).
+
 Plots near the radar: a 2-D plot whose height and slant range disagree
 (|sin e| ≥ 1) or whose elevation is ill-conditioned is kept, converted to the moments
 of its position on the slant-range sphere (:func:`fusion.frames.polar.near_radar_moments`)
@@ -62,7 +81,10 @@ class ConvertedPlots:
     bias: the correction that was applied (None: none).
     near_radar: (m,) bool, valid plots converted by the near-radar projection (height
       and slant range disagree, |sin e| ≥ 1, or the elevation is ill-conditioned close
-      to the radar) — kept, with a covariance covering the disagreement."""
+      to the radar) — kept, with a covariance covering the disagreement.
+    velocity: (m, 2) reported horizontal velocity in the frame, m/s (NaN where none;
+      None: the batch has no velocity columns); velocity_var: (m,) its per-axis
+      variance, m²/s² (NaN: unknown)."""
 
     z: np.ndarray
     R: np.ndarray
@@ -77,6 +99,8 @@ class ConvertedPlots:
     slant_range: np.ndarray | None = None
     bias: SensorBias | None = None
     near_radar: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    velocity_var: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.z.shape[0]
@@ -107,6 +131,8 @@ class ConvertedPlots:
             polar_jacobian=rows(self.polar_jacobian),
             slant_range=rows(self.slant_range),
             near_radar=rows(self.near_radar),
+            velocity=rows(self.velocity),
+            velocity_var=rows(self.velocity_var),
         )
 
     def select_valid(self) -> ConvertedPlots:
@@ -150,12 +176,17 @@ def convert_plots(
     if bias is not None:
         time = time - bias.time_ns
     site_pos = frame.site_position(site.lat, site.lon, site.alt)
+    if site.kind is RadarKind.WGS84:
+        _check_geometry(site, batch, batch.is_geodetic, "lat/lon")
+        z, R, valid, notes, Jh = _geodetic_plots(frame, site, batch, ndim, assumed_altitude,
+                                                 sig_assumed)  # fmt: skip
+        v, vv = _velocity(batch, Jh)
+        return ConvertedPlots(
+            z, R, time, valid, [""] * m, site_pos[:ndim].copy(), site.radar_id, ndim, notes,
+            velocity=v, velocity_var=vv,
+        )  # fmt: skip
     if site.kind is RadarKind.CARTESIAN:
-        if m and not batch.is_cartesian:
-            raise ValueError(
-                f"radar {site.radar_id!r} is a cartesian sensor but its batch carries "
-                "range/azimuth plots"
-            )
+        _check_geometry(site, batch, batch.is_cartesian, "x/y")
         enu, C, valid, reasons, notes = _cartesian_enu(
             site, batch, ndim, assumed_altitude, sig_assumed
         )
@@ -163,29 +194,100 @@ def convert_plots(
         Jp = D = None
         near = np.zeros(m, bool)
     else:
-        if m and batch.is_cartesian:
-            raise ValueError(
-                f"radar {site.radar_id!r} is a {site.kind.value} radar but its batch carries "
-                "x/y plots"
-            )
+        _check_geometry(site, batch, not (batch.is_cartesian or batch.is_geodetic),
+                        "range/azimuth")  # fmt: skip
         P, height = _polar_enu(
             frame, site, batch, debias, assumed_altitude, sig_assumed, k_earth, bias
         )
         enu, C, valid, reasons, notes = P.enu, P.C, P.valid, P.reasons, P.notes
         Jp, D, near = P.Jp, P.D, P.near
 
-    z, R, dz_dpolar = _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim)
+    z, R, dz_dpolar, Jf = _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim)
+    v, vv = _velocity(batch, Jf)
     return ConvertedPlots(
         z, R, time, valid, reasons, site_pos[:ndim].copy(), site.radar_id, ndim, notes,
-        dz_dpolar, D, bias, near,
+        dz_dpolar, D, bias, near, v, vv,
     )  # fmt: skip
 
 
+def _check_geometry(site, batch, fits: bool, columns: str) -> None:
+    """ValueError when the batch's plots are not of the site's geometry."""
+    if len(batch) and not fits:
+        raise ValueError(
+            f"radar {site.radar_id!r} is a {site.kind.value} sensor but its batch does not "
+            f"carry {columns} plots"
+        )
+
+
+def _heights(site, batch, assumed_altitude, sig_assumed):
+    """(h, σ_h, measured) (m,) of cartesian and WGS-84 plots: the plot's ``altitude``
+    (σ = ``sigma_altitude``), else the assumed altitude (σ of the assumption), else the
+    site's height (σ = ``sigma_cartesian``, the test sensor's convention)."""
+    m = len(batch)
+    alt = batch.column("altitude") if m else None
+    measured = np.zeros(m, bool) if alt is None else np.isfinite(alt)
+    h0 = site.alt if assumed_altitude is None else assumed_altitude
+    s0 = site.sigma_cartesian if assumed_altitude is None else sig_assumed
+    h = np.where(measured, alt, h0) if alt is not None else np.full(m, float(h0))
+    sig = np.where(measured, site.sigma_altitude, s0)
+    return h, sig, measured
+
+
+def _plot_sigma(site, batch) -> np.ndarray:
+    """Per-plot horizontal σ per axis (m,): the plot's ``sigma``, else the site's
+    σ_c, for cartesian plots √(σ_c² + (g ρ)²) with g = ``sigma_growth`` and ρ the plot's
+    distance from the site."""
+    m = len(batch)
+    base = np.full(m, site.sigma_cartesian)
+    if m and site.sigma_growth > 0 and batch.is_cartesian:
+        rho = np.hypot(batch.column("x"), batch.column("y"))
+        base = np.sqrt(site.sigma_cartesian**2 + (site.sigma_growth * rho) ** 2)
+    sig = batch.column("sigma") if m else None
+    if sig is None:
+        return base
+    return np.where(np.isfinite(sig), sig, base)
+
+
+def _geodetic_plots(frame, site, batch, ndim, assumed_altitude, sig_assumed):
+    """WGS-84 plots (module docstring): positions through the frame's geodesy, R = J C Jᵀ
+    with C in each plot's own ENU; returns z, R, valid, notes and J (m, 3, 3)."""
+    m = len(batch)
+    if m == 0:
+        return (np.zeros((0, ndim)), np.zeros((0, ndim, ndim)), np.zeros(0, bool), [],
+                np.zeros((0, 3, 3)))  # fmt: skip
+    lat, lon = batch.column("lat"), batch.column("lon")
+    h, sig_h, measured = _heights(site, batch, assumed_altitude, sig_assumed)
+    x, y, zz = frame.from_geodetic(lat, lon, h)
+    pos = np.stack([x, y, zz], axis=-1)
+    J = frame.local_plane_jacobian(lat, lon, h)
+    C = np.zeros((m, 3, 3))
+    C[:, 0, 0] = C[:, 1, 1] = _plot_sigma(site, batch) ** 2
+    C[:, 2, 2] = sig_h**2
+    Rf = J @ C @ np.swapaxes(J, -1, -2)
+    R = 0.5 * (Rf + np.swapaxes(Rf, -1, -2))[:, :ndim, :ndim]
+    notes = ["" if ok else "assumed altitude" for ok in measured]
+    return pos[:, :ndim].copy(), R, np.ones(m, bool), notes, J
+
+
+def _velocity(batch, J) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The reported velocity (m, 2) in the frame (J's horizontal block applied to
+    (v_east, v_north)) and its per-axis variance (m,), or (None, None) without one."""
+    ve, vn = batch.column("v_east"), batch.column("v_north")
+    if ve is None or vn is None or J is None:
+        return None, None
+    v = np.einsum("mij,mj->mi", J[:, :2, :2], np.stack([ve, vn], axis=-1))
+    s = batch.column("sigma_velocity")
+    var = np.full(len(v), np.nan) if s is None else s**2
+    return v, var
+
+
 def _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim):
-    """Steps (2)-(3): site ENU → frame positions, R = J_f C J_fᵀ, ∂z/∂(D, ψ) = J_f Jp."""
+    """Steps (2)-(3): site ENU → frame positions, R = J_f C J_fᵀ, ∂z/∂(D, ψ) = J_f Jp;
+    also returns J_f (m, 3, 3) (identity where not valid or in the planar frame)."""
     m = len(valid)
     z = np.full((m, ndim), np.nan)
     R = np.full((m, ndim, ndim), np.nan)
+    J_all = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
     dz_dpolar = None if Jp is None else np.full((m, ndim, 2), np.nan)
     idx = np.flatnonzero(valid)
     if idx.size and site.kind is RadarKind.CARTESIAN and frame.kind is FrameKind.PLANAR:
@@ -194,6 +296,7 @@ def _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim):
         R[idx] = C[idx][:, :ndim, :ndim]
     elif idx.size:
         pos, Jf = frame.enu_to_frame_with_jacobian(enu[idx], site.lat, site.lon, site.alt)
+        J_all[idx] = Jf
         Rf = Jf @ C[idx] @ np.swapaxes(Jf, -1, -2)
         if frame.kind is not FrameKind.NED:
             # z is the height itself: keep a measured/assumed altitude exactly.
@@ -203,7 +306,7 @@ def _to_frame(frame, site, enu, C, valid, height, Jp, site_pos, ndim):
         R[idx] = 0.5 * (Rf + np.swapaxes(Rf, -1, -2))[:, :ndim, :ndim]
         if dz_dpolar is not None:
             dz_dpolar[idx] = (Jf @ Jp[idx][:, :, :2])[:, :ndim]
-    return z, R, dz_dpolar
+    return z, R, dz_dpolar, J_all
 
 
 def _check_arguments(site, batch, ndim, assumed_altitude, sigma_assumed, k_earth, bias):
@@ -222,24 +325,26 @@ def _check_arguments(site, batch, ndim, assumed_altitude, sigma_assumed, k_earth
     sig_assumed = 3000.0 if sigma_assumed is None else float(sigma_assumed)
     if not sig_assumed > 0:
         raise ValueError(f"sigma_assumed_altitude = {sigma_assumed}: must be > 0 m")
-    if bias is not None and site.kind is RadarKind.CARTESIAN and not bias.is_zero:
-        raise ValueError(f"radar {site.radar_id!r} is a cartesian sensor: no bias correction")
+    polar = site.kind in (RadarKind.TWO_D, RadarKind.THREE_D)
+    if bias is not None and not polar and not bias.is_zero:
+        raise ValueError(
+            f"radar {site.radar_id!r} is a {site.kind.value} sensor: no bias correction"
+        )
     return sig_assumed
 
 
 def _cartesian_enu(site, batch, ndim, assumed_altitude, sig_assumed):
-    """Cartesian test sensor: (x east, y north) in the site plane, R = σ_c² I ([thesis] §7.3).
-    The height is the assumed altitude (or the site height) when ndim = 3."""
+    """Cartesian sensor: (x east, y north) in the site plane, R = σ² I with σ the plot's
+    ``sigma`` or the site's σ_c ([thesis] §7.3); the height by :func:`_heights`."""
     m = len(batch)
     enu = np.zeros((m, 3))
     if m:
         enu[:, 0] = batch.column("x")
         enu[:, 1] = batch.column("y")
-    h = site.alt if assumed_altitude is None else assumed_altitude
-    sig_h = site.sigma_cartesian if assumed_altitude is None else sig_assumed
+    h, sig_h, _ = _heights(site, batch, assumed_altitude, sig_assumed)
     enu[:, 2] = h - site.alt
     C = np.zeros((m, 3, 3))
-    C[:, 0, 0] = C[:, 1, 1] = site.sigma_cartesian**2
+    C[:, 0, 0] = C[:, 1, 1] = _plot_sigma(site, batch) ** 2
     C[:, 2, 2] = sig_h**2
     valid = np.ones(m, bool)
     return enu, C, valid, [""] * m, [""] * m

@@ -172,6 +172,13 @@ class TrackerConfig(BaseModel):
         description="Of two confirmed duplicate tracks, keep the larger ψ (existence, [thesis] "
         "§7.1) or the one with more scans with a plot and its id (established)",
     )
+    report_sensors: int = Field(
+        8,
+        ge=1,
+        le=64,
+        description="Report-based sensors (ADS-B, multilateration) one tracker follows: each "
+        "has a slot in the tracks' report clock (fusion/tracker/report_clock.py)",
+    )
     coverage_sigma: float = Field(
         3.0, ge=0.0, description="Tracks within this many σ of a sector are treated as seen"
     )

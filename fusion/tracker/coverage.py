@@ -22,6 +22,14 @@ predicts ψ only from the later of the track's last prediction and its last blin
 With Δ11 = 0.98 per second a 100 s crossing of the cone would otherwise leave
 ψ ≤ 0.98¹⁰⁰ ≈ 0.13 at the exit, and the first misses at the cone's edge terminate the
 track before the aircraft is seen again.
+
+Plot timing (``coverage.timing = "plots"``: report-based sensors, a surface radar whose
+sweep phase is unknown): a track's time in the batch is the time of the batch's plot
+nearest to its lazily predicted position when that plot lies within
+``coverage_sigma`` · √(σ² + r²) + |v̂| Δ (r² the plots' largest per-axis variance, Δ the
+batch's time span: how far the track moves across it), else the batch time. A track
+updated by its own report is so predicted to that report's time (1-s batches of reports
+at their own times; the out-of-sequence update when that time is before the track's).
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .measurements import MeasurementBatch
 
@@ -111,6 +120,29 @@ def select_tracks(
     var = P[:, pos, pos].sum(axis=1) + P[:, vel, vel].sum(axis=1) * dt**2
     polar = cov.polar(p)  # once for every test
     inside = cov.contains(p, coverage_sigma * np.sqrt(var), polar)
-    if cov.time_end > cov.time_start:
+    if cov.timing == "plots":
+        t = nearest_plot_times(batch, p, var, np.hypot(*x[:, vel].T[:2]), coverage_sigma)
+    elif cov.time_end > cov.time_start:
         t = cov.illumination_time(p, polar)
     return CoverageView(inside, np.maximum(t, t_last), t, p, var, polar)
+
+
+def nearest_plot_times(
+    batch: MeasurementBatch, p: np.ndarray, var: np.ndarray, speed: np.ndarray, k: float
+) -> np.ndarray:
+    """(n,) ns: the time of the plot nearest to each predicted position p (n, ≥2) within
+    k √(var + r²) + speed Δ (module docstring), else the batch time."""
+    n = len(p)
+    t = np.full(n, batch.time_ns, dtype=np.int64)
+    if len(batch) == 0 or n == 0 or batch.plot_times is None:
+        return t
+    axes = list(batch.coverage.axes)
+    z = np.asarray(batch.z, dtype=np.float64)
+    times = np.asarray(batch.plot_times, dtype=np.int64)
+    R = np.asarray(batch.R, dtype=np.float64).reshape(len(z), z.shape[1], z.shape[1])
+    r2 = float(np.max(np.trace(R[:, :2, :2], axis1=1, axis2=2))) / 2.0
+    span = max(batch.time_ns - int(times.min()), 0) * NS
+    dist, idx = cKDTree(z[:, axes]).query(p[:, axes])
+    near = dist <= k * np.sqrt(var + r2) + speed * span
+    t[near] = times[idx[near]]
+    return t

@@ -25,6 +25,15 @@ pattern):
     P_sector = Φ((w − a)/σ_α) − Φ(−a/σ_α),   a = (α − α_start) mod 2π, w the width  (C2)
     P_range  = Φ((ρ_max − ρ)/σ) − Φ((ρ_min − ρ)/σ)                               (C3)
     P_cone   = Φ((e_max − e)/σ_e)            (1 where h is unknown or no cone)    (C4)
+
+Sensors beyond the rotating radar (docs/concepts/sensors.md) add to the same coverage: a
+polygon (the site's ``coverage`` in the frame: :mod:`.coverage_polygon`, share Φ(d/σ)
+of the signed distance d to its boundary), a ceiling h_max (a surface movement radar:
+share Φ((h_max − h)/σ_h), σ_h = :data:`CEILING_SIGMA`, 1 where h is unknown), their
+``timing`` (``sweep``: the beam crosses the sector from time_start to time_end;
+``plots``: each track's time is that of the batch's plot nearest to it, for sensors
+without a sweep or whose sweep's azimuth is not known) and their ``detection`` semantics
+(``sweep`` or ``reports``: :mod:`.report_clock`).
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ import numpy as np
 from scipy.special import ndtr
 from skyfuse.fusion.filters.cholesky_kernels import positive_definite
 
+from .coverage_polygon import share_inside, signed_distance
 from .identity import PlotIdentity
 from .plot_validity_kernel import all_plots_valid
 
@@ -47,6 +57,9 @@ EFFECTIVE_EARTH_RADIUS = 4.0 / 3.0 * 6_371_008.8
 DEFAULT_MAX_ELEVATION = np.radians(45.0)
 #: σ_e0 of (C4): elevation spread of the cone's edge (height error, antenna pattern), rad.
 CONE_EDGE_SIGMA = np.radians(0.5)
+#: σ_h of the ceiling share: the height of a track's last plot (a flight level, 25 ft
+#: steps, and the pressure-to-geometric difference near the ground), m.
+CEILING_SIGMA = 30.0
 
 
 def elevation_angle(
@@ -75,7 +88,9 @@ class SectorCoverage:
 
     ``max_elevation`` (rad; None: no cone of silence) and ``site_height`` (m above the
     ellipsoid) define the cone of silence (C1); ``earth_radius`` is the effective radius
-    a of (C1), m."""
+    a of (C1), m. ``polygon`` (V, 2) frame vertices (east, north; None: the range ring
+    alone), ``max_height`` m (None: no ceiling), ``timing`` and ``detection`` (module
+    docstring), ``report_timeout`` s (``detection = "reports"``)."""
 
     site: np.ndarray
     min_range: float = 0.0
@@ -88,6 +103,11 @@ class SectorCoverage:
     max_elevation: float | None = None
     site_height: float = 0.0
     earth_radius: float = EFFECTIVE_EARTH_RADIUS
+    polygon: np.ndarray | None = None
+    max_height: float | None = None
+    timing: str = "sweep"
+    detection: str = "sweep"
+    report_timeout: float = 10.0
 
     def in_cone(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
         """True where a target at horizontal position ``pos`` (n, ≥2) and ``height`` (n,)
@@ -127,7 +147,15 @@ class SectorCoverage:
             dh = hk - self.site_height
             s_e = np.hypot(sk * np.abs(dh) / (rk**2 + dh**2 + 1.0), CONE_EDGE_SIGMA)
             cone[known] = ndtr((self.max_elevation - e) / s_e)
+        if self.polygon is not None:
+            share = share * share_inside(self._plane(pos), s, self.polygon)
+        if self.max_height is not None and known.any():
+            share[known] *= ndtr((self.max_height - h[known]) / CEILING_SIGMA)
         return share, cone
+
+    def _plane(self, pos: np.ndarray) -> np.ndarray:
+        """(east, north) of positions, the polygon's axes."""
+        return np.column_stack([pos[:, self.axes[0]], pos[:, self.axes[1]]])
 
     def _polar(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         e = pos[:, self.axes[0]] - self.site[self.axes[0]]
@@ -160,6 +188,9 @@ class SectorCoverage:
             frac = self.sector_fraction(pos, polar)
             ang = np.minimum(margin / np.maximum(r, 1.0), np.pi) / self.sector_width
             ok &= (frac >= -ang) & (frac <= 1.0 + ang)
+        if self.polygon is not None and ok.any():
+            rows = np.flatnonzero(ok)
+            ok[rows] = signed_distance(self._plane(pos[rows]), self.polygon) >= -margin[rows]
         return ok
 
     def illumination_time(self, pos: np.ndarray, polar=None) -> np.ndarray:

@@ -6,7 +6,9 @@
 
 1. **Coverage** (:mod:`.coverage`, multi-radar): only tracks the batch could have seen
    are predicted to their illumination time and updated; the others keep their state
-   and existence (a radar that does not see a region does not erode its tracks).
+   and existence (a radar that does not see a region does not erode its tracks). A
+   report-based sensor's P_D applies only to the tracks it reported within its
+   ``report_timeout`` (:mod:`.report_clock`): its silence about the others is no miss.
 2. **Prediction** of the track density (:mod:`.density`: Gaussian mixture with Singer
    memory, [thesis] 5.4-5.5, or an IMM per component; particle clouds for ipf/lmipf,
    [LM-IPF] eq. 6) and of existence (Markov chain, :mod:`.existence`, [thesis] 5.3) over
@@ -64,6 +66,7 @@ from .oosm_pass import OutOfSequence
 from .phases import Phases
 from .registry import ASSOCIATIONS, make_density
 from .reidentification import Reidentification
+from .report_clock import ReportClock
 from .store import Column, ColumnGroup, NewTracks, Table
 
 NS = 1e-9
@@ -176,9 +179,9 @@ class Tracker:
     re-identification fixes. ``density``: a :class:`~.density.base.TrackDensity` not yet
     attached to a store (default: the configured one, :func:`.registry.make_density`)."""
 
-    SNAPSHOT_VERSION = 2
+    SNAPSHOT_VERSION = 3
     """Version of :meth:`to_snapshot` (the columns and parts it holds): 2 adds the
-    identity part's columns and its configuration."""
+    identity part's columns and its configuration; 3 the report clock (:mod:`.report_clock`)."""
 
     def __init__(self, config: TrackerConfig | None = None, density=None) -> None:
         self.cfg = cfg = config or TrackerConfig()
@@ -204,6 +207,7 @@ class Tracker:
         )
         self.oosm = OutOfSequence(self.density, self.tracks, cfg.oosm)
         self.identity = Identity(cfg, self.tracks, self.chain) if cfg.identity else None
+        self.reports = ReportClock(self.tracks, cfg.report_sensors)
         self.associate = ASSOCIATIONS[cfg.association]
         self.phases = Phases(cfg, self.tracks, self.chain, self.associate, self.g, self.P_G,
                              self.reid, self.identity)  # fmt: skip
@@ -343,6 +347,10 @@ class Tracker:
         sel = cand[~is_blind]
         share = np.zeros(self.n)  # by track row; only the rows in coverage are used
         share[cand] = seen * cone
+        reporting = b.coverage is not None and b.coverage.detection == "reports"
+        if reporting:  # silence about a track it has not reported lately is no miss
+            timeout = b.coverage.report_timeout
+            share[cand] *= self.reports.recent(cand, b.radar_id, b.time_ns, timeout)
         stats["tracks_in_coverage"] = len(sel)
         sel, late, t_tau = self.oosm.split(sel, view.t_sweep, stats)  # older: oosm_pass
         stats["tracks_blind"] = int(blind.sum())
@@ -354,16 +362,28 @@ class Tracker:
             sel = np.union1d(sel, late)
         tr.height[:] = track_heights(tr.height, assigned, b.heights)
         tr.coast_from[:] = np.where(blind, np.maximum(tr.coast_from, t_pred), tr.coast_from)
+        if reporting:
+            self._record_reports(b, assigned)
         events: list[TrackEventRecord] = []
         if self.identity is not None:
             self.identity.flush(events, stats)
         assigned = self._manage(sel, assigned, int(b.time_ns), events, stats)
         new = self._initiate(b, used)
+        if reporting and new:
+            rows = np.arange(self.n - new, self.n)
+            self.reports.record(rows, b.radar_id, self.tracks.born[rows])
         assigned = np.concatenate([assigned, np.full(new, -1, dtype=np.int64)])
         stats["initiated"] = new
         for k_, v in stats.items():
             self._count(k_, v)
         return self._output(b, assigned, events, stats)
+
+    def _record_reports(self, b: MeasurementBatch, assigned: np.ndarray) -> None:
+        """The tracks whose most likely plot is in this report-based batch were reported
+        at that plot's time (:mod:`.report_clock`)."""
+        rows = np.flatnonzero(assigned >= 0)
+        times = np.full(len(b), int(b.time_ns), np.int64) if b.plot_times is None else b.plot_times
+        self.reports.record(rows, b.radar_id, np.asarray(times)[assigned[rows]])
 
     def _update(self, b, sel, t_pred, share, bit, stats) -> tuple[np.ndarray, np.ndarray]:
         """The ordinary prediction and update of the tracks ``sel`` (steps 2-6 of the
@@ -627,6 +647,7 @@ class Tracker:
             "density": self.density.to_snapshot(),
             "reidentification": None if self.reid is None else self.reid.to_snapshot(),
             "plot_buffer": self.buffer.to_snapshot(),
+            "report_clock": self.reports.to_snapshot(),
             "next_id": self._next_id,
             "next_uid": self._next_uid,
             "newest_ns": self.newest_ns,
@@ -649,6 +670,7 @@ class Tracker:
         if self.reid is not None:
             self.reid.from_snapshot(snap.get("reidentification"))
         self.buffer.from_snapshot(snap.get("plot_buffer"))
+        self.reports.from_snapshot(snap.get("report_clock"))
         next_id, names = entry(snap, "next_id", int), strings(snap, "radar_names")
         ids = self.tracks.ids
         if len(ids) and (ids.min() < 1 or ids.max() >= next_id or len(np.unique(ids)) < len(ids)):

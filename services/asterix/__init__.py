@@ -3,8 +3,10 @@ and CAT062 out.
 
 See ``docs/asterix.md``. Public API:
 
-* :func:`read_asterix` (pcap or raw file → :class:`AsterixReadResult`) and
-  :class:`AsterixStreamDecoder` (UDP datagrams → PlotBatches as sectors complete);
+* :func:`read_asterix` (pcap or raw file → :class:`AsterixReadResult`: radar sector
+  batches and the batches of report-based sensors, :mod:`.report_batches`),
+  :func:`merge_results` (several recordings as one) and :class:`AsterixStreamDecoder`
+  (UDP datagrams → PlotBatches as sectors and report cycles complete);
 * :func:`read_reports` (pcap or raw file → CAT010 surface/MLAT, CAT020 WAM and CAT021
   ADS-B target reports; the stream decoder hands them out too);
 * :func:`load_sites` (sites TOML → radar id ``"SAC-SIC"`` → RadarSite);
@@ -24,6 +26,7 @@ from .reader import (
     TimeOfDayResolver,
     altitude_to_flight_level,
     flight_level_to_altitude,
+    merge_results,
     read_asterix,
 )
 from .scan_period import estimate_scan_period
@@ -46,6 +49,7 @@ __all__ = [
     "estimate_scan_period",
     "flight_level_to_altitude",
     "load_sites",
+    "merge_results",
     "parse_sites",
     "radar_id_for",
     "read_asterix",

@@ -90,6 +90,7 @@ from skyfuse.schemas.identity import CALLSIGN_RE, DOWNLINKED
 from . import bds, cat034, cat048, surveillance
 from .pcap import Datagram, iter_file_datagrams, split_datablocks
 from .records import RecordError, iter_records
+from .report_batches import ReportBatcher
 from .scan_period import estimate_scan_period
 from .sites import radar_id_for
 
@@ -249,7 +250,11 @@ class AsterixStreamDecoder:
     CAT010/CAT020/CAT021 blocks go to :class:`.surveillance.SurveillanceDecoder`
     (``cat021_edition``: ``"auto"`` or an edition name); their reports are handed to
     ``report_sink`` when given, else kept for :meth:`take_reports` (at most
-    ``MAX_PENDING_REPORTS``; older ones are dropped and counted as ``reports_dropped``)."""
+    ``MAX_PENDING_REPORTS``; older ones are dropped and counted as ``reports_dropped``).
+    With ``report_batches`` (default) they also become the PlotBatches of their sensors
+    (multilateration, SMR, ADS-B: :mod:`.report_batches`, ``report_window`` s for sensors
+    without cycle messages, ``adsb_sigma`` m an empirical σ of every ADS-B report),
+    returned by :meth:`feed` beside the radars' sector batches."""
 
     def __init__(
         self,
@@ -263,6 +268,9 @@ class AsterixStreamDecoder:
         fast: bool = True,
         cat021_edition: str = "auto",
         report_sink: Callable[[surveillance.Report], None] | None = None,
+        report_batches: bool = True,
+        report_window: float = 1.0,
+        adsb_sigma: float | None = None,
     ) -> None:
         self.fast = fast
         if not max_plot_delay >= 0.0:
@@ -290,6 +298,14 @@ class AsterixStreamDecoder:
         )
         self._reports: deque[surveillance.Report] = deque()
         self._report_sink = report_sink
+        self.batcher = (
+            ReportBatcher(
+                sites=self.input_sites, stats=self.stats, note=self._note, window=report_window,
+                adsb_sigma=adsb_sigma, skip_simulated=skip_simulated,
+            )
+            if report_batches
+            else None
+        )  # fmt: skip
 
     # ---------------------------------------------------------------- public API
     def feed(self, datagram: bytes, recv_time_ns: int | None = None) -> list[PlotBatch]:
@@ -313,6 +329,9 @@ class AsterixStreamDecoder:
             elif cat in surveillance.CATEGORIES:
                 reports = self.surveillance.decode_block(cat, data, dgram.time_ns, where)
                 self._keep_reports(reports)
+                if self.batcher is not None:
+                    for r in reports:
+                        out.extend(self.batcher.add(r))
             elif cat in IGNORED_CATEGORIES:
                 self.stats[f"ignored_category_{cat}"] += 1
             else:
@@ -338,6 +357,8 @@ class AsterixStreamDecoder:
                 width = max(width, min(TWO_PI, TWO_PI / self.sector_count))
             end_t = radar.ptimes[-1]
             self._emit(radar, (radar.e_az + width) % TWO_PI, end_t, out, width=width)
+        if self.batcher is not None:
+            out.extend(self.batcher.flush())
         return out
 
     def current_sites(self) -> tuple[dict[str, RadarSite], dict[str, str]]:
@@ -365,6 +386,9 @@ class AsterixStreamDecoder:
                 site = site.model_copy(update={"scan_period": min(max(period, 0.01), 600.0)})
             sites[rid] = site
             source[rid] = src
+        if self.batcher is not None:
+            sites.update(self.batcher.sites())
+            source.update(self.batcher.sources())
         return sites, source
 
     def take_reports(self) -> list[surveillance.Report]:
@@ -387,8 +411,11 @@ class AsterixStreamDecoder:
 
     @property
     def radars(self) -> dict[str, int]:
-        """Radar id → number of plots decoded so far."""
-        return {rid: r.plots for rid, r in sorted(self._radars.items())}
+        """Radar (and report sensor) id → number of plots decoded so far."""
+        out = {rid: r.plots for rid, r in self._radars.items()}
+        if self.batcher is not None:
+            out.update(self.batcher.sensors)
+        return dict(sorted(out.items()))
 
     # ---------------------------------------------------------------- internals
     def _note(self, text: str) -> None:
@@ -771,8 +798,12 @@ def read_asterix(
     skip_simulated: bool = False,
     max_plot_delay: float = 30.0,
     fast: bool = True,
+    report_window: float = 1.0,
+    adsb_sigma: float | None = None,
 ) -> AsterixReadResult:
-    """Read a pcap or raw ASTERIX file into sector batches (see the module docstring).
+    """Read a pcap or raw ASTERIX file into sector batches (see the module docstring) and
+    the batches of its report-based sensors (CAT010/CAT020/CAT021:
+    :mod:`.report_batches`).
 
     ``date``: UTC date of the first record (default: from the pcap capture times, else
     today). ``sites``: from :func:`.sites.load_sites`. Other arguments as for
@@ -787,6 +818,8 @@ def read_asterix(
         skip_simulated=skip_simulated,
         max_plot_delay=max_plot_delay,
         fast=fast,
+        report_window=report_window,
+        adsb_sigma=adsb_sigma,
     )
     pairs: list[tuple[PlotBatch, list[int]]] = []
     for dgram in iter_file_datagrams(path, decoder.stats):
@@ -797,11 +830,12 @@ def read_asterix(
     for rid in decoder.radars:
         if rid not in found_sites:
             decoder.stats["radars_without_site"] += 1
-            sac, sic = decoder._radars[rid].sac, decoder._radars[rid].sic
-            decoder._note(
-                f"radar {rid} has no position (no sites entry, no CAT034 I120): add "
-                f"[[radar]] sac = {sac}, sic = {sic}, lat, lon, alt to the sites file"
-            )
+            if rid in decoder._radars:
+                sac, sic = decoder._radars[rid].sac, decoder._radars[rid].sic
+                decoder._note(
+                    f"radar {rid} has no position (no sites entry, no CAT034 I120): add "
+                    f"[[radar]] sac = {sac}, sic = {sic}, lat, lon, alt to the sites file"
+                )
     return AsterixReadResult(
         batches=[b for b, _ in pairs],
         plot_types=[t for _, t in pairs],
@@ -810,4 +844,36 @@ def read_asterix(
         radars=decoder.radars,
         stats=dict(decoder.stats),
         messages=list(decoder.messages),
+    )
+
+
+def merge_results(results: list[AsterixReadResult], names: list[str]) -> AsterixReadResult:
+    """Several recordings (of different sensors: no radar id in two of them) as one:
+    batches in ``(time_end, radar id, seq)`` order, sites and plots per radar joined,
+    counts added, messages prefixed by the file ``names``. ValueError names a radar id
+    two recordings share (its batches would interleave two numberings)."""
+    owner: dict[str, str] = {}
+    for res, name in zip(results, names):
+        for rid in res.radars:
+            if rid in owner:
+                raise ValueError(f"sensor {rid} is in both {owner[rid]} and {name}")
+            owner[rid] = name
+    pairs = [(b, t) for res in results for b, t in zip(res.batches, res.plot_types)]
+    pairs.sort(key=lambda p: (p[0].time_end, p[0].radar_id, p[0].seq))
+    stats: Counter = Counter()
+    sites: dict[str, RadarSite] = {}
+    source: dict[str, str] = {}
+    for res in results:
+        stats.update(res.stats)
+        # a sensor's own recording knows its site best (its cycle, its kind)
+        sites.update({k: v for k, v in res.sites.items() if k not in sites or k in res.radars})
+        source.update({k: v for k, v in res.scan_period_source.items() if k in res.radars})
+    return AsterixReadResult(
+        batches=[b for b, _ in pairs],
+        plot_types=[t for _, t in pairs],
+        sites=sites,
+        scan_period_source=source,
+        radars={rid: n for res in results for rid, n in res.radars.items()},
+        stats=dict(stats),
+        messages=[f"{name}: {m}" for res, name in zip(results, names) for m in res.messages],
     )

@@ -1,4 +1,4 @@
-"""Radar sites for ASTERIX data: a TOML file mapping SAC/SIC to a :class:`RadarSite`.
+"""Sensor sites for ASTERIX data: a TOML file mapping SAC/SIC to a :class:`RadarSite`.
 
 .. code-block:: toml
 
@@ -9,7 +9,7 @@
     lon = 2.102058
     alt = 27.26       # metres above the WGS-84 ellipsoid
     # optional: any other RadarSite field, e.g.
-    kind = "2d"       # 2d (default) or 3d
+    kind = "2d"       # 2d (default), 3d, cartesian or wgs84
     name = "Barcelona"
     sigma_range = 70.0        # m
     sigma_azimuth = 0.0012    # rad
@@ -19,7 +19,14 @@
 
 The radar id of SAC ``s`` / SIC ``i`` is ``"{s}-{i}"`` (e.g. ``"20-129"``): decimal,
 one key-safe chunk matching ``schemas.keys.ID_PATTERN``, the same in the reader, the
-Zenoh keys and the MCAP topics.
+Zenoh keys and the MCAP topics. The ADS-B (CAT021) output of a SAC/SIC is a sensor of
+its own, ``"{s}-{i}-adsb"`` (a multilateration system often sends its own ADS-B reports
+under its SAC/SIC: LEBL's SAC 0 / SIC 107 sends CAT010 and CAT021); its table has
+``adsb = true`` (kind ``wgs84`` and detection ``reports`` unless given).
+
+Keys left out of a table are the :class:`RadarSite` defaults, except for sensors of
+CAT010/CAT020/CAT021 reports, whose kind, detection and cycle the reader takes from
+their reports when the table does not give them (:mod:`.report_batches`).
 """
 
 from __future__ import annotations
@@ -31,24 +38,28 @@ from typing import Any
 from pydantic import ValidationError
 from skyfuse.schemas import RadarSite
 
-#: Keys a ``[[radar]]`` table may hold besides ``sac``/``sic``.
+#: Keys a ``[[radar]]`` table may hold besides ``sac``/``sic``/``adsb``.
 SITE_KEYS = tuple(k for k in RadarSite.model_fields if k != "radar_id")
 REQUIRED_KEYS = ("sac", "sic", "lat", "lon", "alt")
+ADSB_SUFFIX = "-adsb"
+"""Radar-id suffix of the ADS-B (CAT021) output of a SAC/SIC."""
 
 
 class SitesError(ValueError):
     """A sites file problem; the message names the file, table, key and value."""
 
 
-def radar_id_for(sac: int, sic: int) -> str:
-    """The radar id of a SAC/SIC pair: ``"{sac}-{sic}"``."""
-    return f"{int(sac)}-{int(sic)}"
+def radar_id_for(sac: int, sic: int, adsb: bool = False) -> str:
+    """The radar id of a SAC/SIC pair: ``"{sac}-{sic}"``, ``"{sac}-{sic}-adsb"`` for its
+    ADS-B (CAT021) reports."""
+    return f"{int(sac)}-{int(sic)}" + (ADSB_SUFFIX if adsb else "")
 
 
 def sac_sic_of(radar_id: str) -> tuple[int, int]:
-    """Inverse of :func:`radar_id_for`; ``ValueError`` for ids of another form."""
+    """Inverse of :func:`radar_id_for` (the ``-adsb`` suffix dropped); ``ValueError`` for
+    ids of another form."""
     try:
-        a, b = radar_id.split("-")
+        a, b = radar_id.removesuffix(ADSB_SUFFIX).split("-")
         sac, sic = int(a), int(b)
     except ValueError:
         raise ValueError(
@@ -82,16 +93,22 @@ def parse_sites(doc: dict[str, Any], source: str = "<sites>") -> dict[str, Radar
             if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= 255:
                 raise SitesError(f"{where}: key {key!r} = {value!r}: must be an integer 0..255")
         where = f"{where} (sac={table['sac']}, sic={table['sic']})"
-        unknown = sorted(set(table) - set(SITE_KEYS) - {"sac", "sic"})
+        unknown = sorted(set(table) - set(SITE_KEYS) - {"sac", "sic", "adsb"})
         if unknown:
             raise SitesError(
-                f"{where}: unknown key(s) {unknown}; allowed: sac, sic, {', '.join(SITE_KEYS)}"
+                f"{where}: unknown key(s) {unknown}; allowed: sac, sic, adsb, "
+                f"{', '.join(SITE_KEYS)}"
             )
-        radar_id = radar_id_for(table["sac"], table["sic"])
+        adsb = table.get("adsb", False)
+        if not isinstance(adsb, bool):
+            raise SitesError(f"{where}: key 'adsb' = {adsb!r}: must be true or false")
+        radar_id = radar_id_for(table["sac"], table["sic"], adsb)
         if radar_id in sites:
-            raise SitesError(f"{where}: SAC/SIC {radar_id} is defined twice")
-        fields = {k: v for k, v in table.items() if k not in ("sac", "sic")}
-        fields.setdefault("kind", "2d")
+            raise SitesError(f"{where}: sensor {radar_id} is defined twice")
+        fields = {k: v for k, v in table.items() if k not in ("sac", "sic", "adsb")}
+        if adsb:
+            fields.setdefault("kind", "wgs84")
+            fields.setdefault("detection", "reports")
         try:
             sites[radar_id] = RadarSite(radar_id=radar_id, **fields)
         except ValidationError as exc:

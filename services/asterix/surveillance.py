@@ -200,6 +200,7 @@ def read_reports(path: str | Path, **options: Any) -> tuple[list[Any], dict[str,
     from .reader import AsterixStreamDecoder
 
     reports: list[Any] = []
+    options.setdefault("report_batches", False)
     decoder = AsterixStreamDecoder(report_sink=reports.append, **options)
     for dgram in iter_file_datagrams(path, decoder.stats):
         decoder.feed_with_types(dgram)

@@ -85,9 +85,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_model_arguments(p, CrossingEvalConfig, skip=("scenario",))
     p.add_argument(
-        "scenario", nargs="?", default=argparse.SUPPRESS,
+        "scenario", nargs="*", default=argparse.SUPPRESS,
         help="Scenario to evaluate (crossing-4g, thesis-*, lm-ipf-*) or a recording FILE "
-        "(omit it with --tracks or --sensor-tracks)",
+        "(several ASTERIX files of different sensors are merged in time order; omit it with "
+        "--tracks or --sensor-tracks)",
     )  # fmt: skip
     g = p.add_argument_group("tracker evaluation (thesis-*, lm-ipf-* scenarios)")
     add_model_arguments(g, TrackerEvalConfig, skip=SHARED_FIELDS)
@@ -104,6 +105,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="UTC date of the first record, YYYY-MM-DD (default: pcap capture time, else today)",
     )
+    r.add_argument(
+        "--report-window", type=float, default=1.0,
+        help="Batch window of report sensors without update-cycle messages (ADS-B), s "
+        "(default: 1.0)",
+    )  # fmt: skip
+    r.add_argument(
+        "--adsb-sigma", type=float, default=None,
+        help="σ per axis of every ADS-B position, m (an empirical figure; default: the one its "
+        "NACp/NUCp gives)",
+    )  # fmt: skip
     from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
     from skyfuse.services.evaluation.reference_eval import ReferenceEvalOptions
 
@@ -130,9 +141,22 @@ def register(sub: argparse._SubParsersAction) -> None:
 SHARED_FIELDS = ("scenario", "runs", "seed", "out", "workers")
 
 
+def _first_file(args: argparse.Namespace) -> None:
+    """``scenario`` as its first value (a name or a recording), the other recordings in
+    ``more_files``."""
+    given = getattr(args, "scenario", None)
+    if isinstance(given, list):
+        args.more_files = [Path(f) for f in given[1:]]
+        if given:
+            args.scenario = given[0]
+        else:
+            del args.scenario
+
+
 def run(args: argparse.Namespace) -> int:
     from skyfuse.fusion.evaluation import PLANAR_SCENARIOS
 
+    _first_file(args)
     name = getattr(args, "scenario", None)
     if getattr(args, "tracks", None) is not None or getattr(args, "sensor_tracks", None):
         if name is not None:
@@ -148,6 +172,8 @@ def run(args: argparse.Namespace) -> int:
             "give a scenario (crossing-4g, thesis-*, lm-ipf-*), a recording FILE, or "
             "--tracks T.mcap / --sensor-tracks S.ast with --reference REF"
         )
+    if getattr(args, "more_files", None) and not Path(name).is_file():
+        raise ConfigError(f"scenario = {name!r}: several inputs are recording files only")
     if name is not None and (name.endswith(".mcap") or Path(name).is_file()):
         from skyfuse.services.evaluation.recording import run_recording
 

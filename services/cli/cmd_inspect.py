@@ -147,7 +147,7 @@ def inspect_asterix(path: Path) -> dict:
         if getattr(report, "track_number", None) is not None:
             s["tracks"].add(report.track_number)
 
-    decoder = AsterixStreamDecoder(report_sink=sink)
+    decoder = AsterixStreamDecoder(report_sink=sink, report_batches=False)
     for dgram in iter_file_datagrams(path, decoder.stats):
         decoder.feed_with_types(dgram)
     decoder.flush_with_types()

@@ -162,7 +162,7 @@ def simulate_to_asterix(cfg: SimulateConfig) -> dict:
     tables = []
     for rid, site in sites.items():
         sac, sic = sac_sic[rid]
-        fields = site.model_dump(mode="json", exclude={"radar_id"})
+        fields = site.model_dump(mode="json", exclude={"radar_id"}, exclude_none=True)
         fields["name"] = fields.get("name") or rid
         tables.append({"sac": sac, "sic": sic, **fields})
     sites_path.write_text(

@@ -34,6 +34,11 @@ Examples::
     skyfuse track r.mcap --config fusion.toml --frame-kind ned        # [tracker] table
     skyfuse track rec.pcap --sites sites.toml --date 2024-05-17 --tracker lmits --depth 3 \
         --out t.mcap --json t.json
+    skyfuse track smr.ast mlat.ast adsb.ast --sites lebl.toml --date 2016-05-10  # merged
+
+Several ASTERIX recordings of different sensors (a surface movement radar, a
+multilateration system, ADS-B, radars) are read each on its own and merged in time order;
+every sensor's position and kind come from the sites file (docs/concepts/sensors.md).
 """
 
 from __future__ import annotations
@@ -64,10 +69,12 @@ log = logging.getLogger(__name__)
 class TrackCommandConfig(BaseModel):
     """Options of ``skyfuse track`` (the tracker itself is ``[tracker]`` / TrackerConfig)."""
 
-    file: Path | None = Field(
-        None,
-        description="Input recording: MCAP with sites and plot batches, or ASTERIX CAT048/CAT034 "
-        "(.pcap of UDP, raw .ast); or --sample",
+    file: list[Path] = Field(
+        [],
+        description="Input recording: MCAP with sites and plot batches, or ASTERIX (.pcap of "
+        "UDP, raw .ast: CAT048/CAT034 radars, CAT010/CAT020/CAT021 surface radar, "
+        "multilateration, ADS-B); several ASTERIX files of different sensors are merged in "
+        "time order; or --sample",
     )
     sample: bool = Field(False, description="Track the sample recording installed with skyfuse")
     out: Path = Field(Path("tracks.mcap"), description="Output MCAP with tracks and events")
@@ -97,6 +104,20 @@ class TrackCommandConfig(BaseModel):
     )
     sector_count: int = Field(
         16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
+    )
+    report_window: float = Field(
+        1.0,
+        ge=0.05,
+        le=60,
+        description="ASTERIX: batch window of report sensors without update-cycle messages "
+        "(ADS-B), s",
+    )
+    adsb_sigma: float | None = Field(
+        None,
+        ge=0.01,
+        le=10_000,
+        description="ASTERIX: σ per axis of every ADS-B position, m (an empirical figure; default: "
+        "the one its NACp/NUCp gives)",
     )
     assumed_altitude: float | None = Field(
         None,
@@ -140,7 +161,7 @@ def _summary(cfg: TrackCommandConfig, tcfg, src, result, assumed) -> dict:
     from skyfuse.services.evaluation.observers import LABEL_WARMUP_S
 
     summary = {
-        "file": str(cfg.file),
+        "file": ", ".join(map(str, cfg.file)),
         "out": str(cfg.out),
         "tracker": tcfg.tracker,
         "depth": tcfg.memory_depth,
@@ -180,13 +201,15 @@ def run(args: argparse.Namespace) -> int:
     from skyfuse.services.recording.sample import chosen_recording
 
     try:
-        cfg.file = chosen_recording(cfg.file, cfg.sample)
+        first = chosen_recording(cfg.file[0] if cfg.file else None, cfg.sample)
     except (ValueError, FileNotFoundError) as e:
         raise ConfigError(f"file: {e}") from None
+    cfg.file = [first, *cfg.file[1:]]
     try:
         src = open_input(
-            cfg.file, sites_file=cfg.sites, date=cfg.date, sector_count=cfg.sector_count
-        )
+            cfg.file, sites_file=cfg.sites, date=cfg.date, sector_count=cfg.sector_count,
+            report_window=cfg.report_window, adsb_sigma=cfg.adsb_sigma,
+        )  # fmt: skip
     except InputError as e:
         if e.usage:
             raise ConfigError(str(e)) from None
@@ -202,10 +225,11 @@ def run(args: argparse.Namespace) -> int:
         registration=registration_config(args, toml_path=getattr(args, "config", None)),
     )
     warmup = obs.LABEL_WARMUP_S if src.asterix is not None else 0.0
-    meta = {"command": "skyfuse track", "source": str(cfg.file), "tracker": tcfg.model_dump_json()}
+    source = ", ".join(map(str, cfg.file))
+    meta = {"command": "skyfuse track", "source": source, "tracker": tcfg.model_dump_json()}
     with (
         RecordingWriter(cfg.out, metadata=meta) as writer,
-        progress_bar(f"track {cfg.file.name}", src.n_batches, enabled=cfg.progress) as advance,
+        progress_bar(f"track {first.name}", src.n_batches, enabled=cfg.progress) as advance,
     ):
         observers = [
             obs.TrackWriter(writer, cfg.fusion_id),
@@ -215,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
         ]
         result = run_offline(_counting(src.messages(), advance), src.sites, ocfg, observers)
     if result.frame is None:
-        log.error("%s: no plot batch of a radar with a site: nothing tracked", cfg.file)
+        log.error("%s: no plot batch of a radar with a site: nothing tracked", source)
         return 1
     write_summary(_summary(cfg, tcfg, src, result, assumed), cfg.json_out)
     return 0

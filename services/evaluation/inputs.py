@@ -1,5 +1,6 @@
-"""Recordings as input of the offline runner: MCAP or ASTERIX (CAT048/CAT034 in a pcap of
-UDP, or a raw ``.ast`` stream), told apart by the first bytes.
+"""Recordings as input of the offline runner: MCAP or ASTERIX (CAT048/CAT034 and
+CAT010/CAT020/CAT021 in a pcap of UDP, or a raw ``.ast`` stream), told apart by the first
+bytes; several ASTERIX recordings of different sensors merged in time order.
 
 :func:`open_input` checks the file and says what is wrong with it (missing, not a
 recording, no radar sites) with an :class:`InputError`; the result gives the messages to
@@ -10,7 +11,10 @@ recording, no radar sites) with an :class:`InputError`; the result gives the mes
   passed up front: the runner learns them in recording order like the live service.
 * ASTERIX: :func:`skyfuse.services.asterix.read_asterix` with the sites file (``[[radar]]``
   sac, sic, lat, lon, alt) or the CAT034 I120 positions, and the UTC date of the first
-  record (default: the pcap capture time, else today).
+  record (default: the pcap capture time, else today). Several files (e.g. a surface
+  movement radar's and a multilateration system's recordings of the same period) are
+  each read so, then merged (:func:`~skyfuse.services.asterix.merge_results`: batches in
+  ``(time_end, sensor id, seq)`` order); a sensor in two files is an error.
 """
 
 from __future__ import annotations
@@ -90,8 +94,11 @@ def parse_date(date: dt.date | str | None) -> dt.date | None:
     return date
 
 
-def _open_asterix(path: Path, sites_file, date, sector_count: int) -> RecordingInput:
-    from skyfuse.services.asterix import SitesError, load_sites, read_asterix
+def _open_asterix(
+    paths: list[Path], sites_file, date, sector_count: int, report_window: float = 1.0,
+    adsb_sigma: float | None = None,
+) -> RecordingInput:  # fmt: skip
+    from skyfuse.services.asterix import SitesError, load_sites, merge_results, read_asterix
 
     date = parse_date(date)
     sites = None
@@ -101,15 +108,25 @@ def _open_asterix(path: Path, sites_file, date, sector_count: int) -> RecordingI
         sites = load_sites(sites_file) if sites_file is not None else sites
     except (SitesError, OSError) as e:
         raise InputError(str(e), usage=True) from None
-    res = read_asterix(path, date=date, sites=sites, sector_count=sector_count)
-    if not res.radars and not res.batches:
-        with open(path, "rb") as f:
-            head = f.read(8)
-        raise InputError(
-            f"{path}: not a recording: neither MCAP (magic {MCAP_MAGIC!r}) nor a pcap or raw "
-            f"stream with ASTERIX CAT048/CAT034 records (first bytes {head!r}; reader: "
-            f"{', '.join(f'{k} {v}' for k, v in res.stats.items()) or 'nothing decoded'})"
-        )
+    results = []
+    for path in paths:
+        res = read_asterix(path, date=date, sites=sites, sector_count=sector_count,
+                           report_window=report_window, adsb_sigma=adsb_sigma)  # fmt: skip
+        if not res.radars and not res.batches:
+            with open(path, "rb") as f:
+                head = f.read(8)
+            raise InputError(
+                f"{path}: not a recording: neither MCAP (magic {MCAP_MAGIC!r}) nor a pcap or "
+                f"raw stream with ASTERIX CAT048/CAT034 or CAT010/020/021 records (first bytes "
+                f"{head!r}; reader: "
+                f"{', '.join(f'{k} {v}' for k, v in res.stats.items()) or 'nothing decoded'})"
+            )
+        results.append(res)
+    try:
+        res = results[0] if len(results) == 1 else merge_results(results, [p.name for p in paths])
+    except ValueError as e:
+        raise InputError(f"{', '.join(map(str, paths))}: {e}", usage=True) from None
+    path = paths[0]
     for text in res.messages[:10]:
         log.info("asterix: %s", text)
     if not res.sites:
@@ -121,22 +138,36 @@ def _open_asterix(path: Path, sites_file, date, sector_count: int) -> RecordingI
 
 
 def open_input(
-    path: Path,
+    path: Path | list[Path],
     *,
     sites_file: Path | dict[str, RadarSite] | None = None,
     date: dt.date | str | None = None,
     sector_count: int = 16,
+    report_window: float = 1.0,
+    adsb_sigma: float | None = None,
 ) -> RecordingInput:
-    """Open ``path`` (MCAP or ASTERIX, see the module docstring) or raise InputError.
-    ASTERIX only: ``sites_file`` a sites TOML or ``{radar id: RadarSite}``, ``date`` a
-    ``datetime.date`` or ``"YYYY-MM-DD"``, ``sector_count`` sectors per turn of radars
-    without CAT034."""
-    path = Path(path)
-    if not path.is_file():
-        what = "does not exist" if not path.exists() else "is not a file"
-        raise InputError(f"file: {str(path)!r} {what}", usage=True)
+    """Open ``path`` (MCAP or ASTERIX, see the module docstring; a list: several ASTERIX
+    recordings merged) or raise InputError. ASTERIX only: ``sites_file`` a sites TOML or
+    ``{radar id: RadarSite}``, ``date`` a ``datetime.date`` or ``"YYYY-MM-DD"``,
+    ``sector_count`` sectors per turn of radars without CAT034, ``report_window`` s the
+    batch window of report sensors without cycle messages (ADS-B), ``adsb_sigma`` m an
+    empirical σ of every ADS-B report (default: its NACp/NUCp)."""
+    paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
+    if not paths:
+        raise InputError("no input file given", usage=True)
+    for p in paths:
+        if not p.is_file():
+            what = "does not exist" if not p.exists() else "is not a file"
+            raise InputError(f"file: {str(p)!r} {what}", usage=True)
+    path = paths[0]
+    if len(paths) > 1 and any(is_mcap(p) for p in paths):
+        raise InputError(
+            f"{', '.join(map(str, paths))}: several files are merged only when all are ASTERIX "
+            "recordings (an MCAP recording already holds every sensor)",
+            usage=True,
+        )
     if not is_mcap(path):
-        return _open_asterix(path, sites_file, date, sector_count)
+        return _open_asterix(paths, sites_file, date, sector_count, report_window, adsb_sigma)
     for name, v in (("sites", sites_file), ("date", date)):
         if v is not None:
             log.warning("--%s applies to ASTERIX input only: ignored for MCAP", name)

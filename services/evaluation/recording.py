@@ -55,6 +55,12 @@ class RecordingEvalOptions(BaseModel):
     )
     min_label_share: float = Field(0.5, gt=0, le=1, description="Label share of a true track")
     sector_count: int = Field(16, ge=1, le=360, description="ASTERIX: sectors per turn")
+    report_window: float = Field(
+        1.0, ge=0.05, le=60, description="ASTERIX: batch window of ADS-B-like sensors, s"
+    )
+    adsb_sigma: float | None = Field(
+        None, ge=0.01, le=10_000, description="ASTERIX: σ of every ADS-B position, m"
+    )
     assumed_altitude: float | None = Field(
         None,
         ge=-1000,
@@ -106,9 +112,11 @@ def evaluate_recording(
 
     opts = opts or RecordingEvalOptions()
     tcfg = tcfg if tcfg is not None else TrackerConfig()
-    if reference is not None and Path(path).is_file() and is_mcap(Path(path)):
+    paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
+    if reference is not None and paths[0].is_file() and is_mcap(paths[0]):
         sites = date = None  # given for the reference (its sites, its date) only
-    src = open_input(Path(path), sites_file=sites, date=date, sector_count=opts.sector_count)
+    src = open_input(paths, sites_file=sites, date=date, sector_count=opts.sector_count,
+                     report_window=opts.report_window, adsb_sigma=opts.adsb_sigma)  # fmt: skip
     asterix = src.asterix is not None
     warmup = opts.warmup_s if opts.warmup_s is not None else (60.0 if asterix else 0.0)
     truth_obs, reg_obs = _truth_observers(opts)
@@ -128,11 +136,12 @@ def evaluate_recording(
         registration=registration,
     )
     result = run_offline(src.messages(), src.sites, ocfg, observers)
-    summary = {"file": str(path), "tracker": tcfg.tracker, "depth": tcfg.memory_depth}
+    files = ", ".join(map(str, paths))
+    summary = {"file": files, "tracker": tcfg.tracker, "depth": tcfg.memory_depth}
     summary.update(result.summary())
     mode = registration.mode if registration is not None else "on"
     if opts.compare_registration and reg_obs.truth and mode != "off":
-        summary["registration_off"] = _without_registration(path, ocfg, opts, sites, date)
+        summary["registration_off"] = _without_registration(paths, ocfg, opts, sites, date)
     summary["recording_rejected"] = dict(src.stats.rejected)
     if asterix:
         summary["asterix"] = {"radars": src.asterix.radars, "counts": src.asterix.stats}
@@ -147,7 +156,8 @@ def _without_registration(path, ocfg, opts, sites, date) -> dict:
     from skyfuse.services.evaluation.inputs import open_input
     from skyfuse.services.evaluation.offline import run_offline
 
-    src = open_input(Path(path), sites_file=sites, date=date, sector_count=opts.sector_count)
+    src = open_input(path, sites_file=sites, date=date, sector_count=opts.sector_count,
+                     report_window=opts.report_window, adsb_sigma=opts.adsb_sigma)  # fmt: skip
     base = ocfg.registration or RegistrationConfig()
     off = ocfg.model_copy(update={"registration": base.model_copy(update={"mode": "off"})})
     truth, reg = _truth_observers(opts)
@@ -177,11 +187,16 @@ def run_recording(args) -> int:
         section="tracker",
         env_prefix="SKYFUSE_TRACKER_",
     )
+    opts = RecordingEvalOptions(
+        report_window=getattr(args, "report_window", 1.0),
+        adsb_sigma=getattr(args, "adsb_sigma", None),
+    )
     try:
         reference = _reference_observer(args)
         summary = evaluate_recording(
-            args.scenario,
+            [args.scenario, *getattr(args, "more_files", [])],
             tcfg,
+            opts,
             sites=getattr(args, "sites", None),
             date=getattr(args, "date", None),
             registration=registration_config(args, toml_path=getattr(args, "config", None)),
@@ -194,7 +209,7 @@ def run_recording(args) -> int:
         return 1
     json_out = getattr(args, "json_out", None)
     if reference is not None and (json_out is None or str(json_out) != STDOUT):
-        name = Path(args.scenario).name
+        name = " + ".join(Path(f).name for f in [args.scenario, *getattr(args, "more_files", [])])
         print_table(summary["reference"], f"{name} ({tcfg.tracker}) against "
                     f"{reference.reference.path.name}")  # fmt: skip
     write_summary(summary, json_out)

@@ -16,6 +16,7 @@ to associate). Plots the conversion marked invalid are dropped and counted by re
 
 from __future__ import annotations
 
+import functools
 import re
 from collections import Counter
 
@@ -26,7 +27,7 @@ from skyfuse.fusion.tracker.measurements import (
     MeasurementBatch,
     SectorCoverage,
 )
-from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas import Detection, PlotBatch, RadarKind, RadarSite
 
 _PLOT_PREFIX = re.compile(r"^plot \d+: ")
 
@@ -45,9 +46,9 @@ def measurement_batch_from(
 
     clutter_density: override of ``site.clutter_density`` (plots per m² per scan). For
     3-D tracking the areal density is spread over ``vertical_extent`` metres of height to
-    give a volume density. ``frame`` is accepted for symmetry with ``convert_plots`` (the
-    converted plots are already in it; tracker axes are x east, y north in every frame)."""
-    del frame
+    give a volume density. ``frame``: the system frame the plots were converted into,
+    needed only for a site's coverage polygon (tracker axes are x east, y north in every
+    frame)."""
     valid = np.asarray(converted.valid, dtype=bool)
     ndim = converted.z.shape[1]
     rho = float(site.clutter_density if clutter_density is None else clutter_density)
@@ -57,20 +58,7 @@ def measurement_batch_from(
         _PLOT_PREFIX.sub("", converted.reasons[i]) or "invalid" for i in np.flatnonzero(~valid)
     )
     tid = plot_batch.column("target_id")
-    # A rotating radar sweeps the sector from time_start to time_end, so each track is
-    # predicted to the time the beam crossed it; a cartesian sensor measures all at once.
-    rotating = site.kind is not RadarKind.CARTESIAN
-    coverage = SectorCoverage(
-        site=np.asarray(converted.site_position, dtype=np.float64),
-        min_range=site.min_range,
-        max_range=site.max_range,
-        sector_start=plot_batch.sector_start,
-        sector_width=plot_batch.sector_width,
-        time_start=plot_batch.time_start if rotating else plot_batch.time_end,
-        time_end=plot_batch.time_end,
-        max_elevation=getattr(site, "max_elevation", DEFAULT_MAX_ELEVATION) if rotating else None,
-        site_height=float(site.alt),
-    )
+    coverage = _coverage(converted, site, plot_batch, frame)
     alt = plot_batch.column("altitude")
     identity = plot_identity(plot_batch.column)  # None without secondary columns
     return MeasurementBatch(
@@ -84,7 +72,67 @@ def measurement_batch_from(
         plot_times=np.asarray(converted.time, dtype=np.int64)[valid],
         plot_ids=np.flatnonzero(valid),
         target_ids=None if tid is None else tid[valid],
-        heights=None if alt is None else np.asarray(alt, dtype=np.float64)[valid],
+        heights=_heights(alt, plot_batch, site, valid),
         identity=None if identity is None else identity.take(valid),
         rejected=dict(rejected),
     )
+
+
+def _coverage(converted, site: RadarSite, plot_batch: PlotBatch, frame) -> SectorCoverage:
+    """A rotating radar sweeps the sector from time_start to time_end, so each track is
+    predicted to the time the beam crossed it (``timing = "sweep"``); a cartesian sensor
+    measures all at once; a report-based sensor (and a polar sensor with ``timing =
+    "plots"``) predicts each track to the time of the plot nearest to it. The site's
+    polygon, ceiling and detection semantics go with it (docs/concepts/sensors.md)."""
+    rotating = site.kind in (RadarKind.TWO_D, RadarKind.THREE_D)
+    reports = site.detection is Detection.REPORTS
+    plots = reports or site.timing == "plots"
+    sweep = rotating and not plots
+    return SectorCoverage(
+        site=np.asarray(converted.site_position, dtype=np.float64),
+        min_range=site.min_range,
+        max_range=site.max_range,
+        sector_start=plot_batch.sector_start,
+        sector_width=plot_batch.sector_width,
+        time_start=plot_batch.time_start if sweep else plot_batch.time_end,
+        time_end=plot_batch.time_end,
+        max_elevation=getattr(site, "max_elevation", DEFAULT_MAX_ELEVATION) if sweep else None,
+        site_height=float(site.alt),
+        polygon=None if site.coverage is None else coverage_polygon(frame, site.coverage),
+        max_height=site.max_altitude,
+        timing="plots" if plots else "sweep",
+        detection="reports" if reports else "sweep",
+        report_timeout=site.report_timeout,
+    )
+
+
+def _heights(alt, plot_batch: PlotBatch, site: RadarSite, valid) -> np.ndarray | None:
+    """The plots' heights for the coverage: the altitude column, else, for cartesian and
+    WGS-84 sensors, the site's height for plots reported on the ground (``flight_status`` 1
+    or 3: the ADS-B and multilateration ground bit)."""
+    status = None if site.kind in (RadarKind.TWO_D, RadarKind.THREE_D) else (
+        plot_batch.column("flight_status")
+    )  # fmt: skip
+    ground = None if status is None else (status == 1) | (status == 3)
+    if ground is None or not ground.any():
+        return None if alt is None else np.asarray(alt, dtype=np.float64)[valid]
+    h = np.full(len(plot_batch), np.nan) if alt is None else np.asarray(alt, np.float64).copy()
+    h[ground & ~np.isfinite(h)] = site.alt
+    return h[valid]
+
+
+@functools.lru_cache(maxsize=256)
+def _polygon_cached(frame, vertices: tuple) -> np.ndarray:
+    lat, lon = np.array(vertices, dtype=np.float64).T
+    x, y, _ = frame.from_geodetic(lat, lon, np.zeros_like(lat))
+    out = np.column_stack([x, y])
+    out.flags.writeable = False
+    return out
+
+
+def coverage_polygon(frame, vertices) -> np.ndarray:
+    """A site's coverage polygon (WGS-84 [lat, lon] vertices) in ``frame``'s plane (V, 2)
+    (x east, y north), cached by frame and vertices."""
+    if frame is None:
+        raise ValueError("a coverage polygon needs the system frame")
+    return _polygon_cached(frame, tuple(tuple(v) for v in vertices))

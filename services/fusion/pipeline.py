@@ -46,8 +46,9 @@ def assumed_height(site: RadarSite, configured: float | None) -> float | None:
     """Height given to a radar's plots without one (m above the ellipsoid, σ 3000 m):
     ``configured``, else the site's height (its ground level: the aircraft without a
     flight level are mostly on the surface near the radar, docs/reports/registration-log.md §4).
-    Cartesian sensors keep their own rule (the site height with σ_cartesian)."""
-    if configured is not None or site.kind is RadarKind.CARTESIAN:
+    Cartesian and WGS-84 sensors keep their own rule (the site height with σ_cartesian;
+    their horizontal positions do not depend on it)."""
+    if configured is not None or site.kind in (RadarKind.CARTESIAN, RadarKind.WGS84):
         return configured
     return site.alt
 
@@ -113,7 +114,7 @@ class TrackPipeline:
     def _track(self, converted, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
         # the batch times move by the time offset of the correction its plots were converted
         # with (``converted.bias``), not by a second look-up of the estimate
-        mb = measurement_batch_from(converted, site, batch)
+        mb = measurement_batch_from(converted, site, batch, self.frame)
         mb = self.registration.shift_times(mb, converted.bias)
         out = self.tracker.step(mb)
         self._count_oosm(out.stats)

@@ -54,7 +54,8 @@ class RegistrationLink:
 
     def correction(self, site):
         """The SensorBias to remove from ``site``'s plots, or None (module docstring)."""
-        if site.kind is RadarKind.CARTESIAN or self.mode is RegistrationMode.OFF:
+        polar = site.kind in (RadarKind.TWO_D, RadarKind.THREE_D)
+        if not polar or self.mode is RegistrationMode.OFF:
             return None
         corr = self.estimator.correction(site.radar_id)
         return None if corr is None or corr.is_zero else corr

@@ -148,8 +148,17 @@ def plot_positions(
 
     Polar plots use ``pymap3d.aer2geodetic`` from the site; a 2-D radar's elevation is
     taken as ``asin((altitude - site.alt) / range)`` (flat earth; 0 if unknown);
-    cartesian plots are ENU offsets at the site."""
+    cartesian plots are ENU offsets at the site; WGS-84 plots are where they say (their
+    altitude, else the site's height)."""
     batches = [batch] if isinstance(batch, PlotBatch) else list(batch)
+    geodetic = [b for b in batches if b.lat is not None]
+    if geodetic:
+        lat = np.concatenate([b.column("lat") for b in geodetic])
+        lon = np.concatenate([b.column("lon") for b in geodetic])
+        alt = [b.column("altitude") for b in geodetic]
+        h = np.concatenate([np.full(len(b), np.nan) if a is None else a
+                            for a, b in zip(alt, geodetic)])  # fmt: skip
+        return lat, lon, np.where(np.isfinite(h), h, site.alt)
     planar = [b for b in batches if b.x is not None]
     if planar:
         e = np.concatenate([b.column("x") for b in planar])
@@ -491,7 +500,11 @@ class Recorder:
         if not batches or entry is None:
             return
         site = entry[0]
-        if (site.kind == RadarKind.CARTESIAN) != (batches[0].x is not None):
+        geometry = {RadarKind.CARTESIAN: "x", RadarKind.WGS84: "lat"}.get(site.kind, "range")
+        batches = [b for b in batches if len(b)]
+        if not batches:
+            return
+        if any(getattr(b, geometry) is None for b in batches):
             self.rejected["plots do not match their site's kind"] += 1
             return
         lat, lon, h = plot_positions(batches, site)

@@ -87,6 +87,8 @@ def add_model_arguments(
             help_text += f" (default: {default})"
         if name in positional:
             nargs = None if field.is_required() else "?"
+            if typing.get_origin(ann) is list:
+                nargs = "+" if field.is_required() else "*"
             parser.add_argument(name, nargs=nargs, default=argparse.SUPPRESS, help=help_text)
             continue
         flags = ["--" + name.replace("_", "-")]

@@ -1,5 +1,6 @@
-"""A sensor process publishing every radar of an ASTERIX CAT048/CAT034 recording (pcap of
-UDP or raw ``.ast``), paced by the plot times (``skyfuse sensor --asterix FILE``)."""
+"""A sensor process publishing every sensor of an ASTERIX recording (pcap of UDP or raw
+``.ast``: CAT048/CAT034 radars, CAT010/CAT020/CAT021 surface movement radar,
+multilateration, ADS-B), paced by the plot times (``skyfuse sensor --asterix FILE``)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ class AsterixRecordingSensor:
     ``cfg.sites``, else CAT034 I120); then the sites are published (message, queryable,
     liveliness token per radar) and the sector batches of all radars in ``time_end``
     order, paced as ``wall(t) = wall0 + (t − t0) / speed`` with ``t0`` the first batch's
-    end. Each batch's attachment is ``wall(time_end)``. ``cfg.radar`` restricts the
+    end (``cfg.data_start`` instead: processes publishing recordings of one period in step).
+    Each batch's attachment is ``wall(time_end)``. ``cfg.radar`` restricts the
     publication to one radar. Radars without a known position still publish batches and
     liveliness (the fusion service counts them as "no site for radar") and are named in
     the log, with the sites-file entry they need."""
@@ -39,6 +41,8 @@ class AsterixRecordingSensor:
             sites=asterix_sites(cfg),
             sector_count=cfg.sector_count,
             max_plot_delay=delay,
+            report_window=cfg.report_window,
+            adsb_sigma=cfg.adsb_sigma,
         )
         radars = set(self.result.radars)
         if cfg.radar is not None:
@@ -51,7 +55,15 @@ class AsterixRecordingSensor:
         self.radars = sorted(radars)
         # the same file decoded the same way: the same epoch, so a restarted sensor's
         # repeats are duplicates by (radar, epoch, seq) (services.sensors.continuation)
-        self.epoch = file_epoch(cfg.asterix, cfg.date, cfg.sector_count, delay, cfg.sites)
+        self.epoch = file_epoch(
+            cfg.asterix,
+            cfg.date,
+            cfg.sector_count,
+            delay,
+            cfg.sites,
+            cfg.report_window,
+            cfg.adsb_sigma,
+        )
         self.batches = [
             b.model_copy(update={"epoch": self.epoch})
             for b in self.result.batches
@@ -82,6 +94,8 @@ class AsterixRecordingSensor:
         wall0 = time.monotonic()
         next_status = wall0
         t0 = self.batches[0].time_end if self.batches else 0
+        if cfg.data_start is not None:
+            t0 = round(cfg.data_start * 1e9)
         for batch in self.batches:
             due_ns = start_ns + int((batch.time_end - t0) / cfg.speed)
             if not fleet.stats.wait_until(due_ns, stop):

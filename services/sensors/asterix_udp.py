@@ -51,6 +51,8 @@ class AsterixUdpSensor:
             sites=asterix_sites(cfg),
             sector_count=cfg.sector_count,
             max_plot_delay=0.0 if cfg.max_plot_delay is None else cfg.max_plot_delay,
+            report_window=cfg.report_window,
+            adsb_sigma=cfg.adsb_sigma,
         )
         try:
             info = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)

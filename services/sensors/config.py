@@ -34,13 +34,15 @@ class SensorServiceConfig(ScenarioSelection):
     replay: Path | None = Field(None, description="Publish this radar's batches from an MCAP")
     asterix: Path | None = Field(
         None,
-        description="Publish every radar of this ASTERIX CAT048/CAT034 recording (.pcap or raw "
-        ".ast), paced by the plot times",
+        description="Publish every sensor of this ASTERIX recording (.pcap or raw .ast: CAT048/"
+        "CAT034 radars, CAT010/CAT020/CAT021 surface radar, multilateration, ADS-B), paced by "
+        "the plot times",
     )
     asterix_udp: str | None = Field(
         None,
-        description="Receive a live ASTERIX CAT048/CAT034 UDP stream on HOST:PORT (e.g. "
-        "127.0.0.1:30048) and publish each sector as it completes",
+        description="Receive a live ASTERIX UDP stream (CAT048/CAT034, CAT010/CAT020/CAT021) on "
+        "HOST:PORT (e.g. 127.0.0.1:30048) and publish each sector or report cycle as it "
+        "completes",
     )
     sites: Path | None = Field(
         None, description="ASTERIX sites TOML ([[radar]] sac, sic, lat, lon, alt, ...)"
@@ -53,6 +55,27 @@ class SensorServiceConfig(ScenarioSelection):
     )
     sector_count: int = Field(
         16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
+    )
+    report_window: float = Field(
+        1.0,
+        ge=0.05,
+        le=60,
+        description="ASTERIX: batch window of report sensors without update-cycle messages "
+        "(ADS-B), s",
+    )
+    adsb_sigma: float | None = Field(
+        None,
+        ge=0.01,
+        le=10_000,
+        description="ASTERIX: σ per axis of every ADS-B position, m (an empirical figure; default: "
+        "the one its NACp/NUCp gives)",
+    )
+    data_start: float | None = Field(
+        None,
+        gt=0,
+        description="--asterix: the recording time (Unix s, UTC) that the start instant maps to "
+        "(default: the end of the file's first batch); sensor processes of recordings of one "
+        "period given the same --data-start and --start-at publish in step",
     )
     max_plot_delay: float | None = Field(
         None,

@@ -268,7 +268,10 @@ def test_snapshots_that_do_not_fit_are_refused_with_a_reason():
         with pytest.raises(SnapshotError, match=match):
             tracker_from_snapshot(s)
 
-    refused(lambda s: s.update(version=0), "version 0: this version of skyfuse reads version 2")
+    refused(
+        lambda s: s.update(version=0),
+        f"version 0: this version of skyfuse reads version {Tracker.SNAPSHOT_VERSION}",
+    )
     with pytest.raises(SnapshotError, match="configuration differs"):  # into another tracker
         Tracker(_config(tracker="lmits", motion="imm-cv-ct", depth=2)).from_snapshot(snap)
     refused(lambda s: s["config"].update(depth=-1), "tracker configuration")
