@@ -144,5 +144,5 @@ def test_chunk_indexes_are_kept_on_disk_and_the_file_is_unchanged(tmp_path, monk
         reader = make_reader(f)
         assert len(reader.get_summary().chunk_indexes) >= chunks
         got = [json.loads(m.data)["seq"] for _, _, m in reader.iter_messages(
-            start_time=1000, end_time=2000)]  # fmt: skip
+            starting_at=1000, ending_before=2000)]  # fmt: skip
     assert got == list(range(100, 200))  # log times 1009 … 1999
