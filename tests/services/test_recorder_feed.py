@@ -90,3 +90,25 @@ def test_foxglove_tracks_follow_the_rebuilt_picture(tmp_path):
     assert abs(e) < 1.0 and abs(n - 200 * HEADING_LINE_S) < 1.0
     assert feats[0]["properties"]["name"] == "T2"
     assert feats[0]["properties"]["heading_deg"] == 0.0
+
+
+def test_foxglove_tracks_drawn_once_per_period_and_the_last_at_close(tmp_path):
+    """Deltas every 0.25 s of data time, period 1 s: pictures at 0, 1 and 2 s, and the
+    last one (2.25 s, with the track the last delta added) when the recorder closes."""
+    out = tmp_path / "rec.mcap"
+    rec = Recorder(RecorderConfig(out=out, foxglove_track_period=1.0))
+    for k in range(10):
+        tracks = [track(1, 45.0, 20.0)] + ([track(2, 45.1, 20.1)] if k == 9 else [])
+        payload = TrackBatch(
+            fusion_id="main", kind="full" if k == 0 else "delta", cycle=k + 1,
+            time=T0 + k * 250_000_000, frame={"kind": "stereographic", "lat0": 45.0,
+            "lon0": 20.0}, state_labels=["x", "vx", "y", "vy"], tracks=tracks,
+        ).to_json_bytes()  # fmt: skip
+        t = T0 + k * 250_000_000
+        assert rec.handle(Received("tracks", keys.fusion_tracks("main"), payload, True, t))
+    rec.close()
+    fixes = [pb_fields(r.data) for r in iter_recording(out, decode=False)
+             if r.topic == "/foxglove/tracks"]  # fmt: skip
+    assert [len(f) for f in fixes] == [1, 1, 1, 2]
+    recorded = [r for r in iter_recording(out) if r.topic == keys.fusion_tracks("main")]
+    assert len(recorded) == 10  # the feed itself is recorded whole

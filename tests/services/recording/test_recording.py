@@ -106,3 +106,43 @@ def test_pymcap_doctor_passes(tmp_path):
     )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "passed" in res.stdout
+
+
+def test_chunk_indexes_are_kept_on_disk_and_the_file_is_unchanged(tmp_path, monkeypatch):
+    """The writer holds no ChunkIndex object while it writes (they go to a temporary file
+    until the summary), and the file is byte for byte what mcap's own Writer makes keeping
+    them in its list; the summary's chunk indexes serve a time-range read."""
+    import gc
+
+    from mcap.records import ChunkIndex
+    from skyfuse.services.recording import mcap_io
+
+    def alive() -> int:
+        return sum(isinstance(o, ChunkIndex) for o in gc.get_objects())
+
+    spilled = tmp_path / "spilled.mcap"
+    before = alive()
+    w = RecordingWriter(spilled, metadata={"scenario": "unit"}, chunk_size=2_000)
+    for i in range(400):
+        w.write(keys.radar_plots("r1"), _batch(i), i * 10 + 9)
+    assert w.chunk_indexes is not None and w.chunk_indexes.count > 20
+    assert alive() == before
+    assert list(tmp_path.iterdir()) == [spilled]  # the temporary file has no name
+    chunks = w.chunk_indexes.count
+    w.close()
+
+    monkeypatch.setattr(mcap_io, "spill_chunk_indexes", lambda writer, directory=None: None)
+    kept = tmp_path / "kept.mcap"
+    w = RecordingWriter(kept, metadata={"scenario": "unit"}, chunk_size=2_000)
+    for i in range(400):
+        w.write(keys.radar_plots("r1"), _batch(i), i * 10 + 9)
+    assert w.chunk_indexes is None and alive() - before >= chunks  # mcap's own list
+    w.close()
+    assert spilled.read_bytes() == kept.read_bytes()
+
+    with open(spilled, "rb") as f:
+        reader = make_reader(f)
+        assert len(reader.get_summary().chunk_indexes) >= chunks
+        got = [json.loads(m.data)["seq"] for _, _, m in reader.iter_messages(
+            starting_at=1000, ending_before=2000)]  # fmt: skip
+    assert got == list(range(100, 200))  # log times 1009 … 1999

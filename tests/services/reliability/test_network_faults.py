@@ -1,110 +1,45 @@
 """Real network faults between a sensor and the fusion service, in network namespaces this
 test creates (and always deletes): the sensor in one namespace, the fusion service and the
 recorder in another, joined by a veth pair (10.231.x.1 ↔ 10.231.x.2); each process is a
-real ``skyfuse`` command started with ``ip netns exec``.
+real ``skyfuse`` command started with ``ip netns exec`` (``tests/netns_support.py``).
 
 * **partition**: the link is cut (veth down) for 5 s while the sensor publishes;
 * **router restart**: every process is a Zenoh client of a ``skyfuse router`` (in the
   fusion's namespace); the router is killed and started again 3 s later; no other
   process is restarted;
-* **loss and delay**: 10 % packet loss and 200 ms delay on the link (``tc netem``; skipped
-  where the kernel has no netem).
+* **loss and delay**: 10 % packet loss and 200 ms delay on the link for the whole run,
+  every process a client of a router in the fusion's namespace: ``tc netem`` where the
+  kernel has it, else iptables' random drop on both ends of the veth and a delaying TCP
+  relay on the sensor's route (an emulation: ``netns_support``); skipped with the reason
+  when neither works.
 
 Each measures, from the recording (the recorder records the sensor's and the fusion's
 Status too): what the sensor published, what the fusion applied, refused (by reason) and
 counted as lost, what was recorded (each batch once), and how long after the fault ended
-the fusion had applied everything the sensor had published by then ("picture whole").
+(for a lasting fault: after the sensor's last batch) the fusion had applied everything the
+sensor had published by then ("picture whole"); and the lag: for each sensor Status, the
+time until a fusion Status accounts for the batches it counts (p50, max).
 Needs root and ``ip``; skipped with the reason otherwise."""
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from netns_support import Net, namespaces_or_skip, tag_of
 from skyfuse.schemas import PlotBatch, Status, keys
 from skyfuse.services.recording.mcap_io import iter_recording
 
 pytestmark = pytest.mark.service
-ROOT = Path(__file__).resolve().parents[3]
-
-
-def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    return subprocess.run(["ip", *args], capture_output=True, text=True, check=check)
-
-
-class Net:
-    """Two namespaces (``sensor``, ``fusion``) joined by a veth pair."""
-
-    def __init__(self, tag: str) -> None:
-        n = os.getpid() % 200 + 20
-        self.ns = {"sensor": f"sf-{tag}-s{os.getpid()}", "fusion": f"sf-{tag}-f{os.getpid()}"}
-        self.addr = {"sensor": f"10.231.{n}.1", "fusion": f"10.231.{n}.2"}
-        self.dev = {"sensor": f"sfs{os.getpid() % 100000}", "fusion": f"sff{os.getpid() % 100000}"}
-        self.procs: list[subprocess.Popen] = []
-
-    def create(self) -> None:
-        for ns in self.ns.values():
-            _ip("netns", "add", ns)
-            _ip("-n", ns, "link", "set", "lo", "up")
-        _ip("link", "add", self.dev["sensor"], "type", "veth", "peer", "name", self.dev["fusion"])
-        for role, ns in self.ns.items():
-            _ip("link", "set", self.dev[role], "netns", ns)
-            _ip("-n", ns, "addr", "add", f"{self.addr[role]}/30", "dev", self.dev[role])
-            _ip("-n", ns, "link", "set", self.dev[role], "up")
-
-    def link(self, up: bool) -> None:
-        for role, ns in self.ns.items():
-            _ip("-n", ns, "link", "set", self.dev[role], "up" if up else "down")
-
-    def netem(self, spec: list[str]) -> None:
-        for role, ns in self.ns.items():
-            r = subprocess.run(["ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev",
-                                self.dev[role], "root", "netem", *spec],
-                               capture_output=True, text=True)  # fmt: skip
-            if r.returncode != 0:
-                pytest.skip(f"tc netem unavailable in this kernel: {r.stderr.strip()}")
-
-    def start(self, role: str, log: Path, *args: str) -> subprocess.Popen:
-        err = open(log, "wb")
-        env = {**os.environ, "XDG_STATE_HOME": str(log.parent / f"state-{log.stem}")}
-        cmd = ["ip", "netns", "exec", self.ns[role], sys.executable, "-m",
-               "skyfuse.services.cli", *args]  # fmt: skip
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=ROOT)
-        err.close()
-        self.procs.append(proc)
-        return proc
-
-    def delete(self) -> None:
-        for proc in self.procs:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-        for proc in self.procs:
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        for ns in self.ns.values():  # deleting a namespace deletes its end of the veth
-            _ip("netns", "del", ns, check=False)
 
 
 @pytest.fixture
 def net(request):
-    if os.geteuid() != 0 or shutil.which("ip") is None:
-        pytest.skip("network namespaces need root and iproute2's ip")
-    probe = f"sf-probe-{os.getpid()}"
-    r = _ip("netns", "add", probe, check=False)
-    if r.returncode != 0:
-        pytest.skip(f"cannot create a network namespace: {r.stderr.strip()}")
-    _ip("netns", "del", probe, check=False)
-    n = Net(request.node.name.split("[")[0][-6:].replace("_", ""))
+    namespaces_or_skip()
+    n = Net(tag_of(request.node.name))
     try:
         n.create()
         yield n
@@ -112,9 +47,12 @@ def net(request):
         n.delete()
 
 
-def _run(net: Net, tmp: Path, fault, *, router: bool = False, data_s: int = 48) -> dict:
+def _run(
+    net: Net, tmp: Path, fault, *, router: bool = False, data_s: int = 48, sensor_ep=None
+) -> dict:
     """Sensor (speed 4) → fusion + recorder; ``fault(net)`` runs once the fusion applies
-    batches and returns the wall time the fault ended. The measures (module docstring)."""
+    batches and returns the wall time the fault ended (``None``: it lasts). The sensor
+    connects to ``sensor_ep`` if given (a relay). The measures (module docstring)."""
     port = 7447
     fusion_ep = f"tcp/{net.addr['fusion']}:{port}"
     out = tmp / "r.mcap"
@@ -123,6 +61,8 @@ def _run(net: Net, tmp: Path, fault, *, router: bool = False, data_s: int = 48) 
         time.sleep(1.0)
         to = ["--mode", "client", "--connect", fusion_ep]
         fusion_args, rec_args, sensor_args = to, to, to
+        if sensor_ep is not None:
+            sensor_args = ["--mode", "client", "--connect", sensor_ep]
     else:
         fusion_args = ["--listen", fusion_ep]  # the recorder listens too: peers gossip
         rec_args = ["--connect", fusion_ep, "--listen", f"tcp/{net.addr['fusion']}:{port + 1}"]
@@ -142,10 +82,7 @@ def _run(net: Net, tmp: Path, fault, *, router: bool = False, data_s: int = 48) 
     healed = fault(net)
     assert sensor.wait(timeout=90) == 0, (tmp / "sensor.log").read_text()[-2000:]
     time.sleep(4.0)
-    for proc in net.procs[::-1]:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(timeout=15)
+    net.stop_all()
     return _measures(out, json.loads((tmp / "stats.json").read_text()), healed)
 
 
@@ -158,7 +95,7 @@ def _wait_log(path: Path, text: str, timeout: float) -> None:
     raise AssertionError(f"{path.name}: no {text!r} after {timeout} s")
 
 
-def _measures(out: Path, stats: dict, healed: float) -> dict:
+def _measures(out: Path, stats: dict, healed: float | None) -> dict:
     sensor, fusion, seqs = [], [], []
     for m in iter_recording(out):
         if m.topic == keys.service_status("sensor-LYBE"):
@@ -168,14 +105,12 @@ def _measures(out: Path, stats: dict, healed: float) -> dict:
         elif m.topic == keys.radar_plots("LYBE"):
             seqs.append(PlotBatch.from_json_bytes(m.data).seq)
     published = sensor[-1].counters["batches"]
+    if healed is None:  # a lasting fault: from the sensor's last batch
+        healed = next(s.time for s in sensor if s.counters["batches"] == published) / 1e9
     at_heal = max(s.counters["batches"] for s in sensor if s.time <= healed * 1e9)
-
-    def accounted(st: Status) -> int:
-        r = next((r for r in st.radars if r.radar_id == "LYBE"), None)
-        return 0 if r is None else r.batches + r.batches_refused + r.batches_lost
-
-    whole = next((st.time / 1e9 - healed for st in fusion
-                  if st.time >= healed * 1e9 and accounted(st) >= at_heal), None)  # fmt: skip
+    whole = _whole_after(fusion, healed, at_heal)
+    lags = [_whole_after(fusion, s.time / 1e9, s.counters["batches"]) for s in sensor]
+    lags = sorted(x for x in lags if x is not None)
     last = next(r for r in fusion[-1].radars if r.radar_id == "LYBE")
     return {
         "published": published,
@@ -188,7 +123,22 @@ def _measures(out: Path, stats: dict, healed: float) -> dict:
         "recorded_twice": len(seqs) - len(set(seqs)),
         "recorder_lost": stats["batches_lost"],
         "whole_after_s": None if whole is None else round(whole, 2),
+        "lag_s": {"p50": round(lags[len(lags) // 2], 2), "max": round(lags[-1], 2)}
+        if lags
+        else None,
+        "latency_ms_p50": fusion[-1].latency_ms.p50 if fusion[-1].latency_ms else None,
     }
+
+
+def _accounted(st: Status) -> int:
+    r = next((r for r in st.radars if r.radar_id == "LYBE"), None)
+    return 0 if r is None else r.batches + r.batches_refused + r.batches_lost
+
+
+def _whole_after(fusion: list[Status], t: float, n: int) -> float | None:
+    """Seconds after ``t`` until a fusion Status accounts for ``n`` batches (None: never)."""
+    return next((st.time / 1e9 - t for st in fusion
+                 if st.time >= t * 1e9 and _accounted(st) >= n), None)  # fmt: skip
 
 
 def test_a_five_second_partition(net, tmp_path):
@@ -227,13 +177,28 @@ def test_a_router_restart(net, tmp_path):
 
 
 def test_ten_percent_loss_and_200_ms_delay(net, tmp_path):
-    net.netem(["loss", "10%", "delay", "200ms"])  # skips where netem is missing
+    relay_ep = None
+    no_netem = net.netem(10, 200)
+    if no_netem is not None:  # no netem: iptables drops, a relay delays (netns_support)
+        err = net.iptables_loss(0.1)
+        if err is not None:
+            pytest.skip(f"no netem ({no_netem}) and no iptables loss ({err})")
+        router_ep = f"{net.addr['fusion']}:7447"
+        net.relay("sensor", tmp_path / "relay.log", "127.0.0.1:7500", router_ep, 0.2)
+        relay_ep = "tcp/127.0.0.1:7500"
 
-    def nothing(n: Net) -> float:
-        time.sleep(5.0)
-        return time.time()
-
-    m = _run(net, tmp_path, nothing)
+    m = _run(net, tmp_path, lambda n: None, router=True, sensor_ep=relay_ep)
+    m["emulation"] = "tc netem" if no_netem is None else "iptables loss + delaying relay"
+    if no_netem is not None:
+        m["link_packets"] = net.iptables_counts()
+        m["relay"] = json.loads((tmp_path / "relay.json").read_text())
     print(json.dumps({"loss_10pct_delay_200ms": m}))
     assert m["applied"] + m["refused"] + m["lost"] == m["published"]
     assert m["recorded_twice"] == 0
+    assert m["recorded"] + sum(m["recorder_lost"].values()) == m["published"]
+    assert m["whole_after_s"] is not None
+    if no_netem is not None:  # the fault was on the path: packets dropped, the relay used
+        pk = m["link_packets"]  # binomial: the dropped fraction within 5 sigma of 10 %
+        sigma = (0.1 * 0.9 / max(pk["packets"], 1)) ** 0.5
+        assert pk["packets"] > 100 and abs(pk["dropped"] / pk["packets"] - 0.1) < 5 * sigma, pk
+        assert m["relay"]["connections"] >= 1 and m["relay"]["bytes_to"] > 0
