@@ -90,6 +90,7 @@ def grouped_moments(w, x, P, starts, gid, ngroups):
     xm = np.full((ngroups, d), np.nan)
     Pm = np.full((ngroups, d, d), np.nan)
     dx = np.empty(d)
+    mean = np.empty(d)
     acc = np.empty((d, d))
     for s in range(len(starts)):
         lo = starts[s]
@@ -103,7 +104,7 @@ def grouped_moments(w, x, P, starts, gid, ngroups):
         wn = 0.0
         for c in range(lo, hi):
             wn += 1.0 if equal else w[c]
-        mean = np.zeros(d)
+        mean[:] = 0.0
         for c in range(lo, hi):
             wc = 1.0 if equal else w[c]
             for a in range(d):
@@ -125,7 +126,9 @@ def grouped_moments(w, x, P, starts, gid, ngroups):
         for a in range(d):
             for b in range(d):
                 acc[a, b] = 0.5 * (Pm[g, a, b] + Pm[g, b, a])
-        Pm[g] = acc
+        for a in range(d):
+            for b in range(d):
+                Pm[g, a, b] = acc[a, b]
     return W, xm, Pm
 
 

@@ -108,7 +108,8 @@ def history_groups(track, hist):
     keys = np.empty((C, N + 1), np.int64)
     for c in range(C):
         keys[c, 0] = track[c]
-        keys[c, 1:] = hist[c]
+        for a in range(N):
+            keys[c, a + 1] = hist[c, a]
     if C < 2 or (track[1:] > track[:-1]).all():  # one component per track
         return np.arange(C), keys
     e = np.empty(0, np.int64)
@@ -119,7 +120,8 @@ def history_groups(track, hist):
     for s in range(C):
         c = order[s]
         if s == 0 or _row_less(keys, order[s - 1], c):
-            uniq[G] = keys[c]
+            for a in range(N + 1):
+                uniq[G, a] = keys[c, a]
             G += 1
         inv[c] = G - 1
     return inv, uniq[:G]
@@ -246,10 +248,12 @@ def its_children(track, w, x, P, hist, loc, beta0, pairs, p_pair, p_track, beta,
     o = 0
     for c in range(C):
         if w0[c] > 0.0:
-            ct[o], cw[o], cx[o], cP[o] = track[c], w0[c], x[c], P[c]
-            if N:
-                ch[o, 0] = 0
-                ch[o, 1:] = hist[c, : N - 1]
+            ct[o], cw[o] = track[c], w0[c]
+            for a in range(d):
+                cx[o, a] = x[c, a]
+                for b in range(d):
+                    cP[o, a, b] = P[c, a, b]
+            _shifted(hist, c, 0, ch, o)
             o += 1
     scratch = update_scratch(d, k)
     for q in range(len(state)):
@@ -257,11 +261,19 @@ def its_children(track, w, x, P, hist, loc, beta0, pairs, p_pair, p_track, beta,
             c, j = state[q], plot[q]
             ct[o], cw[o] = track[c], wi[q]
             update_into(x[c], P[c], H, S[q], nu[q], R[j], cx[o], cP[o], scratch)
-            if N:
-                ch[o, 0] = uid[j]
-                ch[o, 1:] = hist[c, : N - 1]
+            _shifted(hist, c, uid[j], ch, o)
             o += 1
     return ct, cw, cx, cP, ch
+
+
+@numba.njit(cache=True, nogil=True)
+def _shifted(hist, c, first, out, o):
+    """out[o] = (first, hist[c, 0], …, hist[c, N−2]) (N = 0: nothing)."""
+    N = hist.shape[1]
+    if N:
+        out[o, 0] = first
+        for a in range(1, N):
+            out[o, a] = hist[c, a - 1]
 
 
 @numba.njit(cache=True, nogil=True)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from skyfuse.fusion.association.gating import GatedPairs, gate
 from skyfuse.fusion.filters.kalman import update_with_innovation
@@ -93,12 +94,35 @@ def track_table(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(tp_track, tp_plot, p^τ_i = Σ_c ξ^c p^c_i (5.10), pair → table row) from gated
     (component ``comp_idx``, ``plot``) pairs; loc (C,) the components' tracks, weight (C,)
-    their ξ, p_pair the pairs' p^c_i."""
-    key = loc[comp_idx] * max(m, 1) + plot
-    uniq, row = np.unique(key, return_inverse=True)
-    row = row.reshape(-1)
-    p_track = np.bincount(row, weights=weight[comp_idx] * p_pair, minlength=len(uniq))
-    return uniq // max(m, 1), uniq % max(m, 1), p_track, row
+    their ξ, p_pair the pairs' p^c_i. Rows in (track, plot) order; the sums in pair order
+    (one compiled loop, :func:`_track_table`)."""
+    c = np.ascontiguousarray
+    return _track_table(c(loc, dtype=np.int64), c(comp_idx, dtype=np.int64),
+                        c(plot, dtype=np.int64), c(weight, dtype=np.float64),
+                        c(p_pair, dtype=np.float64), int(m))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _track_table(loc, comp_idx, plot, weight, p_pair, m):
+    M = max(m, 1)
+    n = len(comp_idx)
+    key = np.empty(n, np.int64)
+    for q in range(n):
+        key[q] = loc[comp_idx[q]] * M + plot[q]
+    order = np.argsort(key)
+    row = np.empty(n, np.int64)
+    uniq = np.empty(n, np.int64)
+    u = 0
+    for s in range(n):
+        q = order[s]
+        if s == 0 or key[q] != uniq[u - 1]:
+            uniq[u] = key[q]
+            u += 1
+        row[q] = u - 1
+    p = np.zeros(u)
+    for q in range(n):
+        p[row[q]] += weight[comp_idx[q]] * p_pair[q]
+    return uniq[:u] // M, uniq[:u] % M, p, row
 
 
 class MixtureRetrodiction(MixturePrediction):
@@ -229,9 +253,7 @@ class GaussianMixtureDensity:
 
     def _store(self, rows, kept: tuple, merged: int, pairs: int, x, P) -> None:
         """The kept components replace those of ``rows``; their track estimates x, P."""
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
-        self.slots.replace(inside, comp.Mixture(*kept))
+        self.slots.replace_rows(rows, len(self), comp.Mixture(*kept))
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": merged,

@@ -516,9 +516,7 @@ class IMMMixtureDensity:
         )
         kept = merged.take(keep)
         kept.w = w
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
-        self.slots.replace(inside, kept)
+        self.slots.replace_rows(rows, len(self), kept)
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
