@@ -96,6 +96,24 @@ def _row_slots(track, n, rows, ntracks):
     return idx, loc
 
 
+@numba.njit(cache=True, nogil=True)
+def _renumbered(track, n, mask):
+    """(a copy of ``track`` whose first n slots hold the new row of their track, −1 for a
+    dropped track, the number of live slots)."""
+    new_row = np.empty(len(mask), np.int64)
+    r = 0
+    for i in range(len(mask)):
+        new_row[i] = r if mask[i] else -1
+        r += mask[i]
+    out = track.copy()
+    alive = 0
+    for s in range(n):
+        t = track[s]
+        out[s] = new_row[t] if t >= 0 else -1
+        alive += out[s] >= 0
+    return out, alive
+
+
 def _int64(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.int64)
 
@@ -190,13 +208,10 @@ class ComponentSlots:
 
     def keep(self, mask: np.ndarray) -> None:
         """Keep the tracks where ``mask`` (n_tracks,) is True, renumbered 0 … in order."""
-        mask = np.asarray(mask, bool)
-        new_row = np.append(np.where(mask, np.cumsum(mask) - 1, -1), -1)
-        t = new_row[self.data.track[: self.n]]
-        self.alive = int((t >= 0).sum())
-        track = self.data.track.copy()  # a new array: copies handed out stay valid
-        track[: self.n] = t
-        self.data.track = track
+        # a new track array: copies handed out stay valid
+        self.data.track, self.alive = _renumbered(
+            self.data.track, self.n, np.ascontiguousarray(mask, dtype=bool)
+        )
         self._maybe_compact()
 
     def _kill(self, slots: np.ndarray) -> None:

@@ -82,6 +82,20 @@ def _screened(state, dt, lam, V, Vinv, period, lumped, level, also):
     return out
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # x/0 as in NumPy
+def _updated(state_pred, psi_post):
+    """[ψ_det', clip(p_unobs (1 − ψ_det')/(1 − p_obs))] per state (the scale 1 where
+    1 − p_obs ≤ 1e-300)."""
+    n = len(state_pred)
+    out = np.empty((n, 2))
+    for k in range(n):
+        denom = 1.0 - state_pred[k, 0]
+        scale = (1.0 - psi_post[k]) / denom if denom > 1e-300 else 1.0
+        out[k, 0] = psi_post[k]
+        out[k, 1] = min(max(state_pred[k, 1] * scale, 0.0), 1.0)
+    return out
+
+
 class ExistenceChain:
     """A Markov chain over {detectable, undetectable, non-existent} with period ``period`` s.
 
@@ -161,13 +175,10 @@ class ExistenceChain:
 
     @staticmethod
     def update(state_pred: np.ndarray, psi_det_post: np.ndarray) -> np.ndarray:
-        """Apply the association's posterior ψ_det' (2.41 / 5.18 / 6.7) to the chain state."""
-        p_obs = state_pred[:, 0]
-        p_unobs = state_pred[:, 1]
-        denom = 1.0 - p_obs
-        # 1 − δ p_obs = (1 − p_obs)/(1 − ψ_det'); p_unobs is renormalised by it.
-        scale = np.divide(1.0 - psi_det_post, denom, out=np.ones_like(denom), where=denom > 1e-300)
-        return np.column_stack([psi_det_post, np.clip(p_unobs * scale, 0.0, 1.0)])
+        """Apply the association's posterior ψ_det' (2.41 / 5.18 / 6.7) to the chain state:
+        1 − δ p_obs = (1 − p_obs)/(1 − ψ_det') renormalises p_unobs (one compiled loop)."""
+        c = np.ascontiguousarray
+        return _updated(c(state_pred, dtype=np.float64), c(psi_det_post, dtype=np.float64))
 
 
 def markov_chain_one(delta11: float, delta21: float, period: float = 1.0) -> ExistenceChain:

@@ -43,11 +43,14 @@ from .components import Mixture
 from .density.gaussian_mixture import track_table
 from .existence import markov_chain_one
 from .initiation import PlotBuffer, pair_plots
+from .ipda import single_target
+from .lm_its import modified_clutter_density
 from .management import shared_plot_pairs
 from .oosm import noise_terms
+from .phases import most_likely_plots
 from .plot_validity_kernel import all_plots_valid
 from .registry import warm_up_parts
-from .reidentification import keeps_fix
+from .reidentification import keeps_fix, update_fix_columns
 
 
 def warm_up() -> float:
@@ -87,7 +90,9 @@ def warm_up() -> float:
 
 def _tracker_passes(x: np.ndarray, P: np.ndarray) -> None:
     """The compiled passes of a tracker step outside the densities: the two-point pairing,
-    the pairs of tracks sharing a plot, the track × plot table, the slots of track rows."""
+    the pairs of tracks sharing a plot, the track × plot table, the slots of track rows
+    and their renumbering, the most likely plots, the LM and IPDA association, the
+    existence update, the re-identification fixes."""
     i2 = np.array([0, 1])
     buffer = PlotBuffer.empty(2)
     buffer.add(x[:2], P, np.zeros(2, np.int64), i2)
@@ -96,3 +101,10 @@ def _tracker_passes(x: np.ndarray, P: np.ndarray) -> None:
     track_table(i2, i2, i2, np.ones(2), np.ones(2), 2)
     slots = ComponentSlots.holding(Mixture(i2, np.ones(2), x[:2], P, np.zeros((2, 1), np.int64)))
     slots.rows(np.array([1]), 2)
+    slots.keep(np.array([True, False]))
+    most_likely_plots(2, i2, np.full(2, 0.5), np.ones(2), i2, i2)
+    lm = modified_clutter_density(i2, i2, 2, np.ones(2), np.ones(2), np.full(2, 0.5), np.ones(2))
+    single_target(np.full(2, 0.5), np.full(2, 0.9), i2, lm)
+    markov_chain_one(0.98, 0.0).update(np.array([[0.5, 0.0]]), np.array([0.6]))
+    t2 = np.ones(2, np.int64)
+    update_fix_columns(i2, t2, x[:2], P, x[:2].copy(), P.copy(), t2.copy(), 60.0, 4.0)

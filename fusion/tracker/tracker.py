@@ -574,7 +574,7 @@ class Tracker:
         """All live tracks at the newest batch time (``newest_ns``): the output of the
         last step, or of the state restored from a snapshot (no plot assigned)."""
         tr = self.tracks
-        x, P = self.estimates()
+        x, P = (a.copy() for a in self.density.estimates_view())
         snapshot = OutputPrediction(
             self.newest_ns,
             x,
