@@ -55,7 +55,7 @@ STAGES = [
     ("coverage + predict", ("select_tracks", "predict")),
     ("gating", ("gate",)),
     ("association", ("_associate",)),
-    ("components (update, merge, prune)", ("component_update", "singer_merge", "prune")),
+    ("components (update, merge, prune)", ("its_update", "singer_merge", "prune")),
     ("moment match (output)", ("moment_match",)),
     ("management", ("duplicates", "shared_plot_pairs", "to_terminate", "to_confirm")),
     ("initiation", ("_initiate",)),

@@ -11,8 +11,8 @@ Returned per pair: ν, S, d², ln det S, log N(ν; 0, S) (the IPDA likelihood p 
 All pairs are never formed: a spatial pre-gate sorts the plots by their first coordinate
 and takes, per state, the window ``searchsorted(x ± r)`` with the radius
 r = √(g (tr HPHᵀ + max_j tr R_j)), which bounds √(g λ_max(S)); the other coordinates are
-then checked against the same radius, and only the survivors get an exact d². Both loops
-are compiled (:mod:`fusion.association.gating_kernels`).
+then checked against the same radius, and only the survivors get an exact d². The whole
+gate is one compiled call (:mod:`fusion.association.gating_kernels`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammainc, gammaincinv
 
-from .gating_kernels import box_pairs, exact_gate
+from .gating_kernels import gate_pairs, windows
 
 
 def gate_threshold(p_gate: float, ndim: int) -> float:
@@ -64,18 +64,9 @@ def window_pairs(
     n, m = len(centres), len(points)
     if n == 0 or m == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    order = np.argsort(points[:, 0], kind="stable")
-    xs = points[order, 0]
-    lo = np.searchsorted(xs, centres[:, 0] - radii, side="left")
-    hi = np.searchsorted(xs, centres[:, 0] + radii, side="right")
-    return box_pairs(
-        order,
-        lo.astype(np.int64),
-        hi.astype(np.int64),
-        np.ascontiguousarray(centres, dtype=np.float64),
-        np.ascontiguousarray(radii, dtype=np.float64),
-        np.ascontiguousarray(points, dtype=np.float64),
-    )
+    c = np.ascontiguousarray
+    return windows(c(centres, dtype=np.float64), c(radii, dtype=np.float64),
+                   c(points, dtype=np.float64))  # fmt: skip
 
 
 @dataclass
@@ -130,13 +121,8 @@ def gate(
         e = np.zeros(0, np.int64)
         f = np.zeros(0)
         return GatedPairs(e, e, np.zeros((0, k)), np.zeros((0, k, k)), f, f, n, m, 0)
-    trR = 0.0 if R is None else np.trace(R, axis1=1, axis2=2).max()
-    radius = np.sqrt(g * (np.trace(HPHt, axis1=1, axis2=2) + trR))
-    ci, pj = window_pairs(y_pred, radius, z)
     c = np.ascontiguousarray
-    keep, nu, S, d2, logdet = exact_gate(
-        ci,
-        pj,
+    state, plot, nu, S, d2, logdet, pregated = gate_pairs(
         c(y_pred),
         c(HPHt, dtype=np.float64),
         c(z),
@@ -144,4 +130,4 @@ def gate(
         R is not None,
         float(g),
     )
-    return GatedPairs(ci[keep], pj[keep], nu, S, d2, logdet, n, m, len(ci))
+    return GatedPairs(state, plot, nu, S, d2, logdet, n, m, pregated)

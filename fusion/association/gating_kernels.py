@@ -13,6 +13,10 @@
   :mod:`fusion.filters.cholesky_kernels` (d² = |L⁻¹ν|², ln det S = 2 Σ ln L_aa); an S that
   is not positive definite is outside every gate.
 
+* :func:`windows`: the sort, the binary searches and :func:`box_pairs`;
+* :func:`gate_pairs`: the windows' radii, :func:`windows` and :func:`exact_gate` in one
+  call.
+
 The NumPy form of both costs a dozen array operations (a gather, a temporary and a
 filter per output) on the tens of pairs of one sector batch, where each operation's
 fixed cost exceeds its arithmetic; one loop over the pairs does the same work once.
@@ -52,6 +56,18 @@ def box_pairs(order, lo, hi, centres, radii, points):
                 out_j[p] = j
                 p += 1
     return out_i[:p], out_j[:p]
+
+
+@numba.njit(cache=True, nogil=True)
+def windows(centres, radii, points):
+    """(i, j) with |points[j] − centres[i]| ≤ radii[i] in every coordinate: the points
+    sorted by their first coordinate (stable), each centre's window by binary search,
+    then :func:`box_pairs`."""
+    order = np.argsort(points[:, 0], kind="mergesort")
+    xs = points[order, 0]
+    lo = np.searchsorted(xs, centres[:, 0] - radii)
+    hi = np.searchsorted(xs, centres[:, 0] + radii, side="right")
+    return box_pairs(order, lo, hi, centres, radii, points)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -115,3 +131,28 @@ def exact_gate(ci, pj, y, HPH, z, R, use_R, g):
             ld_out[p] = ld
             p += 1
     return keep[:p], nu_out[:p], S_out[:p], d2_out[:p], ld_out[:p]
+
+
+@numba.njit(cache=True, nogil=True)
+def gate_pairs(y, HPH, z, R, use_R, g):
+    """The whole gate of :func:`fusion.association.gating.gate` in one call: the radius
+    r_c = √(g (tr HPHᵀ_c + max_j tr R_j)) of every state, the plots sorted by their first
+    coordinate (stable), the windows, :func:`box_pairs` and :func:`exact_gate`. Returns
+    (state, plot, ν, S, d², ln det S, pairs that passed the pre-gate)."""
+    n, k = y.shape
+    trR = 0.0
+    if use_R:
+        for j in range(len(R)):
+            t = 0.0
+            for a in range(k):
+                t += R[j, a, a]
+            trR = max(trR, t) if j else t
+    radius = np.empty(n)
+    for c in range(n):
+        t = 0.0
+        for a in range(k):
+            t += HPH[c, a, a]
+        radius[c] = np.sqrt(g * (t + trR))
+    ci, pj = windows(y, radius, z)
+    keep, nu, S, d2, logdet = exact_gate(ci, pj, y, HPH, z, R, use_R, g)
+    return ci[keep], pj[keep], nu, S, d2, logdet, len(ci)

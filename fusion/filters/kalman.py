@@ -135,27 +135,40 @@ def _gain_into(P, H, S, K, L, B):
 
 
 @numba.njit(cache=True, nogil=True)
+def update_into(x, P, H, S, nu, R, x_out, P_out, scratch):
+    """One state's update with a known innovation ν (k,) and covariance S (k, k): x_out =
+    x + K ν, P_out the Joseph covariance with R, K = P Hᵀ S⁻¹ (scratch: a tuple from
+    :func:`update_scratch`); raises if S is not positive definite."""
+    K, L, B, A, T, KR = scratch
+    d, k = K.shape
+    if not _gain_into(P, H, S, K, L, B):
+        raise ValueError("innovation covariance not positive definite")
+    for i in range(d):
+        t = x[i]
+        u = 0.0
+        for j in range(k):
+            u += K[i, j] * nu[j]
+        x_out[i] = t + u
+    _joseph_into(P, K, H, R, P_out, A, T, KR)
+
+
+@numba.njit(cache=True, nogil=True)
+def update_scratch(d, k):
+    """Scratch arrays of :func:`update_into` for states of d entries and k measured."""
+    z = np.zeros((k, k))
+    return (np.empty((d, k)), z, np.empty((k, d)), np.empty((d, d)), np.empty((d, d)),
+            np.empty((d, k)))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
 def _update_pairs(x, P, H, S, nu, R):
     n, d = x.shape
     k = nu.shape[1]
     x_out = np.empty((n, d))
     P_out = np.empty((n, d, d))
-    K = np.empty((d, k))
-    L = np.zeros((k, k))
-    B = np.empty((k, d))
-    A = np.empty((d, d))
-    T = np.empty((d, d))
-    KR = np.empty((d, k))
+    scratch = update_scratch(d, k)
     for s in range(n):
-        if not _gain_into(P[s], H, S[s], K, L, B):
-            raise ValueError("innovation covariance not positive definite")
-        for i in range(d):
-            t = x[s, i]
-            u = 0.0
-            for j in range(k):
-                u += K[i, j] * nu[s, j]
-            x_out[s, i] = t + u
-        _joseph_into(P[s], K, H, R[s], P_out[s], A, T, KR)
+        update_into(x[s], P[s], H, S[s], nu[s], R[s], x_out[s], P_out[s], scratch)
     return x_out, P_out
 
 

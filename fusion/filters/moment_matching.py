@@ -58,7 +58,7 @@ def moment_match(
     Returns (W (G,), x (G, d), P (G, d, d)); groups of zero weight get an unweighted mean.
     The components are sorted by group once (stable, skipped when already sorted); the
     moments of each run are then summed in the components' order within the group
-    (:func:`_grouped_moments`)."""
+    (:func:`grouped_moments`)."""
     group = np.asarray(group)
     if len(w) == ngroups and np.array_equal(group, np.arange(ngroups)):
         # one component per group (GNN/IPDA tracks): nothing to merge
@@ -70,7 +70,7 @@ def moment_match(
         order = np.argsort(group, kind="stable")
         w, x, P, group = w[order], x[order], P[order], group[order]
     starts = _segment_starts(group)
-    return _grouped_moments(
+    return grouped_moments(
         np.ascontiguousarray(w, dtype=np.float64),
         np.ascontiguousarray(x, dtype=np.float64),
         np.ascontiguousarray(P, dtype=np.float64),
@@ -81,7 +81,7 @@ def moment_match(
 
 
 @numba.njit(cache=True, nogil=True)
-def _grouped_moments(w, x, P, starts, gid, ngroups):
+def grouped_moments(w, x, P, starts, gid, ngroups):
     """W, x̂^μ, P^μ of the runs of sorted components at ``starts`` (labels ``gid``);
     groups without components: W 0 and NaN moments; a run of zero total weight: equal
     weights (see :func:`moment_match`)."""
@@ -90,6 +90,7 @@ def _grouped_moments(w, x, P, starts, gid, ngroups):
     xm = np.full((ngroups, d), np.nan)
     Pm = np.full((ngroups, d, d), np.nan)
     dx = np.empty(d)
+    mean = np.empty(d)
     acc = np.empty((d, d))
     for s in range(len(starts)):
         lo = starts[s]
@@ -103,7 +104,7 @@ def _grouped_moments(w, x, P, starts, gid, ngroups):
         wn = 0.0
         for c in range(lo, hi):
             wn += 1.0 if equal else w[c]
-        mean = np.zeros(d)
+        mean[:] = 0.0
         for c in range(lo, hi):
             wc = 1.0 if equal else w[c]
             for a in range(d):
@@ -125,7 +126,9 @@ def _grouped_moments(w, x, P, starts, gid, ngroups):
         for a in range(d):
             for b in range(d):
                 acc[a, b] = 0.5 * (Pm[g, a, b] + Pm[g, b, a])
-        Pm[g] = acc
+        for a in range(d):
+            for b in range(d):
+                Pm[g, a, b] = acc[a, b]
     return W, xm, Pm
 
 

@@ -24,28 +24,39 @@ when slots die or tracks are renumbered.
 from __future__ import annotations
 
 from dataclasses import fields
+from operator import attrgetter
 
+import numba
 import numpy as np
 from skyfuse.schemas.snapshot import SnapshotError, array_field, mapping
 
 _COMPACT_MIN = 1024
 
 
-_FIELDS: dict[type, tuple[str, ...]] = {}
+_LAYOUT: dict[type, tuple[tuple[str, ...], bool, object]] = {}
+
+
+def _layout(comp) -> tuple[tuple[str, ...], bool, object]:
+    """(field names, whether any field is a per-mode list, a getter of all fields)."""
+    lay = _LAYOUT.get(type(comp))
+    if lay is None:
+        names = tuple(f.name for f in fields(comp))
+        lists = any(isinstance(getattr(comp, n), list) for n in names)
+        lay = _LAYOUT[type(comp)] = (names, lists, attrgetter(*names))
+    return lay
 
 
 def _fields(comp) -> tuple[str, ...]:
-    names = _FIELDS.get(type(comp))
-    if names is None:
-        names = _FIELDS[type(comp)] = tuple(f.name for f in fields(comp))
-    return names
+    return _layout(comp)[0]
 
 
 def _arrays(comp) -> list[np.ndarray]:
     """The arrays of a components object, the per-mode lists flattened, in field order."""
+    _, lists, get = _layout(comp)
+    if not lists:
+        return list(get(comp))
     out = []
-    for name in _fields(comp):
-        v = getattr(comp, name)
+    for v in get(comp):
         if isinstance(v, list):
             out.extend(v)
         else:
@@ -56,11 +67,55 @@ def _arrays(comp) -> list[np.ndarray]:
 def _map(comp, fn):
     """A components object of the same type with ``fn`` applied to every array (also
     inside the per-mode lists)."""
-    out = []
-    for name in _fields(comp):
-        v = getattr(comp, name)
-        out.append([fn(a) for a in v] if isinstance(v, list) else fn(v))
-    return type(comp)(*out)
+    _, lists, get = _layout(comp)
+    if not lists:
+        return type(comp)(*[fn(v) for v in get(comp)])
+    return type(comp)(*[[fn(a) for a in v] if isinstance(v, list) else fn(v) for v in get(comp)])
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_slots(track, n, rows, ntracks):
+    """(the used slots whose track is one of ``rows`` (sorted), in slot order, each one's
+    index into ``rows``)."""
+    pos = np.full(ntracks, -1, np.int64)
+    for i in range(len(rows)):
+        pos[rows[i]] = i
+    count = 0
+    for s in range(n):
+        t = track[s]
+        count += t >= 0 and pos[t] >= 0
+    idx = np.empty(count, np.int64)
+    loc = np.empty(count, np.int64)
+    c = 0
+    for s in range(n):
+        t = track[s]
+        if t >= 0 and pos[t] >= 0:
+            idx[c] = s
+            loc[c] = pos[t]
+            c += 1
+    return idx, loc
+
+
+@numba.njit(cache=True, nogil=True)
+def _renumbered(track, n, mask):
+    """(a copy of ``track`` whose first n slots hold the new row of their track, −1 for a
+    dropped track, the number of live slots)."""
+    new_row = np.empty(len(mask), np.int64)
+    r = 0
+    for i in range(len(mask)):
+        new_row[i] = r if mask[i] else -1
+        r += mask[i]
+    out = track.copy()
+    alive = 0
+    for s in range(n):
+        t = track[s]
+        out[s] = new_row[t] if t >= 0 else -1
+        alive += out[s] >= 0
+    return out, alive
+
+
+def _int64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 class ComponentSlots:
@@ -140,21 +195,23 @@ class ComponentSlots:
 
     def replace(self, inside: np.ndarray, new) -> None:
         """The components of the tracks where ``inside`` are replaced by ``new``."""
-        if self.alive == self.n and inside.all():  # every track: ``new`` is the store
+        self.replace_rows(np.flatnonzero(inside), len(inside), new)
+
+    def replace_rows(self, rows: np.ndarray, ntracks: int, new) -> None:
+        """The components of the track rows ``rows`` (sorted, of ``ntracks``) are replaced
+        by ``new``."""
+        if self.alive == self.n and len(rows) == ntracks:  # every track: ``new`` is the store
             self.data, self.n, self.alive = new, len(new), len(new)
             return
-        self._kill(self._slots(inside))
+        self._kill(_row_slots(self.data.track, self.n, _int64(rows), ntracks)[0])
         self.append(new)
 
     def keep(self, mask: np.ndarray) -> None:
         """Keep the tracks where ``mask`` (n_tracks,) is True, renumbered 0 … in order."""
-        mask = np.asarray(mask, bool)
-        new_row = np.append(np.where(mask, np.cumsum(mask) - 1, -1), -1)
-        t = new_row[self.data.track[: self.n]]
-        self.alive = int((t >= 0).sum())
-        track = self.data.track.copy()  # a new array: copies handed out stay valid
-        track[: self.n] = t
-        self.data.track = track
+        # a new track array: copies handed out stay valid
+        self.data.track, self.alive = _renumbered(
+            self.data.track, self.n, np.ascontiguousarray(mask, dtype=bool)
+        )
         self._maybe_compact()
 
     def _kill(self, slots: np.ndarray) -> None:
@@ -171,12 +228,13 @@ class ComponentSlots:
 
     def rows(self, rows: np.ndarray, ntracks: int):
         """(the live components of the track rows ``rows`` (sorted) in slot order, each
-        component's index into ``rows``): a copy, or views when ``rows`` are all of the
-        ``ntracks`` tracks and every used slot is live (:meth:`tracks`)."""
-        inside = np.zeros(ntracks, bool)
-        inside[rows] = True
-        comp = self.tracks(inside)
-        return comp, np.searchsorted(rows, comp.track)
+        component's index into ``rows``): a copy, or views when they are every used slot
+        (:meth:`tracks`); one compiled pass over the used slots (:func:`_row_slots`)."""
+        idx, loc = _row_slots(self.data.track, self.n, _int64(rows), ntracks)
+        n = self.n
+        if self.alive == n and len(idx) == n:  # every used slot, in order: no copy
+            return _map(self.data, lambda a: a[:n]), loc
+        return self.data.take(idx), loc
 
     # ---------------------------------------------------------------- snapshots
     def to_snapshot(self) -> dict:

@@ -48,6 +48,54 @@ def _predict_states(state, dt, lam, V, Vinv, period):
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def _bound(state, dt, lam1, psi_inf, period):
+    """ψ∞ + (ψ₀ − ψ∞) λ^(dt/T) of one state (2,) (:meth:`ExistenceChain.existence_bound`)."""
+    psi0 = min(max(state[0] + state[1], 0.0), 1.0)
+    return psi_inf + (psi0 - psi_inf) * lam1 ** (max(dt, 0.0) / period)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bounds(state, dt, lam1, psi_inf, period):
+    out = np.empty(len(state))
+    for k in range(len(state)):
+        out[k] = _bound(state[k], dt[k], lam1, psi_inf, period)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _screened(state, dt, lam, V, Vinv, period, lumped, level, also):
+    """ψ (n,) of the states predicted over dt where the closed form ψ∞ + (ψ₀ − ψ∞) λ^(dt/T)
+    (``lumped`` = (λ, ψ∞), λ ≤ 0: none) is below ``level`` or ``also``: the exact
+    prediction (:func:`_predict_states`); 1 elsewhere."""
+    n = len(state)
+    out = np.ones(n)
+    lam1, psi_inf = lumped
+    one = np.empty((1, 2))
+    t1 = np.empty(1)
+    for k in range(n):
+        if not also[k] and lam1 > 0.0 and _bound(state[k], dt[k], lam1, psi_inf, period) >= level:
+            continue
+        one[0, 0], one[0, 1], t1[0] = state[k, 0], state[k, 1], dt[k]
+        p = _predict_states(one, t1, lam, V, Vinv, period)
+        out[k] = min(max(p[0, 0] + p[0, 1], 0.0), 1.0)
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # x/0 as in NumPy
+def _updated(state_pred, psi_post):
+    """[ψ_det', clip(p_unobs (1 − ψ_det')/(1 − p_obs))] per state (the scale 1 where
+    1 − p_obs ≤ 1e-300)."""
+    n = len(state_pred)
+    out = np.empty((n, 2))
+    for k in range(n):
+        denom = 1.0 - state_pred[k, 0]
+        scale = (1.0 - psi_post[k]) / denom if denom > 1e-300 else 1.0
+        out[k, 0] = psi_post[k]
+        out[k, 1] = min(max(state_pred[k, 1] * scale, 0.0), 1.0)
+    return out
+
+
 class ExistenceChain:
     """A Markov chain over {detectable, undetectable, non-existent} with period ``period`` s.
 
@@ -101,9 +149,24 @@ class ExistenceChain:
         if lumped is None:
             return None
         lam, psi_inf = lumped
-        t = np.maximum(np.asarray(dt, dtype=np.float64), 0.0) / self.period
-        psi0 = np.clip(state[:, 0] + state[:, 1], 0.0, 1.0)
-        return psi_inf + (psi0 - psi_inf) * lam**t
+        c = np.ascontiguousarray
+        return _bounds(c(state, dtype=np.float64), c(dt, dtype=np.float64).reshape(len(state)),
+                       lam, psi_inf, self.period)  # fmt: skip
+
+    def existence_below(
+        self, state: np.ndarray, dt: np.ndarray, level: float, also: np.ndarray
+    ) -> np.ndarray:
+        """ψ (n,) of ``state`` (n, 2) predicted over ``dt`` (n,) s (``existence(predict(…))``)
+        for the states whose closed-form ψ (:meth:`existence_bound`) is below ``level`` and
+        those where ``also`` (n,); 1 for the others. One compiled pass: the termination test
+        of every track, where the exact prediction is made only near the threshold."""
+        lumped = self._lumped() or (0.0, 0.0)
+        return _screened(
+            np.ascontiguousarray(state, dtype=np.float64),
+            np.ascontiguousarray(dt, dtype=np.float64),
+            self._lam, self._V, self._Vinv, self.period, lumped, float(level),
+            np.ascontiguousarray(also, dtype=bool),
+        )  # fmt: skip
 
     @staticmethod
     def existence(state: np.ndarray) -> np.ndarray:
@@ -112,13 +175,10 @@ class ExistenceChain:
 
     @staticmethod
     def update(state_pred: np.ndarray, psi_det_post: np.ndarray) -> np.ndarray:
-        """Apply the association's posterior ψ_det' (2.41 / 5.18 / 6.7) to the chain state."""
-        p_obs = state_pred[:, 0]
-        p_unobs = state_pred[:, 1]
-        denom = 1.0 - p_obs
-        # 1 − δ p_obs = (1 − p_obs)/(1 − ψ_det'); p_unobs is renormalised by it.
-        scale = np.divide(1.0 - psi_det_post, denom, out=np.ones_like(denom), where=denom > 1e-300)
-        return np.column_stack([psi_det_post, np.clip(p_unobs * scale, 0.0, 1.0)])
+        """Apply the association's posterior ψ_det' (2.41 / 5.18 / 6.7) to the chain state:
+        1 − δ p_obs = (1 − p_obs)/(1 − ψ_det') renormalises p_unobs (one compiled loop)."""
+        c = np.ascontiguousarray
+        return _updated(c(state_pred, dtype=np.float64), c(psi_det_post, dtype=np.float64))
 
 
 def markov_chain_one(delta11: float, delta21: float, period: float = 1.0) -> ExistenceChain:

@@ -11,8 +11,9 @@ forms pairs is consumed by them.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-from skyfuse.fusion.association.gating import window_pairs
+from skyfuse.fusion.association.gating_kernels import windows
 from skyfuse.fusion.filters.initiation import one_point as initial_one_point
 from skyfuse.fusion.filters.initiation import two_point
 
@@ -55,16 +56,48 @@ def pair_plots(
     v_max: float,
     min_dt: float,
     max_dt: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    now_ns: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pairs (buffer index, new plot index, Δt s) with min_dt ≤ Δt ≤ max_dt and
-    ‖z₂ − z₁‖ ≤ v_max Δt (the maximum-velocity criterion of [thesis] §7.1)."""
-    if len(buffer) == 0 or len(z) == 0:
+    ‖z₂ − z₁‖ ≤ v_max Δt (the maximum-velocity criterion of [thesis] §7.1), and the
+    buffered plots that stay (not expired, not paired): a buffered plot expires when it is
+    more than ``max_dt`` s older than ``now_ns`` (None: none expires). One compiled pass
+    (:func:`_pairs`): the box |Δ| ≤ v_max max_dt around each new plot (the gating's
+    windows), then the exact tests; pairs in the order of the new plots, then of the
+    buffer's sorted first coordinate."""
+    n = len(buffer)
+    if n == 0 or len(z) == 0:
         e = np.zeros(0, np.int64)
-        return e, e, np.zeros(0)
-    radius = np.full(len(z), v_max * max_dt)
-    new_i, old_j = window_pairs(z, radius, buffer.z)
-    dt = (time[new_i] - buffer.time[old_j]) * 1e-9
-    d = z[new_i] - buffer.z[old_j]
-    dist = np.sqrt(np.einsum("ij,ij->i", d, d))  # ‖z₂ − z₁‖
-    ok = (dt >= min_dt) & (dt <= max_dt) & (dist <= v_max * dt)
-    return old_j[ok], new_i[ok], dt[ok]
+        stay = np.ones(n, bool) if now_ns is None else (now_ns - buffer.time) * 1e-9 <= max_dt
+        return e, e, np.zeros(0), stay
+    c = np.ascontiguousarray
+    return _pairs(c(buffer.z), c(buffer.time), -1 if now_ns is None else int(now_ns),
+                  c(z, dtype=np.float64), c(time, dtype=np.int64), float(v_max),
+                  float(min_dt), float(max_dt))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairs(bz, bt, now, z, t, v_max, min_dt, max_dt):
+    """The loops of :func:`pair_plots` (``now`` < 0: no expiry): the windows of the
+    gating's pre-gate (:func:`~fusion.association.gating_kernels.windows`), then the
+    expiry, the Δt and the distance tests."""
+    alive = np.empty(len(bt), np.bool_)
+    for j in range(len(bt)):
+        alive[j] = now < 0 or (now - bt[j]) * 1e-9 <= max_dt
+    m, k = z.shape
+    new_i, old_j = windows(z, np.full(m, v_max * max_dt), bz)
+    ok = np.zeros(len(new_i), np.bool_)
+    dts = np.empty(len(new_i))
+    for p in range(len(new_i)):
+        i, j = new_i[p], old_j[p]
+        dts[p] = (t[i] - bt[j]) * 1e-9
+        if not (alive[j] and dts[p] >= min_dt and dts[p] <= max_dt):
+            continue
+        d2 = 0.0
+        for a in range(k):
+            d2 += (z[i, a] - bz[j, a]) * (z[i, a] - bz[j, a])
+        ok[p] = np.sqrt(d2) <= v_max * dts[p]
+    for p in range(len(new_i)):
+        if ok[p]:
+            alive[old_j[p]] = False
+    return old_j[ok], new_i[ok], dts[ok], alive

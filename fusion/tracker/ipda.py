@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 
@@ -65,11 +66,31 @@ def single_target(
     """IPDA/ITS update of independent tracks from ratios p^τ_i/ρ_i per table row.
 
     Λ (5.16), ψ (5.18), β_0 = (1 − P_D P_G)/Λ and β_i = P_D P_G (p_i/ρ_i)/Λ (2.38), so
-    that the ITS component weights are ξ^{c,0} = β_0 ξ^c, ξ^{c,i} = β_i ξ^c p^c_i/p_i (5.15)."""
+    that the ITS component weights are ξ^{c,0} = β_0 ξ^c, ξ^{c,i} = β_i ξ^c p^c_i/p_i (5.15).
+    One compiled pass (:func:`single_target_arrays`)."""
+    c = np.ascontiguousarray
+    f = np.float64
+    return AssociationResult(*single_target_arrays(
+        c(psi_pred, dtype=f), c(pdpg, dtype=f), c(tp_track, dtype=np.int64), c(ratio, dtype=f)
+    ))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # x/0 as in NumPy
+def single_target_arrays(psi_pred, pdpg, tp_track, ratio):
+    """(ψ_det', β₀, β) of :func:`single_target`: the sums Σ_i p_i/ρ_i in row order, then
+    :func:`likelihood_ratio`, :func:`existence_update` and β as written there."""
     n = len(psi_pred)
-    ratio_sum = np.bincount(tp_track, weights=ratio, minlength=n)
-    lam = likelihood_ratio(pdpg, ratio_sum)
-    psi_post = existence_update(psi_pred, lam)
-    beta0 = (1.0 - pdpg) / lam
-    beta = pdpg[tp_track] * ratio / lam[tp_track]
-    return AssociationResult(psi_post, beta0, beta)
+    ratio_sum = np.zeros(n)
+    for r in range(len(ratio)):
+        ratio_sum[tp_track[r]] += ratio[r]
+    psi_post, beta0 = np.empty(n), np.empty(n)
+    lam = np.empty(n)
+    for k in range(n):
+        lam[k] = 1.0 - pdpg[k] + pdpg[k] * ratio_sum[k]
+        psi_post[k] = lam[k] * psi_pred[k] / (1.0 - (1.0 - lam[k]) * psi_pred[k])
+        beta0[k] = (1.0 - pdpg[k]) / lam[k]
+    beta = np.empty(len(ratio))
+    for r in range(len(ratio)):
+        t = tp_track[r]
+        beta[r] = pdpg[t] * ratio[r] / lam[t]
+    return psi_post, beta0, beta

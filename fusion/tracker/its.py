@@ -5,15 +5,15 @@ unchanged, 5.12) and one child per plot i it gated (ξ^{c,i} = β_i ξ^c p^c_i /
 Kalman update and Joseph covariance, 5.14). With IPDA/ITS β this is (5.15); with JIPDA or
 LM-IPDA β it is the multi-target update. The child's plot history is the new plot's id
 (0 for none) followed by the first N−1 entries of the parent's history ([thesis] §5.3).
+
+The update of a batch is one compiled call (:func:`.components_kernel.its_children`, with
+the merge and pruning that follow it); :func:`shift_history` serves the out-of-sequence
+update and the IMM density.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from skyfuse.fusion.association.gating import GatedPairs
-from skyfuse.fusion.filters.kalman import update_with_innovation
-
-from .components import Mixture
 
 
 def shift_history(hist: np.ndarray, new_ids: np.ndarray) -> np.ndarray:
@@ -21,51 +21,3 @@ def shift_history(hist: np.ndarray, new_ids: np.ndarray) -> np.ndarray:
     if hist.shape[1] == 0:
         return hist
     return np.column_stack([new_ids, hist[:, :-1]])
-
-
-def component_update(
-    pred: Mixture,
-    loc: np.ndarray,
-    pairs: GatedPairs,
-    p_pair: np.ndarray,
-    row: np.ndarray,
-    p_track: np.ndarray,
-    beta0: np.ndarray,
-    beta: np.ndarray,
-    H: np.ndarray,
-    R: np.ndarray,
-    plot_uid: np.ndarray,
-) -> Mixture:
-    """Children of the predicted components ``pred`` (before merging).
-
-    loc (C,): each component's track in the association arrays; pairs: gated (component,
-    plot) pairs; p_pair: p^c_i = N(ν; 0, S)/P_G per pair; row: each pair's track–plot table
-    row; p_track: p^τ_i per row; beta0 per track; beta per row; H (k, d); R (m, k, k) plot
-    covariances; plot_uid (m,) the plots' history ids (≥ 1)."""
-    w0 = pred.w * beta0[loc]
-    null = Mixture(
-        pred.track,
-        w0,
-        pred.x,
-        pred.P,
-        shift_history(pred.hist, np.zeros(len(pred), np.int64)),
-    )
-    if len(pairs) == 0:
-        children = null
-    else:
-        wi = pred.w[pairs.state] * beta[row] * p_pair / p_track[row]
-        # children of weight 0 (GNN: all pairs but the chosen one) are dropped below:
-        # no Kalman update for them
-        live = np.flatnonzero(wi > 0.0)
-        c, plot, wi, S, nu = (
-            pairs.state[live],
-            pairs.plot[live],
-            wi[live],
-            pairs.S[live],
-            pairs.nu[live],
-        )
-        x, Pn = update_with_innovation(pred.x[c], pred.P[c], H, S, nu, R[plot])
-        upd = Mixture(pred.track[c], wi, x, Pn, shift_history(pred.hist[c], plot_uid[plot]))
-        children = Mixture.concat([null, upd])
-    keep = children.w > 0.0
-    return children.take(np.flatnonzero(keep)) if not keep.all() else children

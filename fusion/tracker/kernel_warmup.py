@@ -13,9 +13,11 @@ tracker uses (float64 / int64, C-contiguous: the wrappers pass nothing else), so
 service can pay this at start, before it declares itself alive. It computes nothing that
 is kept. The kernels every tracker uses are called here (gating, the Joseph covariance,
 moment matching, the existence chain, plot validity, the out-of-sequence noise terms, the
-re-identification fix test, the sensor registration's); those of a density are called by
-the density's own ``warm_up``, which the registry calls for every registered density
-(:func:`fusion.tracker.registry.warm_up_parts`), so a new density needs no line here. No
+re-identification fix test, the sensor registration's, the passes of a step outside the
+densities: pairing, shared plots, the track table, the slots of rows); those of a density
+are called by the density's own ``warm_up``, which the registry calls for every
+registered density (:func:`fusion.tracker.registry.warm_up_parts`), so a new density needs
+no line here. No
 equations here: the kernels are documented where they are defined
 (:mod:`fusion.association.gating_kernels`, :mod:`fusion.filters.cholesky_kernels`,
 :mod:`fusion.filters.kalman`, :mod:`fusion.filters.moment_matching`,
@@ -36,11 +38,19 @@ from skyfuse.fusion.filters.moment_matching import moment_match
 from skyfuse.fusion.registration.bias_filter_kernel import gate_and_update
 from skyfuse.fusion.registration.pairing_kernel import pair_residuals, partner_rows
 
+from .component_slots import ComponentSlots
+from .components import Mixture
+from .density.gaussian_mixture import track_table
 from .existence import markov_chain_one
+from .initiation import PlotBuffer, pair_plots
+from .ipda import single_target
+from .lm_its import modified_clutter_density
+from .management import shared_plot_pairs
 from .oosm import noise_terms
+from .phases import most_likely_plots
 from .plot_validity_kernel import all_plots_valid
 from .registry import warm_up_parts
-from .reidentification import keeps_fix
+from .reidentification import keeps_fix, update_fix_columns
 
 
 def warm_up() -> float:
@@ -62,7 +72,10 @@ def warm_up() -> float:
     x = np.arange(6.0).reshape(3, 2)
     moment_match(w, x, np.stack([eye, eye, eye]), np.array([0, 0, 1]), 2)
     noise_terms(x[:2], P, 0.1 * P, x[:2] + 1.0, 1.5 * P, np.array([True, True]))
-    markov_chain_one(0.98, 0.0).predict(np.array([[0.5, 0.0]]), np.array([1.0]))
+    chain = markov_chain_one(0.98, 0.0)
+    chain.predict(np.array([[0.5, 0.0]]), np.array([1.0]))
+    chain.existence_below(np.array([[0.5, 0.0]]), np.array([1.0]), 0.1, np.array([True]))
+    _tracker_passes(x, P)
     i1 = np.zeros(1, np.int64)
     partner_rows(i1, i1, i1 + 1, i1, i1, i1 + 1, i1, 10)
     v2, m2, h = np.zeros((1, 2)), np.eye(2)[None].copy(), np.zeros((1, 2, 4))
@@ -73,3 +86,25 @@ def warm_up() -> float:
                     np.array([1]), np.array([0]), 10.0, counts, counts.copy())  # fmt: skip
     warm_up_parts()
     return time.perf_counter() - t0
+
+
+def _tracker_passes(x: np.ndarray, P: np.ndarray) -> None:
+    """The compiled passes of a tracker step outside the densities: the two-point pairing,
+    the pairs of tracks sharing a plot, the track × plot table, the slots of track rows
+    and their renumbering, the most likely plots, the LM and IPDA association, the
+    existence update, the re-identification fixes."""
+    i2 = np.array([0, 1])
+    buffer = PlotBuffer.empty(2)
+    buffer.add(x[:2], P, np.zeros(2, np.int64), i2)
+    pair_plots(buffer, x[:2] + 1.0, np.full(2, 10**9), 350.0, 0.5, 15.0, 10**9)
+    shared_plot_pairs(i2, np.zeros(2, np.int64))
+    track_table(i2, i2, i2, np.ones(2), np.ones(2), 2)
+    slots = ComponentSlots.holding(Mixture(i2, np.ones(2), x[:2], P, np.zeros((2, 1), np.int64)))
+    slots.rows(np.array([1]), 2)
+    slots.keep(np.array([True, False]))
+    most_likely_plots(2, i2, np.full(2, 0.5), np.ones(2), i2, i2)
+    lm = modified_clutter_density(i2, i2, 2, np.ones(2), np.ones(2), np.full(2, 0.5), np.ones(2))
+    single_target(np.full(2, 0.5), np.full(2, 0.9), i2, lm)
+    markov_chain_one(0.98, 0.0).update(np.array([[0.5, 0.0]]), np.array([0.6]))
+    t2 = np.ones(2, np.int64)
+    update_fix_columns(i2, t2, x[:2], P, x[:2].copy(), P.copy(), t2.copy(), 60.0, 4.0)

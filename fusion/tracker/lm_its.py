@@ -17,6 +17,7 @@ Existence and β then follow (6.18-6.22) = :func:`fusion.tracker.ipda.single_tar
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 
@@ -31,25 +32,53 @@ def modified_clutter_density(
     prior: str = "canonical",
 ) -> np.ndarray:
     """ρ̃ per track–plot row (6.14). ``p`` = track likelihood p^τ_i per row, ``rho`` = the
-    clutter density the row's track uses, ``psi_pred``/``pdpg`` per track."""
-    n = len(psi_pred)
-    if len(p) == 0:
-        return rho.copy()
-    expected = pdpg[tp_track] * psi_pred[tp_track] * p  # P_D P_G ψ^σ p^σ_i
-    if prior == "thesis":
-        total = np.bincount(tp_plot, weights=expected, minlength=nplots)
-        rho_prior = rho + total[tp_plot] - expected  # (6.13)
-    elif prior == "canonical":
-        rho_prior = rho
-    else:
+    clutter density the row's track uses, ``psi_pred``/``pdpg`` per track. One compiled
+    pass (:func:`modified_density`)."""
+    if prior not in ("canonical", "thesis"):
         raise ValueError(f"prior = {prior!r}: must be 'canonical' or 'thesis'")
-    r = p / rho_prior
-    rsum = np.bincount(tp_track, weights=r, minlength=n)[tp_track]
-    # (6.12); a track whose gated plots all have likelihood 0 (a particle cloud far from
-    # them, its likelihoods underflowed) gives them no prior probability, not 0/0
-    P = pdpg[tp_track] * psi_pred[tp_track] * r / np.where(rsum > 0.0, rsum, 1.0)
-    P = np.minimum(P, 1.0 - 1e-12)
-    term = p * P / (1.0 - P)
-    per_plot = np.bincount(tp_plot, weights=term, minlength=nplots)
-    # (6.14): exclude the row's own track; clip the rounding of the subtraction
-    return rho + np.maximum(per_plot[tp_plot] - term, 0.0)
+    c = np.ascontiguousarray
+    f = np.float64
+    return modified_density(c(tp_track, dtype=np.int64), c(tp_plot, dtype=np.int64),
+                            int(nplots), c(p, dtype=f), c(rho, dtype=f), c(psi_pred, dtype=f),
+                            c(pdpg, dtype=f), prior == "thesis")  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # x/0 as in NumPy
+def modified_density(tp_track, tp_plot, nplots, p, rho, psi_pred, pdpg, thesis):
+    """The loops of :func:`modified_clutter_density`: the expected detection density
+    P_D P_G ψ^σ p^σ_i of every row, the priors (6.12) with ρ' of (6.13) when ``thesis``,
+    the modulation (6.14) of each row without its own track (sums in row order; the
+    subtraction's rounding clipped at 0; a track whose gated plots all have likelihood 0
+    gives them no prior probability, not 0/0)."""
+    T = len(p)
+    if T == 0:
+        return rho.copy()
+    rho_prior = rho
+    if thesis:
+        total = np.zeros(nplots)
+        for r in range(T):
+            total[tp_plot[r]] += pdpg[tp_track[r]] * psi_pred[tp_track[r]] * p[r]
+        rho_prior = np.empty(T)
+        for r in range(T):
+            e = pdpg[tp_track[r]] * psi_pred[tp_track[r]] * p[r]
+            rho_prior[r] = rho[r] + total[tp_plot[r]] - e
+    ratio = np.empty(T)
+    rsum = np.zeros(len(psi_pred))
+    for r in range(T):
+        ratio[r] = p[r] / rho_prior[r]
+        rsum[tp_track[r]] += ratio[r]
+    term = np.empty(T)
+    per_plot = np.zeros(nplots)
+    cap = 1.0 - 1e-12
+    for r in range(T):
+        t = tp_track[r]
+        s = rsum[t]
+        P = pdpg[t] * psi_pred[t] * ratio[r] / (s if s > 0.0 else 1.0)
+        P = P if (P <= cap or P != P) else cap  # np.minimum
+        term[r] = p[r] * P / (1.0 - P)
+        per_plot[tp_plot[r]] += term[r]
+    out = np.empty(T)
+    for r in range(T):
+        v = per_plot[tp_plot[r]] - term[r]
+        out[r] = rho[r] + (v if (v > 0.0 or v != v) else 0.0)  # np.maximum(v, 0)
+    return out

@@ -20,6 +20,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .store import Column, ColumnGroup
@@ -70,26 +71,45 @@ def to_terminate_by_count(
 
 
 def shared_plot_pairs(tp_track: np.ndarray, tp_plot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct pairs (a, b), a < b, of tracks with a common plot in ``tp_plot``."""
+    """Distinct pairs (a, b), a < b, of tracks with a common plot in ``tp_plot``, in
+    lexicographic order (one compiled pass, :func:`_shared_pairs`)."""
     if len(tp_track) < 2:
         e = np.zeros(0, np.int64)
         return e, e
-    order = np.lexsort((tp_track, tp_plot))
-    t, p = tp_track[order], tp_plot[order]
-    end = np.searchsorted(p, p, side="right")
-    pos = np.arange(len(p))
-    count = end - pos - 1
-    total = int(count.sum())
-    if total == 0:
-        e = np.zeros(0, np.int64)
-        return e, e
-    i = np.repeat(pos, count)
-    j = i + 1 + (np.arange(total) - np.repeat(np.cumsum(count) - count, count))
-    a, b = t[i], t[j]
-    a, b = np.minimum(a, b), np.maximum(a, b)
-    keep = a != b
-    pairs = np.unique(np.column_stack([a[keep], b[keep]]), axis=0)
-    return pairs[:, 0], pairs[:, 1]
+    c = np.ascontiguousarray
+    return _shared_pairs(c(tp_track, dtype=np.int64), c(tp_plot, dtype=np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
+def _shared_pairs(track, plot):
+    """Rows sorted by (plot, track); every pair of tracks within a plot's run; the
+    distinct pairs sorted."""
+    n = len(track)
+    span = track.max() + 1
+    key = np.empty(n, np.int64)
+    for r in range(n):
+        key[r] = plot[r] * span + track[r]
+    order = np.argsort(key)
+    total = 0
+    lo = 0
+    for s in range(1, n + 1):
+        if s == n or plot[order[s]] != plot[order[lo]]:
+            total += (s - lo) * (s - lo - 1) // 2
+            lo = s
+    pair = np.empty(total, np.int64)
+    p = 0
+    lo = 0
+    for s in range(1, n + 1):
+        if s == n or plot[order[s]] != plot[order[lo]]:
+            for i in range(lo, s):
+                for j in range(i + 1, s):
+                    a, b = track[order[i]], track[order[j]]
+                    if a != b:
+                        pair[p] = min(a, b) * span + max(a, b)
+                        p += 1
+            lo = s
+    pair = np.unique(pair[:p])
+    return pair // span, pair % span
 
 
 def duplicate_rank(

@@ -55,6 +55,7 @@ class OutOfSequence:
         self.density, self.tracks = density, tracks
         self.enabled = bool(enabled) and density.late_plots == "retrodict"
         self.modes = len(density.mode_dims) if self.enabled else 0
+        self._names = [(f"oosm_x{j}", f"oosm_P{j}") for j in range(self.modes)]
         if self.enabled:
             cols = [Column("oosm_t", np.int64, fill=-1, doc="time of the last prior, ns")]
             for j, d in enumerate(density.mode_dims):
@@ -82,17 +83,17 @@ class OutOfSequence:
         xs, Ps = self.density.track_priors(pred)
         tr = self.tracks
         tr.oosm_t[rows] = t[rows]
-        for j in range(self.modes):
-            getattr(tr, f"oosm_x{j}")[rows] = xs[j]
-            getattr(tr, f"oosm_P{j}")[rows] = Ps[j]
+        for j, (x_name, P_name) in enumerate(self._names):
+            getattr(tr, x_name)[rows] = xs[j]
+            getattr(tr, P_name)[rows] = Ps[j]
 
     def _priors(self, rows: np.ndarray):
         """(known (s,), x[j] (s, d_j), P[j]) of the rows: known where the stored prior is
         the one of the track's current time."""
         tr = self.tracks
         known = tr.oosm_t[rows] == tr.t_last[rows]
-        xs = [getattr(tr, f"oosm_x{j}")[rows] for j in range(self.modes)]
-        return known, xs, [getattr(tr, f"oosm_P{j}")[rows] for j in range(self.modes)]
+        xs = [getattr(tr, x_name)[rows] for x_name, _ in self._names]
+        return known, xs, [getattr(tr, P_name)[rows] for _, P_name in self._names]
 
     def apply(self, phases, b, late, t_tau, share, bit, assigned, used, stats):
         """The OOSM update of the late rows ``late`` (sorted) by batch ``b``; returns

@@ -18,6 +18,7 @@ the out-of-sequence pass never reaches into the tracker.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .associators import AssociationProblem
@@ -105,15 +106,10 @@ class Phases:
         tr.last_update[hit] = t_pred[hit]
         if self.reid is not None and len(hit):
             self.reid.update_fixes(hit, t_pred[hit])
-        assigned = np.full(len(tr), -1, dtype=np.int64)
-        if len(res.beta):
-            tp_track, tp_plot = table.tp_track, table.tp_plot
-            order = np.lexsort((-res.beta, tp_track))
-            first = np.concatenate(([True], tp_track[order][1:] != tp_track[order][:-1]))
-            best = order[first]
-            good = res.beta[best] > res.beta0[tp_track[best]]
-            assigned[sel[tp_track[best[good]]]] = tp_plot[best[good]]
-        return assigned
+        c = np.ascontiguousarray
+        return most_likely_plots(len(tr), c(sel, dtype=np.int64), c(res.beta0, dtype=np.float64),
+                                 c(res.beta, dtype=np.float64), c(table.tp_track, dtype=np.int64),
+                                 c(table.tp_plot, dtype=np.int64))  # fmt: skip
 
     def attribute(self, b: MeasurementBatch, rows: np.ndarray, res: AssociationResult,
                   table: GatedTable) -> None:  # fmt: skip
@@ -138,3 +134,21 @@ class Phases:
             return used
         claimed = np.bincount(table.tp_plot, weights=res.beta, minlength=m)
         return claimed >= self.cfg.init_free_weight
+
+
+@numba.njit(cache=True, nogil=True)
+def most_likely_plots(n, sel, beta0, beta, tp_track, tp_plot):
+    """(n,) each track row's plot of largest β (the first of equal ones in table order;
+    NaN last, as a sort would), −1 where none or where β₀ is not smaller."""
+    assigned = np.full(n, -1, np.int64)
+    best = np.full(len(sel), -1, np.int64)
+    for r in range(len(beta)):
+        t = tp_track[r]
+        b = best[t]
+        if b < 0 or -beta[r] < -beta[b] or (beta[b] != beta[b] and beta[r] == beta[r]):
+            best[t] = r
+    for t in range(len(sel)):
+        b = best[t]
+        if b >= 0 and beta[b] > beta0[t]:
+            assigned[sel[t]] = tp_plot[b]
+    return assigned

@@ -131,6 +131,28 @@ def keeps_fix(
                       c(P_new, dtype=np.float64), FIX_HORIZON, float(q))  # fmt: skip
 
 
+@numba.njit(cache=True, nogil=True)
+def update_fix_columns(hit, t, x, P, fix_x, fix_P, fix_t, horizon, q):
+    """:func:`keeps_fix` of the rows ``hit`` against their estimates x, P at ``t``; the
+    fix columns take the estimates where the old fix is not kept."""
+    n = len(hit)
+    dt = np.empty(n)
+    d = P.shape[1]
+    P_old, P_new = np.empty((n, d, d)), np.empty((n, d, d))
+    for i in range(n):
+        h = hit[i]
+        dt[i] = max(t[i] - fix_t[h], 0) * NS + horizon
+        P_old[i] = fix_P[h]
+        P_new[i] = P[h]
+    keep = _keeps_fix(P_old, dt, P_new, horizon, q)
+    for i in range(n):
+        if not keep[i]:
+            h = hit[i]
+            fix_x[h] = x[h]
+            fix_P[h] = P[h]
+            fix_t[h] = t[i]
+
+
 class TerminatedTracks:
     """Bounded store of recently terminated confirmed tracks: a :class:`~.store.Table` of
     their former ids (n,), last fixes x (n, d), P (n, d, d) and fix times t (n,) ns, in
@@ -258,12 +280,13 @@ class Reidentification:
 
     def update_fixes(self, hit: np.ndarray, t: np.ndarray) -> None:
         """The fixes of the tracks ``hit`` by a plot at times ``t`` ns: their new
-        estimates, unless the old fix stays more informative (R1')."""
-        x, P = self.density.estimate(hit)
+        estimates, unless the old fix stays more informative (R1'); one compiled pass
+        writing the fix columns."""
+        x, P = self.density.estimates_view()
         tr = self.tracks
-        old = keeps_fix(tr.fix_P[hit], tr.fix_t[hit], P, t, self.q)
-        new = hit[~old]
-        tr.fix_x[new], tr.fix_P[new], tr.fix_t[new] = x[~old], P[~old], t[~old]
+        c = np.ascontiguousarray
+        update_fix_columns(c(hit, dtype=np.int64), c(t, dtype=np.int64), x, P, tr.fix_x, tr.fix_P,
+                      tr.fix_t, FIX_HORIZON, float(self.q))  # fmt: skip
 
     def ended(self, rows: np.ndarray) -> None:
         """The confirmed tracks ``rows`` end: their fixes become candidates."""

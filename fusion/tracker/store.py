@@ -189,7 +189,7 @@ class Table:
                 if c.fill is None:
                     raise ValueError(f"column {name!r}: no value for the new rows")
                 v = c.fill
-            elif np.shape(v) != (k, *c.shape):
+            elif (v.shape if isinstance(v, np.ndarray) else np.shape(v)) != (k, *c.shape):
                 raise ValueError(f"column {name!r}: {np.shape(v)} for {k} rows of {c.shape}")
             buffers[name][lo:hi] = v
         object.__setattr__(self, "_n", hi)
@@ -213,13 +213,21 @@ class Table:
     def keep(self, mask: np.ndarray) -> None:
         """Keep the rows where ``mask`` (len(self),) is True, in order, gathered to the
         front of the arrays (views taken before are stale); then the groups' ``kept``
-        hooks."""
+        hooks. Rows before the first dropped one stay where they are."""
         mask = np.asarray(mask, bool)
-        idx = np.flatnonzero(mask)
-        n, k = self._n, len(idx)
-        for buf in self._buffers.values():
-            buf[:k] = buf[:n].take(idx, axis=0)  # in place: the capacity stays
-        object.__setattr__(self, "_n", len(idx))
+        drop = np.flatnonzero(~mask)
+        n = self._n
+        k = n - len(drop)
+        if len(drop) == 1:  # one row: the rows after it move up by one
+            a = int(drop[0])
+            for buf in self._buffers.values():
+                buf[a:k] = buf[a + 1 : n]
+        elif len(drop):
+            a = int(drop[0])
+            idx = np.flatnonzero(mask[a:]) + a
+            for buf in self._buffers.values():
+                buf[a:k] = buf[:n].take(idx, axis=0)  # in place: the capacity stays
+        object.__setattr__(self, "_n", k)
         self._views()
         for g in self._groups:
             if g.kept is not None:

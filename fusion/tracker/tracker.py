@@ -512,13 +512,9 @@ class Tracker:
         # the existence clock stands still in a cone of silence (:mod:`.coverage`)
         dt = np.maximum(t_batch - existence_clock(tr.t_last, tr.coast_from), 0) * NS
         # exact existence prediction only where the closed form says ψ can be near τ_t
-        rows = np.arange(self.n)
-        bound = self.chain.existence_bound(tr.exist, dt)
-        if bound is not None:
-            rows = np.flatnonzero((bound < cfg.tau_terminate + TERMINATION_MARGIN) | coasting)
-        psi_now = np.ones(self.n)
-        if len(rows):  # (usually none: every track's bound is above τ_t)
-            psi_now[rows] = self.chain.existence(self.chain.predict(tr.exist[rows], dt[rows]))
+        # (usually no track) and for the coasting ones
+        level = cfg.tau_terminate + TERMINATION_MARGIN
+        psi_now = self.chain.existence_below(tr.exist, dt, level, coasting)
         ended, why = to_terminate(psi_now, cfg.tau_terminate), "existence below tau_t"
         if cfg.life_cycle == "m_of_n":  # the counts decide, not ψ (reported as it is)
             psi_now = self.existence()
@@ -548,33 +544,32 @@ class Tracker:
         [thesis] §3.5)."""
         cfg = self.cfg
         m = len(b)
-        uid = self._next_uid + np.arange(m, dtype=np.int64)
+        uid0 = self._next_uid
         self._next_uid += m
         free = np.flatnonzero(~used)
         if cfg.initiation == "none" or len(free) == 0:
             return 0
-        plot_time = (
-            np.asarray(b.plot_times, dtype=np.int64)
-            if b.plot_times is not None
-            else np.full(m, int(b.time_ns), dtype=np.int64)
-        )
-        z, R, t = b.z[free], b.R[free], plot_time[free]
+        if b.plot_times is None:
+            t = np.full(len(free), int(b.time_ns), dtype=np.int64)
+        else:
+            t = np.asarray(b.plot_times, dtype=np.int64)[free]
+        z, R = b.z[free], b.R[free]
         before = self.n
         if cfg.initiation == "one_point":
             self._add_tracks(*one_point(z, R, cfg.v_max), t)
             self._first_sightings(b, before, free, t)
             return self.n - before
-        # drop expired buffered plots, pair, consume the paired ones, buffer the rest
-        self.buffer.keep((int(b.time_ns) - self.buffer.time) * NS <= cfg.init_max_dt)
-        old, new, dt = pair_plots(self.buffer, z, t, cfg.v_max, cfg.init_min_dt, cfg.init_max_dt)
+        # pair with the buffered plots not expired; keep those neither expired nor paired
+        old, new, dt, stay = pair_plots(
+            self.buffer, z, t, cfg.v_max, cfg.init_min_dt, cfg.init_max_dt, int(b.time_ns)
+        )
         if len(old):
             x, P = two_point(self.buffer.z[old], self.buffer.R[old], z[new], R[new], dt)
             self._add_tracks(x, P, t[new])
             self._first_sightings(b, before, free[new], t[new])
-            consumed = np.zeros(len(self.buffer), bool)
-            consumed[old] = True
-            self.buffer.keep(~consumed)
-        self.buffer.add(z, R, t, uid[free])
+        if not stay.all():
+            self.buffer.keep(stay)
+        self.buffer.add(z, R, t, uid0 + free)
         return self.n - before
 
     def _first_sightings(self, b: MeasurementBatch, first_row: int, plots, t) -> None:
@@ -606,7 +601,7 @@ class Tracker:
         """All live tracks at the newest batch time (``newest_ns``): the output of the
         last step, or of the state restored from a snapshot (no plot assigned)."""
         tr = self.tracks
-        x, P = self.estimates()
+        x, P = (a.copy() for a in self.density.estimates_view())
         snapshot = OutputPrediction(
             self.newest_ns,
             x,

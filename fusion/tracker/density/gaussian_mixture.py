@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from skyfuse.fusion.association.gating import GatedPairs, gate
 from skyfuse.fusion.filters.kalman import update_with_innovation
@@ -39,7 +40,8 @@ from skyfuse.schemas.snapshot import entry, mapping
 
 from .. import components as comp
 from ..component_slots import ComponentSlots
-from ..its import component_update, shift_history
+from ..components_kernel import its_update, merge_prune_estimate
+from ..its import shift_history
 from ..oosm import oosm_update, retrodict
 from .base import GatedTable, Prediction, estimate_group, gate_probability_of
 
@@ -92,12 +94,35 @@ def track_table(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(tp_track, tp_plot, p^τ_i = Σ_c ξ^c p^c_i (5.10), pair → table row) from gated
     (component ``comp_idx``, ``plot``) pairs; loc (C,) the components' tracks, weight (C,)
-    their ξ, p_pair the pairs' p^c_i."""
-    key = loc[comp_idx] * max(m, 1) + plot
-    uniq, row = np.unique(key, return_inverse=True)
-    row = row.reshape(-1)
-    p_track = np.bincount(row, weights=weight[comp_idx] * p_pair, minlength=len(uniq))
-    return uniq // max(m, 1), uniq % max(m, 1), p_track, row
+    their ξ, p_pair the pairs' p^c_i. Rows in (track, plot) order; the sums in pair order
+    (one compiled loop, :func:`_track_table`)."""
+    c = np.ascontiguousarray
+    return _track_table(c(loc, dtype=np.int64), c(comp_idx, dtype=np.int64),
+                        c(plot, dtype=np.int64), c(weight, dtype=np.float64),
+                        c(p_pair, dtype=np.float64), int(m))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _track_table(loc, comp_idx, plot, weight, p_pair, m):
+    M = max(m, 1)
+    n = len(comp_idx)
+    key = np.empty(n, np.int64)
+    for q in range(n):
+        key[q] = loc[comp_idx[q]] * M + plot[q]
+    order = np.argsort(key)
+    row = np.empty(n, np.int64)
+    uniq = np.empty(n, np.int64)
+    u = 0
+    for s in range(n):
+        q = order[s]
+        if s == 0 or key[q] != uniq[u - 1]:
+            uniq[u] = key[q]
+            u += 1
+        row[q] = u - 1
+    p = np.zeros(u)
+    for q in range(n):
+        p[row[q]] += weight[comp_idx[q]] * p_pair[q]
+    return uniq[:u] // M, uniq[:u] % M, p, row
 
 
 class MixtureRetrodiction(MixturePrediction):
@@ -194,38 +219,46 @@ class GaussianMixtureDensity:
     def update(
         self, pred: MixturePrediction, table: MixtureTable, beta0: np.ndarray, beta: np.ndarray
     ) -> None:
-        """ITS children (5.12-5.15), Singer merge, pruning, track estimates (4.66-4.68)."""
-        children = component_update(
-            pred.mix,
+        """ITS children (5.12-5.15), Singer merge, pruning, track estimates (4.66-4.68):
+        one compiled call (:func:`~..components_kernel.its_update`)."""
+        mix, pairs, c = pred.mix, table.pairs, np.ascontiguousarray
+        kept, merged, x, P = its_update(
+            (mix.track, mix.w, mix.x, mix.P, mix.hist),
             pred.loc,
-            table.pairs,
+            c(beta0, dtype=np.float64),
+            (pairs.state, pairs.plot, table.pair_row, pairs.nu, pairs.S),
             table.p_pair,
-            table.pair_row,
             table.p,
-            beta0,
-            beta,
+            c(beta, dtype=np.float64),
             self.H,
-            table.R,
+            c(table.R, dtype=np.float64),
             table.uid,
+            pred.rows,
+            (float(self.prune_threshold), int(self.max_components), len(self)),
         )
-        self.store_children(pred.rows, children, len(table.pairs))
+        self._store(pred.rows, kept, merged, len(pairs), x, P)
 
     def store_children(self, rows: np.ndarray, children: comp.Mixture, pairs: int) -> None:
         """Singer merge and pruning of the updated components ``children`` of the tracks
         ``rows`` (sorted), which replace their components; track estimates (4.66-4.68).
-        Also the last step of the out-of-sequence update (:meth:`update_late`)."""
-        merged = comp.singer_merge(children)
-        kept = comp.prune(merged, self.prune_threshold, self.max_components, len(self))
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
-        self.slots.replace(inside, kept)
+        The last step of the out-of-sequence update (:meth:`update_late`)."""
+        c = np.ascontiguousarray
+        kept, merged, x, P = merge_prune_estimate(
+            (c(children.track, dtype=np.int64), c(children.w, dtype=np.float64),
+             c(children.x, dtype=np.float64), c(children.P, dtype=np.float64),
+             c(children.hist, dtype=np.int64)),
+            rows, float(self.prune_threshold), int(self.max_components), len(self),
+        )  # fmt: skip
+        self._store(rows, kept, merged, pairs, x, P)
+
+    def _store(self, rows, kept: tuple, merged: int, pairs: int, x, P) -> None:
+        """The kept components replace those of ``rows``; their track estimates x, P."""
+        self.slots.replace_rows(rows, len(self), comp.Mixture(*kept))
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
-            "components_merged": len(merged),
+            "components_merged": merged,
             "components": len(self.slots),
         }
-        loc = np.searchsorted(rows, kept.track)
-        _, x, P = moment_match(kept.w, kept.x, kept.P, loc, len(rows))
         self.tracks.x[rows] = x
         self.tracks.P[rows] = P
 
@@ -288,7 +321,8 @@ class GaussianMixtureDensity:
     @staticmethod
     def warm_up() -> None:
         """Load the compiled kernels of this density (CV prediction, the Kalman update of
-        the gated pairs, moment matching) on tiny inputs."""
+        the gated pairs, moment matching, the update with its merge and pruning) on tiny
+        inputs."""
         P = np.stack([np.eye(4), 2.0 * np.eye(4)])
         x = np.zeros((2, 4))
         ConstantVelocity().predict(x, P, np.array([1.0, 2.0]))
@@ -296,3 +330,10 @@ class GaussianMixtureDensity:
         S = H @ P @ H.T + np.eye(2)
         update_with_innovation(x, P, H, S, np.ones((2, 2)), np.stack([np.eye(2)] * 2))
         moment_match(np.array([0.4, 0.6]), x, P, np.array([0, 0]), 1)
+        i2, w2, h2 = np.array([0, 0]), np.array([0.5, 0.5]), np.zeros((2, 1), np.int64)
+        i1 = np.zeros(1, np.int64)
+        its_update((i2, w2, x, P, h2), i2, np.array([0.5]),
+                   (i1, i1, i1, np.ones((1, 2)), S[:1].copy()), np.ones(1), np.ones(1),
+                   np.ones(1), H, np.eye(2)[None].copy(), np.ones(1, np.int64), i1,
+                   (1e-3, 30, 1))  # fmt: skip
+        merge_prune_estimate((i2, w2, x, P, h2), i1, 1e-3, 30, 1)

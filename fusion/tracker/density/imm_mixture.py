@@ -516,9 +516,7 @@ class IMMMixtureDensity:
         )
         kept = merged.take(keep)
         kept.w = w
-        inside = np.zeros(len(self), bool)
-        inside[rows] = True
-        self.slots.replace(inside, kept)
+        self.slots.replace_rows(rows, len(self), kept)
         self.stats = {
             "gated_pairs": pairs,  # (component, plot) pairs
             "components_merged": len(merged),
@@ -645,7 +643,7 @@ class IMMMixtureDensity:
         """Load the compiled kernels of this density on tiny inputs: the pair likelihoods
         (k = 2 closed form, k = 3 Cholesky), the mode transition, the mixing's moment
         matching, the coordinated turn's prediction and layout conversions, the Kalman
-        update of the gated pairs (k = 2 and another k)."""
+        update of the gated pairs (k = 2 and another k), the Singer groups and pruning."""
         one = np.zeros(1, np.int64)
         for k in (2, 3):
             Sk = np.eye(k)[None]
@@ -666,6 +664,8 @@ class IMMMixtureDensity:
         update_with_innovation(np.zeros((2, 2)), P, H2, P + P, np.ones((2, 2)), P)  # k = 2
         update_with_innovation(np.zeros((2, 2)), P, H2[:1], P[:, :1, :1] + 1.0,
                                np.ones((2, 1)), P[:, :1, :1])  # k = 1 (any k != 2)  # fmt: skip
+        history_groups(np.array([0, 0]), np.zeros((2, 1), np.int64))  # the Singer merge
+        prune_indices(np.array([0, 0]), np.array([0.4, 0.6]), 1e-3, 30, 1)
 
 
 def _no_plot(hist: np.ndarray) -> np.ndarray:
