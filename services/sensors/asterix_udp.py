@@ -37,7 +37,8 @@ class AsterixUdpSensor:
     completed it as its attachment. A radar's liveliness token appears with its first
     batch; its site is published once known and again when it changes (scan period
     estimated from the plots, CAT034 I041/I120), checked about once a second. On stop
-    the open sectors are flushed and published."""
+    the datagrams already received are read, then the open sectors are flushed and
+    published."""
 
     SITE_CHECK_S = 1.0
 
@@ -116,16 +117,8 @@ class AsterixUdpSensor:
                 data = self.sock.recv(65_535)
             except TimeoutError:
                 data = None
-            now_ns = time.time_ns()
             if data:
-                self.datagrams += 1
-                batches = self.decoder.feed(data, now_ns)
-                self._check_clock(batches, now_ns)
-                new = {b.radar_id for b in batches} - set(self.fleet.sites)
-                if new and time.monotonic() - self._new_site_check > 0.2:
-                    self._new_site_check = time.monotonic()
-                    self._sites()  # a new radar's site goes out before its first batch
-                self._publish(batches, now_ns)
+                self._receive(data)
             now = time.monotonic()
             if now >= next_sites:
                 next_sites = now + self.SITE_CHECK_S
@@ -133,10 +126,38 @@ class AsterixUdpSensor:
             if now >= next_status:
                 next_status = now + self.cfg.status_interval
                 self._status(wall0)
+        self._drain()
         self._sites()
         self._publish(self.decoder.flush(), time.time_ns())
         self._status(wall0)
         return self.fleet.stats
+
+    DRAIN_MAX = 10_000
+    """Datagrams read at most at a stop from what the socket already holds."""
+
+    def _drain(self) -> None:
+        """At a stop, decode and publish the datagrams the kernel has already received
+        (at most :attr:`DRAIN_MAX`, without waiting for more), so the sectors flushed
+        next are complete: a stop never drops data that had arrived."""
+        self.sock.setblocking(False)
+        for _ in range(self.DRAIN_MAX):
+            try:
+                data = self.sock.recv(65_535)
+            except OSError:  # BlockingIOError: nothing more received
+                break
+            self._receive(data)
+
+    def _receive(self, data: bytes) -> None:
+        """Decode one datagram and publish the sectors it completes."""
+        now_ns = time.time_ns()
+        self.datagrams += 1
+        batches = self.decoder.feed(data, now_ns)
+        self._check_clock(batches, now_ns)
+        new = {b.radar_id for b in batches} - set(self.fleet.sites)
+        if new and time.monotonic() - self._new_site_check > 0.2:
+            self._new_site_check = time.monotonic()
+            self._sites()  # a new radar's site goes out before its first batch
+        self._publish(batches, now_ns)
 
     def _check_clock(self, batches: list[PlotBatch], now_ns: int) -> None:
         """Warn once when record times are more than STALE_S from the receive clock."""
