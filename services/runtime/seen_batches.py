@@ -385,7 +385,12 @@ class SeenBatches:
     def from_snapshot(self, snap) -> None:
         """Hold the state of :meth:`to_snapshot` (the least recently used radars and
         epochs beyond this object's bounds dropped); :class:`SnapshotError` if it is
-        malformed or of another :data:`SNAPSHOT_VERSION` (then nothing changes)."""
+        malformed or of another :data:`SNAPSHOT_VERSION` (then nothing changes). Version 1
+        (saved without a version) is read with its refused jumps' claims dropped (they were
+        timed by arrival): a claim starts again from the next refused batch."""
+        snap = mapping(snap, "seen batches")
+        if "version" not in snap:  # version 1 (unnumbered): its arrival-timed claims dropped
+            snap = {**snap, "version": SNAPSHOT_VERSION, "radars": _from_v1(snap.get("radars"))}
         snap = check_version(snap, "seen batches", SNAPSHOT_VERSION)
         radars, lost, resets = snap.get("radars"), snap.get("lost_forgotten"), snap.get("resets")
         if type(radars) is not list or type(resets) is not int or type(lost) is not dict:
@@ -408,6 +413,28 @@ class SeenBatches:
 _OPTIONAL_INT = ("high", "t_high", "s0", "t0", "first", "top")
 """State entries that are an integer or None (a state made by a refused batch has no
 times; epoch 0 has neither first nor top)."""
+
+
+def _from_v1(radars):
+    """The radars of a version-1 snapshot in version 2: no claim pending, no prior
+    numbering (anything malformed is left for the checks of version 2)."""
+    if type(radars) is not list:
+        return radars
+    out = []
+    for item in radars:
+        if type(item) is list and len(item) == 2 and type(item[1]) is list:
+            item = [item[0], [_epoch_v1(e) for e in item[1]]]
+        out.append(item)
+    return out
+
+
+def _epoch_v1(item):
+    if type(item) is not list or len(item) != 2 or type(item[1]) is not dict:
+        return item
+    st = {**item[1], "pending": None}
+    if item[0] != 0:
+        st.setdefault("prior", None)
+    return [item[0], st]
 
 
 def _state_snapshot(st: dict) -> dict:

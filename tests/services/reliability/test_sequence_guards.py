@@ -298,12 +298,24 @@ def test_the_guard_state_survives_a_snapshot_and_an_earlier_version_is_refused()
     seen = SeenBatches()
     real = real_batches(40)
     _stream(seen, real[:10] + [forged(b) for b in real[20:24]] + real[10:12])
-    _stream(seen, [forged(real[30])])  # a claim pending
+    assert _stream(seen, [forged(real[30], 5 * 10**6)]) == ["sequence jump"]  # a claim
+    assert seen.radars["R1"][EPOCH]["pending"] is not None
+    assert seen.radars["R1"][EPOCH]["prior"]["fill"] == {10, 11}
     snap = json.loads(json.dumps(seen.to_snapshot()))
     again = SeenBatches()
     again.from_snapshot(snap)
     assert again.radars == seen.radars and again.resets == seen.resets
     assert _stream(again, real[12:]) == [None] * 28 and again.lost("R1") == 0
-    old = {**snap, "version": 1}
-    with pytest.raises(SnapshotError, match="version 1"):
-        SeenBatches().from_snapshot(old)
+    with pytest.raises(SnapshotError, match="version 3"):
+        SeenBatches().from_snapshot({**snap, "version": 3})
+    # version 1 (no version; pending claims [seq, time, arrival]): read, its claims dropped
+    v1 = json.loads(json.dumps(snap))
+    del v1["version"]
+    for _, epochs in v1["radars"]:
+        for _, st in epochs:
+            st["pending"] = [5_000_030, 0, 5]
+            del st["prior"]
+    older = SeenBatches()
+    older.from_snapshot(v1)
+    assert older.radars["R1"][EPOCH]["pending"] is None
+    assert older.radars["R1"][EPOCH]["high"] == seen.radars["R1"][EPOCH]["high"]
