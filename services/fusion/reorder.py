@@ -141,7 +141,7 @@ class ReorderBuffer:
         offsets.append(batch.time_end - recv_ns)
         tol = self.future_tolerance
         horizon = None if tol is None else recv_ns + int(tol * 1e9)
-        reason = self.seen.check(batch, horizon, recv_ns)
+        reason = self.seen.check(batch, horizon)
         if reason is None:
             reason = self._time_problem(batch, newest, horizon)
             if reason is not None:

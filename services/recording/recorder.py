@@ -468,7 +468,7 @@ class Recorder:
             )
             return False
         if isinstance(msg, PlotBatch):
-            refused = self.seen.check(msg, recv_ns=item.recv_ns)
+            refused = self.seen.check(msg)
             if refused is not None:  # a repeat, or a number the sensor cannot have reached
                 self.rejected[refused] += 1
                 return False

@@ -29,11 +29,22 @@ refused too (``time jump``): one message dated an hour later, of a radar replayi
 data, cannot carry the radar's time (and the service time) away — which no clock check
 can see, the data being older than the clock. A real jump (batches lost beyond the
 publisher's cache while the rate was unknown, a radar switched off for a while) costs
-``RESYNC_S`` seconds of that radar's batches: the refused batches that continue each
-other's numbering at the radar's rate (within 4 numbers, the time after the previous
-one's by at most what that many numbers take) are taken once they have done so for
-``RESYNC_S`` seconds of arrival time with no batch of the old numbering accepted in
-between — forged messages cannot do that beside a live radar.
+``RESYNC_S`` seconds of that radar's data: the refused batches that continue each other's
+numbering *without a gap* (each the next number, its time after the previous one's by at
+most what two numbers take at the radar's rate) are taken once their own times span
+``RESYNC_S`` with no batch of the old numbering accepted in between. The rule reads only
+the batches' numbers and times, never their arrival: a receiver working through a
+backlog (arrivals bunched, or stretched by back-pressure) judges them as one that kept
+up, and copies of a live radar's latest batches, sent now and then with a forged number,
+never continue each other without a gap.
+
+**After a jump is taken** the numbers it skipped (between the highest number accepted
+before it and its first one) were never accepted: a batch with one of them is not a
+repeat (a late batch of the old numbering, one recovered from the publisher's cache), it
+is accepted and counted. One dated at or after the jump's first batch shows the old
+numbering still running beside the taken one, which then was not the sensor's: the
+radar's numbering and counts go back to the old numbering, continued by this batch
+(``resets``), and the taken numbers are no longer counted as lost.
 
 **Gaps** (``lost``). Numbers of an epoch between the lowest and the highest one received
 (accepted or refused by another check, not jumps or repeats) that never arrived are lost;
@@ -55,14 +66,16 @@ from __future__ import annotations
 
 from collections import deque
 
-from skyfuse.schemas.snapshot import SnapshotError, mapping
+from skyfuse.schemas.snapshot import SnapshotError, check_version, mapping
 
 LEGACY_RECENT = 256
 """Batches remembered per radar for epoch 0 (no epoch announced)."""
-RESYNC = 4
-"""A refused jump is confirmed by a next batch at most this many numbers after it."""
 RESYNC_S = 2.0
-"""Arrival time a refused jump's continuation must last before it is taken, s."""
+"""Data time (the batches' own ``time_end``) a refused jump's gapless continuation must
+span before it is taken, s."""
+SNAPSHOT_VERSION = 2
+"""Version of :meth:`SeenBatches.to_snapshot` (2: a refused jump's continuation as
+``[first seq, first time, last seq, last time]``, the numbering before a taken jump)."""
 MAX_GAP_S = 60.0
 """Data time a radar's next batch may be ahead of its last one while its rate is not
 known yet (its first batches), s."""
@@ -74,6 +87,12 @@ def _legacy(ring: deque | None = None) -> dict:
     """The state of epoch 0: the last batches' identities and the jump guard's numbers."""
     ring = deque(maxlen=LEGACY_RECENT) if ring is None else ring
     return {"ring": ring, "high": None, "t_high": None, "s0": None, "t0": None, "pending": None}
+
+
+_PRIOR = ("high", "t_high", "s0", "t0", "from", "t_from", "top", "n")
+"""The numbering before a taken jump (:func:`_state` ``prior``): its highest number and
+time, its rate's origin, the jump's first number and time, the count's top and number
+received; with ``fill``, the skipped numbers accepted since."""
 
 
 def _state(seq: int, time_end: int) -> dict:
@@ -88,8 +107,16 @@ def _state(seq: int, time_end: int) -> dict:
         "top": seq,
         "n": 0,  # distinct numbers received in first..top
         "got": set(),  # numbers received within the window below `top`
-        "pending": None,  # [seq, time_end] of the last refused jump
+        "pending": None,  # [first seq, time_end, last seq, time_end] of a refused jump's
+        # gapless continuation
+        "prior": None,  # the numbering before the last jump taken (_PRIOR, "fill")
     }
+
+
+def _skipped(st: dict, seq: int) -> bool:
+    """Whether ``seq`` is one of the numbers the last jump taken skipped."""
+    pr = st.get("prior")
+    return pr is not None and pr["high"] < seq < pr["from"]
 
 
 class SeenBatches:
@@ -133,12 +160,12 @@ class SeenBatches:
         return None if per is None else per.get(epoch)
 
     # --- queries -------------------------------------------------------------------
-    def check(self, batch, horizon_ns: int | None = None, recv_ns: int | None = None) -> str | None:
+    def check(self, batch, horizon_ns: int | None = None) -> str | None:
         """Why ``batch`` must be refused (:data:`DUPLICATE`, :data:`JUMP`,
         :data:`TIME_JUMP`), or ``None``. ``horizon_ns``: the latest time_end the receiver
         believes (its clock plus a tolerance), which bounds the data time a jump may
-        claim; ``recv_ns``: its arrival (wall clock), which times a jump's continuation
-        (``None``: taken at the first continuation)."""
+        claim. A refused jump is remembered as the start or the continuation of a
+        claim (module docstring); nothing here depends on when the batch arrived."""
         per = self.radars.get(batch.radar_id)
         epoch = getattr(batch, "epoch", 0)
         st = self._epoch_state(per, epoch)
@@ -149,16 +176,14 @@ class SeenBatches:
             if (seq, batch.time_end, batch.scan) in st["ring"]:
                 return DUPLICATE
         elif seq <= st["high"]:
-            if seq in st["recent"]:
+            if seq in st["recent"] or (_skipped(st, seq) and seq in st["prior"]["fill"]):
                 return DUPLICATE
             old = seq <= st["high"] - self.window
-            if old and self._not_newer(st, batch.time_end):
+            if old and self._not_newer(st, batch.time_end) and not _skipped(st, seq):
                 return DUPLICATE
-        return self._jump(st, seq, batch.time_end, horizon_ns, recv_ns)
+        return self._jump(st, seq, batch.time_end, horizon_ns)
 
-    def _jump(
-        self, st: dict, seq: int, time_end: int, horizon_ns: int | None, recv_ns: int | None
-    ) -> str | None:
+    def _jump(self, st: dict, seq: int, time_end: int, horizon_ns: int | None) -> str | None:
         """:data:`JUMP` or :data:`TIME_JUMP` (module docstring), or ``None``."""
         if st["high"] is None or st["t_high"] is None:
             return None
@@ -173,14 +198,14 @@ class SeenBatches:
         else:
             return None
         p = st["pending"]
-        since = recv_ns
-        if p is not None and 0 < seq - p[0] <= RESYNC:
-            step_s = 2.0 * (seq - p[0] + 1) / rate if rate > 0 else MAX_GAP_S
-            if 0 <= time_end - p[1] <= step_s * 1e9:  # continues the refused jump
-                since = p[2] if len(p) > 2 else None
-                if recv_ns is None or since is None or recv_ns - since >= RESYNC_S * 1e9:
+        if p is not None and len(p) == 4 and seq == p[2] + 1:  # the next number
+            step_s = 4.0 / rate if rate > 0 else MAX_GAP_S  # what two numbers take, twice
+            if 0 < time_end - p[3] <= step_s * 1e9:  # continues the refused jump
+                if time_end - p[1] >= RESYNC_S * 1e9:
                     return None  # the radar's numbering moved: take it
-        st["pending"] = [seq, time_end, since]
+                st["pending"] = [p[0], p[1], seq, time_end]
+                return problem
+        st["pending"] = [seq, time_end, seq, time_end]
         return problem
 
     @staticmethod
@@ -226,7 +251,7 @@ class SeenBatches:
             seen = seen if seen is not None else _legacy()
             per[epoch] = seen  # most recently used last
             seen["ring"].append((batch.seq, batch.time_end, batch.scan))
-            moved = self._continues(seen, batch.seq)
+            moved = self._continues(seen, batch.seq, batch.time_end)
             self._latest(seen, batch.seq, batch.time_end)
             if moved:  # the numbering moved: its rate is measured again from here
                 seen["s0"], seen["t0"] = batch.seq, batch.time_end
@@ -235,29 +260,69 @@ class SeenBatches:
         seq, t = batch.seq, batch.time_end
         if seen is None:
             seen = _state(seq, t)
+        per[epoch] = seen
+        counted = False
+        if _skipped(seen, seq):  # a number a taken jump skipped (module docstring)
+            counted = self._skipped_batch(seen, seq, t)
         elif seq <= seen["high"] - self.window and not self._not_newer(seen, t):
             self.resets += 1  # the highest number was not the sensor's: start again here
-            seen.update(high=seq, t_high=t, recent=set(), s0=seq, t0=t)
-        per[epoch] = seen
-        if seq > seen["high"] or seen["t_high"] is None:
-            seen["high"], seen["t_high"] = max(seq, seen["high"]), t
-        if seen["t0"] is None:
-            seen["s0"], seen["t0"] = seq, t
-        if self._continues(seen, seq):  # the numbering moved (a refused jump taken)
-            self._count(seen, seen["pending"][0])  # the refused batch before: not lost
-            seen["s0"], seen["t0"] = seq, t  # its rate measured again from here
+            seen.update(high=seq, t_high=t, recent=set(), s0=seq, t0=t, prior=None)
+        else:
+            taken = self._continues(seen, seq, t)
+            if taken:  # the numbering moved (a refused jump taken)
+                self._take(seen)
+            if seq > seen["high"] or seen["t_high"] is None:
+                seen["high"], seen["t_high"] = max(seq, seen["high"]), t
+            if seen["t0"] is None or taken:  # the rate measured (again) from here
+                seen["s0"], seen["t0"] = seq, t
         seen["pending"] = None
         seen["recent"].add(seq)
         if len(seen["recent"]) > 2 * self.window:  # forget what fell below the window
             floor = seen["high"] - self.window
             seen["recent"] = {s for s in seen["recent"] if s > floor}
-        self._count(seen, seq)
+        if not counted:
+            self._count(seen, seq)
         self._forget_epochs(batch.radar_id, per)
 
+    def _take(self, st: dict) -> None:
+        """A refused jump's continuation is taken: the numbering before it is kept (when
+        numbers were skipped), its refused batches counted as received."""
+        first, t_first, last = st["pending"][:3]
+        if first > st["high"] + 1:
+            st["prior"] = {k: st[k] for k in ("high", "t_high", "s0", "t0", "top", "n")}
+            st["prior"].update({"from": first, "t_from": t_first, "fill": set()})
+        for s in range(max(first, last - self.window + 1), last + 1):
+            self._count(st, s)  # refused (counted as such), but not lost
+
+    def _skipped_batch(self, st: dict, seq: int, t: int) -> bool:
+        """A batch numbered between the numbering before a taken jump and the jump: taken
+        as a late batch of the old numbering, or, dated at or after the jump, as the old
+        numbering running on: back to it (module docstring). Whether it is counted."""
+        pr = st["prior"]
+        fill = pr["fill"]
+        if t < pr["t_from"]:  # late: accepted, counted here (below the count's window)
+            if len(fill) < 2 * self.window and seq not in st["got"]:
+                fill.add(seq)
+                st["n"] += 1
+            return True
+        self.resets += 1  # the taken numbering was not the sensor's
+        old = {s for s in st["recent"] if s < pr["from"]} | fill
+        got = {s for s in st["got"] if s < pr["from"]} | fill
+        st.update(
+            high=max(old | {pr["high"], seq}), t_high=t, s0=pr["s0"], t0=pr["t0"],
+            recent=old, got=got, top=max(got | {pr["top"]}), n=pr["n"] + len(fill), prior=None,
+        )  # fmt: skip
+        return False
+
     @staticmethod
-    def _continues(st: dict, seq: int) -> bool:
+    def _continues(st: dict, seq: int, t: int) -> bool:
+        """Whether ``seq`` at ``t`` is the batch :meth:`check` took as the end of a refused
+        jump's continuation."""
         p = st["pending"]
-        return p is not None and 0 < seq - p[0] <= RESYNC
+        return (
+            p is not None and len(p) == 4 and seq == p[2] + 1
+            and 0 < t - p[3] and t - p[1] >= RESYNC_S * 1e9
+        )  # fmt: skip
 
     @staticmethod
     def _latest(st: dict, seq: int, t: int) -> None:
@@ -305,23 +370,28 @@ class SeenBatches:
 
     # --- snapshot ------------------------------------------------------------------
     def to_snapshot(self) -> dict:
-        """``{"radars": [[radar, [[epoch, state], …]], …], "lost_forgotten": {radar: n},
-        "resets": n}``, radars and epochs in least recently used order; each state is the
-        dict of :func:`_state` (epoch 0: :func:`_legacy`) with its sets as sorted lists and
-        the epoch-0 ring as ``[[seq, time_end, scan], …]``. The bounds are this object's
-        configuration."""
+        """``{"version": SNAPSHOT_VERSION, "radars": [[radar, [[epoch, state], …]], …],
+        "lost_forgotten": {radar: n}, "resets": n}``, radars and epochs in least recently
+        used order; each state is the dict of :func:`_state` (epoch 0: :func:`_legacy`)
+        with its sets as sorted lists (``prior``'s ``fill`` too) and the epoch-0 ring as
+        ``[[seq, time_end, scan], …]``. The bounds are this object's configuration."""
         radars = [
             [rid, [[epoch, _state_snapshot(st)] for epoch, st in per.items()]]
             for rid, per in self.radars.items()
         ]
-        return {"radars": radars, "lost_forgotten": dict(self.lost_forgotten),
-                "resets": self.resets}  # fmt: skip
+        return {"version": SNAPSHOT_VERSION, "radars": radars,
+                "lost_forgotten": dict(self.lost_forgotten), "resets": self.resets}  # fmt: skip
 
     def from_snapshot(self, snap) -> None:
         """Hold the state of :meth:`to_snapshot` (the least recently used radars and
         epochs beyond this object's bounds dropped); :class:`SnapshotError` if it is
-        malformed (then nothing changes)."""
+        malformed or of another :data:`SNAPSHOT_VERSION` (then nothing changes). Version 1
+        (saved without a version) is read with its refused jumps' claims dropped (they were
+        timed by arrival): a claim starts again from the next refused batch."""
         snap = mapping(snap, "seen batches")
+        if "version" not in snap:  # version 1 (unnumbered): its arrival-timed claims dropped
+            snap = {**snap, "version": SNAPSHOT_VERSION, "radars": _from_v1(snap.get("radars"))}
+        snap = check_version(snap, "seen batches", SNAPSHOT_VERSION)
         radars, lost, resets = snap.get("radars"), snap.get("lost_forgotten"), snap.get("resets")
         if type(radars) is not list or type(resets) is not int or type(lost) is not dict:
             raise SnapshotError("seen batches: no radar list, lost counts or resets")
@@ -345,10 +415,35 @@ _OPTIONAL_INT = ("high", "t_high", "s0", "t0", "first", "top")
 times; epoch 0 has neither first nor top)."""
 
 
+def _from_v1(radars):
+    """The radars of a version-1 snapshot in version 2: no claim pending, no prior
+    numbering (anything malformed is left for the checks of version 2)."""
+    if type(radars) is not list:
+        return radars
+    out = []
+    for item in radars:
+        if type(item) is list and len(item) == 2 and type(item[1]) is list:
+            item = [item[0], [_epoch_v1(e) for e in item[1]]]
+        out.append(item)
+    return out
+
+
+def _epoch_v1(item):
+    if type(item) is not list or len(item) != 2 or type(item[1]) is not dict:
+        return item
+    st = {**item[1], "pending": None}
+    if item[0] != 0:
+        st.setdefault("prior", None)
+    return [item[0], st]
+
+
 def _state_snapshot(st: dict) -> dict:
     """One epoch's state as plain JSON values (see :meth:`SeenBatches.to_snapshot`)."""
-    out = {k: v for k, v in st.items() if k not in ("ring", "recent", "got", "pending")}
+    out = {k: v for k, v in st.items() if k not in ("ring", "recent", "got", "pending", "prior")}
     out["pending"] = None if st["pending"] is None else list(st["pending"])
+    if "prior" in st:
+        pr = st["prior"]
+        out["prior"] = None if pr is None else {**pr, "fill": sorted(pr["fill"])}
     if "ring" in st:
         out["ring"] = [list(t) for t in st["ring"]]
     else:
@@ -382,8 +477,8 @@ def _epoch(epoch: int, snap) -> dict:
         if k in st:
             st[k] = snap[k]
     p = snap["pending"]
-    if p is not None and not (type(p) is list and 2 <= len(p) <= 3 and all(map(_int_or_none, p))):
-        raise SnapshotError(f"seen batches: epoch {epoch} pending is not [seq, time(, since)]")
+    if p is not None and not _ints(p, 4):
+        raise SnapshotError(f"seen batches: epoch {epoch} pending is not [seq, time, seq, time]")
     st["pending"] = p
     if legacy:
         if type(snap["ring"]) is not list or not all(_ints(t, 3) for t in snap["ring"]):
@@ -393,7 +488,20 @@ def _epoch(epoch: int, snap) -> dict:
     if not (_ints(snap["recent"]) and _ints(snap["got"]) and type(snap["n"]) is int):
         raise SnapshotError(f"seen batches: epoch {epoch} numbers are not integers")
     st["recent"], st["got"], st["n"] = set(snap["recent"]), set(snap["got"]), snap["n"]
+    st["prior"] = _prior(epoch, snap["prior"])
     return st
+
+
+def _prior(epoch: int, snap) -> dict | None:
+    """The numbering before a taken jump from its snapshot (``_PRIOR`` and ``fill``)."""
+    if snap is None:
+        return None
+    snap = mapping(snap, f"seen batches: epoch {epoch} prior")
+    if set(snap) != {*_PRIOR, "fill"} or not _ints(snap["fill"]):
+        raise SnapshotError(f"seen batches: epoch {epoch} prior has entries {sorted(snap)}")
+    if not all(_int_or_none(snap[k]) for k in _PRIOR) or snap["from"] is None:
+        raise SnapshotError(f"seen batches: epoch {epoch} prior numbers are not integers")
+    return {**snap, "fill": set(snap["fill"])}
 
 
 def _epochs(items) -> dict:
