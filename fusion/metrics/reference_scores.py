@@ -49,6 +49,13 @@ phase and both (the phase is the reference's: its ground bit at the time).
   aircraft. Shorter misplacements are counted as *unassociated updates near the
   reference*: updates assigned to no aircraft while within ``near_reference_m`` of one
   (e.g. a track confirmed with a wrong velocity drifting off its aircraft).
+* **Passing tracks** (``min_track_share`` > 0, off by default): a track assigned to an
+  aircraft for less than that share of its updates is the track of an object the
+  reference does not have (a vehicle parked beside a taxiway, seen by the SMR for the
+  whole recording) whose few assignments are aircraft passing within the gate (50 m on
+  the surface, 300 m airborne); none of its updates is credited, so it counts as an
+  unassociated track (outside the reference, or false) rather than as one more track id
+  and a few large errors of each aircraft that passed it.
 * **Correct identification** (ED-117 probability of correct identification; COMPASS
   "Identification Correct"): among credited updates that show a Mode-S address, the
   share equal to the reference aircraft's; the same for the callsign and the Mode-3/A
@@ -59,7 +66,7 @@ Times ns (int64); positions m in one east/north plane; durations s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -105,6 +112,14 @@ class ReferenceScoreConfig(BaseModel):
     )
     max_range_m: float | None = Field(
         None, gt=0, description="Score only within this distance of the plane's origin, m"
+    )
+    min_track_share: float = Field(
+        0.0,
+        ge=0,
+        lt=1,
+        description="Credit no aircraft with a track whose updates are assigned to an aircraft "
+        "less than this share of the time (an object the reference does not have, passing "
+        "by its aircraft); 0: every track",
     )
 
 
@@ -466,6 +481,21 @@ def _phase(updates, assoc, ref, win: Windows, st: Stretches, which: str, cfg) ->
     )
 
 
+def without_passing_tracks(track_id: np.ndarray, assoc: Association, share: float) -> Association:
+    """``assoc`` with no update credited of the tracks assigned to an aircraft for less
+    than ``share`` of their updates (module docstring, passing tracks)."""
+    ids, inv = np.unique(track_id, return_inverse=True)
+    assigned = np.bincount(inv, assoc.assigned >= 0, minlength=len(ids))
+    drop = (assigned / np.bincount(inv, minlength=len(ids)))[inv] < share
+    if not drop.any():
+        return assoc
+    nan = np.where(drop, np.nan, 1.0)
+    return replace(
+        assoc, assigned=np.where(drop, -1, assoc.assigned), credited=assoc.credited & ~drop,
+        err_x=assoc.err_x * nan, err_y=assoc.err_y * nan,
+    )  # fmt: skip
+
+
 def score_against_reference(
     updates: TrackUpdates,
     reference: ReferenceSamples,
@@ -488,6 +518,8 @@ def score_against_reference(
         updates, ref, epoch, gate_surface_m=cfg.gate_surface_m,
         gate_airborne_m=cfg.gate_airborne_m, majority_window_s=cfg.majority_window_s,
     )  # fmt: skip
+    if cfg.min_track_share > 0:
+        assoc = without_passing_tracks(updates.track_id, assoc, cfg.min_track_share)
     win = reference_windows(updates, assoc, ref, epoch, cfg)
     st = unassociated_stretches(updates, assoc, cfg)
     phases = {p: _phase(updates, assoc, ref, win, st, p, cfg) for p in PHASES}

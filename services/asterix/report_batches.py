@@ -93,15 +93,19 @@ message."""
 SENSOR_DEFAULTS: dict[str, dict] = {
     MLAT: {"detection": "reports", "report_timeout": 5.0, "p_detection": 0.9,
            "sigma_cartesian": 5.0, "sigma_growth": 2.5e-3, "max_range": 60_000.0},
-    SMR: {"detection": "sweep", "timing": "plots", "p_detection": 0.8, "sigma_cartesian": 12.0,
-          "sigma_range": 7.5, "sigma_azimuth": 0.0015, "sigma_altitude": 5.0,
-          "max_range": 8_000.0},
+    SMR: {"detection": "reports", "report_timeout": 10.0, "timing": "plots", "p_detection": 0.8,
+          "sigma_cartesian": 12.0, "sigma_range": 7.5, "sigma_azimuth": 0.0015,
+          "sigma_altitude": 5.0, "max_range": 8_000.0},
     ADSB: {"kind": "wgs84", "detection": "reports", "report_timeout": 10.0,
            "p_detection": 0.9, "sigma_cartesian": 38.0, "max_range": 250_000.0},
 }  # fmt: skip
 """The site fields a sensor of each kind gets when its sites-file table does not give
 them (a starting point: docs/concepts/sensors.md says how they were chosen). The SMR's
-ceiling is its site height + :data:`SMR_CEILING_M`."""
+ceiling is its site height + :data:`SMR_CEILING_M`. The SMR sweeps, but its detection map
+is not known (buildings and parked aircraft shadow stands, aircraft on approach are under
+its ceiling but outside its beam): its silence is a miss only for a track it detected
+within ``report_timeout`` (``detection = "reports"``), measured on LEBL 2016
+(docs/real-data.md)."""
 SMR_CEILING_M = 300.0
 
 

@@ -134,6 +134,25 @@ def test_a_target_far_from_every_reference_aircraft_is_outside_the_reference():
     assert s.surface.probability_of_update == 1.0 and s.tracks == 2
 
 
+def test_a_parked_vehicle_an_aircraft_passes_is_not_its_track_with_min_track_share():
+    """A vehicle the reference does not have, parked 20 m beside the aircraft's path: the
+    aircraft passes within the 50 m gate for about 9 s of 300, so by default the vehicle's
+    track is credited to it (a second id, errors up to 46 m); with min_track_share it is
+    not (assigned 3 % of its updates): one id, no error, one track outside the reference."""
+    t_ref = np.arange(0.0, 300.001, 0.5)
+    ref = aircraft(t_ref, *along_x())
+    own = track(np.arange(0.2, 300, 1.0), 1, *along_x())
+    parked = track(np.arange(0.3, 300, 1.0), 7, *along_x(speed=0.0, offset=(1500, 20)))
+    s = score_against_reference(merge(own, parked), ref)
+    assert s.surface.track_ids_per_aircraft == 2 and s.surface.position.rms_m > 5
+    cfg = ReferenceScoreConfig(min_track_share=0.1)
+    s = score_against_reference(merge(own, parked), ref, cfg)
+    assert s.surface.track_ids_per_aircraft == 1
+    assert s.surface.position.rms_m == pytest.approx(0.0, abs=1e-9)
+    assert s.all.outside_reference_tracks == 1 and s.all.false_tracks == 0
+    assert s.surface.probability_of_update == 1.0 and s.surface.duplicate_tracks == 0
+
+
 def test_identity_right_and_wrong():
     ref = aircraft(REF_T, *along_x(), callsign=np.full(len(REF_T), "VLG12AB", object),
                    mode_3a=np.where(REF_T < 30, 0o1234, 0o4321))  # fmt: skip

@@ -87,7 +87,8 @@ def test_surface_radar_batches_are_cartesian_sorted_without_track_ends(lebl):
     ends = [r for r in reports if r.rho_m is None and r.x_m is None]
     assert res.stats["report_track_ends"] == len(ends) == 109
     site = res.sites["0-7"]
-    assert site.kind is RadarKind.CARTESIAN and site.detection == "sweep"
+    assert site.kind is RadarKind.CARTESIAN and site.detection == "reports"
+    assert site.report_timeout == 10.0 and site.timing == "plots"
     assert site.max_altitude == pytest.approx(site.alt + 300.0)
     plotted = {(r.time_ns, r.x_m, r.y_m): r for r in reports if r.x_m is not None}
     seen = set()
@@ -193,7 +194,7 @@ def test_recordings_are_merged_in_time_order_and_a_sensor_in_two_is_refused(lebl
     assert keys == sorted(keys) and len(keys) == len(m.batches) + len(s.batches)
     assert merged.radars == {**m.radars, **s.radars}
     # each sensor's site comes from its own recording (its kind, its cycle)
-    assert merged.sites["0-107"].kind == "cartesian" and merged.sites["0-7"].detection == "sweep"
+    assert merged.sites["0-107"].kind == "cartesian" and merged.sites["0-7"].detection == "reports"
     with pytest.raises(ValueError, match="0-107 is in both"):
         merge_results([m, m], ["a", "b"])
     src = open_input([files["smr"], files["mlat"]], sites_file=sites_path, date=DAY)
