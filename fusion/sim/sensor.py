@@ -1,5 +1,6 @@
 """Simulation-side description of one sensor: its wire ``RadarSite`` plus what only the
-simulator needs (antenna phase, horizon, clutter regions, coverage of the planar sensor).
+simulator needs (antenna phase, horizon, clutter regions, coverage of the planar sensor,
+what a report sensor reports).
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from skyfuse.fusion.frames.sensor_bias import SensorBias
 from skyfuse.schemas import RadarSite
+
+from .reports import ReportModel
 
 
 @dataclass(frozen=True)
@@ -105,6 +108,9 @@ class SensorConfig:
     * ``garble_probability``: the share of replies whose code, or flight level, is garbled.
     * ``bias``: the radar's systematic errors (polar radars; truth for registration,
       never told to the tracker).
+    * ``report``: a report sensor's (``site.detection = reports``: ADS-B, multilateration)
+      equipage, quality and altitude step (:mod:`fusion.sim.reports`); its cycle k covers
+      [phase + kT, phase + (k+1)T), like a radar's scan.
     """
 
     site: RadarSite
@@ -119,9 +125,25 @@ class SensorConfig:
     report_mode_s: bool = False
     garble_probability: float = 0.0
     bias: SensorBias = field(default_factory=SensorBias)
+    report: ReportModel = field(default_factory=ReportModel)
+
+    @property
+    def reports(self) -> bool:
+        """A report sensor (:mod:`fusion.sim.reports`), not a sweeping one."""
+        return self.site.detection == "reports"
 
     def __post_init__(self) -> None:
-        if self.site.kind == "cartesian":
+        if self.reports:
+            if (
+                self.regions
+                or not self.bias.is_zero
+                or self.site.kind not in ("cartesian", "wgs84")
+            ):
+                raise ValueError(
+                    f"report sensor {self.site.radar_id}: a cartesian (multilateration) or "
+                    "wgs84 (ADS-B) site without clutter regions or bias model"
+                )
+        elif self.site.kind == "cartesian":
             if self.coverage is None:
                 raise ValueError(f"cartesian sensor {self.site.radar_id}: coverage is required")
             x0, x1, y0, y1 = self.coverage
@@ -151,7 +173,7 @@ class SensorConfig:
         """Scan numbers whose window (polar) or snapshot (cartesian) ends by ``duration``."""
         t_period = self.site.scan_period
         eps = 1e-9 * max(1.0, duration)
-        if self.site.kind == "cartesian":
+        if self.site.kind == "cartesian" and not self.reports:
             last = math.floor((duration - self.phase) / t_period + eps)
             return range(self.first_scan, max(last + 1, self.first_scan))
         n = math.floor((duration - self.phase) / t_period + eps)
