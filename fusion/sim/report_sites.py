@@ -24,9 +24,8 @@ import pymap3d
 from skyfuse.schemas import RadarSite
 from skyfuse.schemas.adsb_quality import position_sigma_nacp
 
-from .reports import ReportModel
 from .scenario import Param, in_range, positive, probability
-from .sensor import SensorConfig
+from .sensor import ReportModel, SensorConfig
 
 
 def _nacp(v) -> str | None:

@@ -34,7 +34,6 @@ reproduces every cycle.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pymap3d
@@ -43,38 +42,8 @@ from skyfuse.schemas.adsb_quality import position_sigma_nacp, velocity_sigma
 
 from .identity import enu_kinematics
 from .scan import ScanData
-
-if TYPE_CHECKING:
-    from .sensor import SensorConfig
-    from .trajectories import TargetSet
-
-FT = 0.3048
-
-
-@dataclass(frozen=True)
-class ReportModel:
-    """What a report sensor reports (module docstring): the share of the Mode-S aircraft
-    equipped (ADS-B), the NACp of their positions (a share ``poor_fraction`` with
-    ``poor_nacp``), the NACv of their velocities (0: none) and the altitude step, m."""
-
-    equipped_fraction: float = 1.0
-    nacp: int = 9
-    poor_fraction: float = 0.0
-    poor_nacp: int = 6
-    nac_v: int = 2
-    altitude_quantum: float = 25 * FT
-
-    def __post_init__(self) -> None:
-        for name in ("equipped_fraction", "poor_fraction"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} = {getattr(self, name)}: must be in [0, 1]")
-        for name in ("nacp", "poor_nacp"):
-            if position_sigma_nacp(getattr(self, name)) is None:
-                raise ValueError(f"{name} = {getattr(self, name)}: must be a NACp in 1..11")
-        if self.nac_v != 0 and velocity_sigma(self.nac_v) is None:
-            raise ValueError(f"nac_v = {self.nac_v}: must be 0 (no velocity) or 1..4")
-        if self.altitude_quantum < 0.0:
-            raise ValueError(f"altitude_quantum = {self.altitude_quantum}: must be >= 0 m")
+from .sensor import SensorConfig
+from .trajectories import TargetSet
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from skyfuse.fusion.frames.sensor_bias import SensorBias
 from skyfuse.schemas import RadarSite
+from skyfuse.schemas.adsb_quality import position_sigma_nacp, velocity_sigma
 
-from .reports import ReportModel
+FT = 0.3048
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,32 @@ class AnnulusRegion:
         az = np.mod(self.az_start + rng.uniform(0.0, self.az_width, n), 2 * math.pi)
         az[az >= 2 * math.pi] = 0.0
         return r, az
+
+
+@dataclass(frozen=True)
+class ReportModel:
+    """What a report sensor reports (:mod:`fusion.sim.reports`): the share of the Mode-S aircraft
+    equipped (ADS-B), the NACp of their positions (a share ``poor_fraction`` with
+    ``poor_nacp``), the NACv of their velocities (0: none) and the altitude step, m."""
+
+    equipped_fraction: float = 1.0
+    nacp: int = 9
+    poor_fraction: float = 0.0
+    poor_nacp: int = 6
+    nac_v: int = 2
+    altitude_quantum: float = 25 * FT
+
+    def __post_init__(self) -> None:
+        for name in ("equipped_fraction", "poor_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} = {getattr(self, name)}: must be in [0, 1]")
+        for name in ("nacp", "poor_nacp"):
+            if position_sigma_nacp(getattr(self, name)) is None:
+                raise ValueError(f"{name} = {getattr(self, name)}: must be a NACp in 1..11")
+        if self.nac_v != 0 and velocity_sigma(self.nac_v) is None:
+            raise ValueError(f"nac_v = {self.nac_v}: must be 0 (no velocity) or 1..4")
+        if self.altitude_quantum < 0.0:
+            raise ValueError(f"altitude_quantum = {self.altitude_quantum}: must be >= 0 m")
 
 
 @dataclass

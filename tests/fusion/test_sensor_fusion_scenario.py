@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from skyfuse.fusion.frames import Stereographic, SystemFrame
 from skyfuse.fusion.sim import Scenario, SensorConfig, Simulator, TargetSet, TrajectoryBuilder
-from skyfuse.fusion.sim.reports import ReportModel
+from skyfuse.fusion.sim.sensor import ReportModel
 from skyfuse.fusion.tracker import TrackerConfig
 from skyfuse.schemas import FrameKind, FrameSpec, PlotBatch, RadarKind, RadarSite
 from skyfuse.services.evaluation.offline import Observer, OfflineConfig, Step, run_offline
