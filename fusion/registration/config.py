@@ -29,7 +29,16 @@ class RegistrationConfig(BaseModel):
     mode: RegistrationMode = Field(RegistrationMode.ON, description="on, frozen or off")
     reference: list[str] = Field(
         default_factory=list,
-        description="Reference radars (bias fixed at 0); empty: the first radar seen",
+        description="Reference sensors (bias fixed at 0): radars, or report sensors such as "
+        "an ADS-B (their positions taken as unbiased, the radars all estimated); empty: the "
+        "first radar seen",
+    )
+    max_reference_sigma: float | None = Field(
+        None,
+        gt=0,
+        description="Reports of reference report sensors (ADS-B, multilateration) whose "
+        "horizontal σ per axis exceeds this are not used (poor quality: e.g. 40 m keeps ADS-B "
+        "NACp ≥ 8), m; null: all",
     )
     components: list[str] = Field(
         default_factory=lambda: list(BIAS_COMPONENTS),

@@ -64,6 +64,7 @@ class RegistrationEstimator:
         self.radar_ids: list[str] = []
         self._t_last: int | None = None
         self.skipped = 0
+        self.reference_excluded = 0
 
     @property
     def mode(self) -> RegistrationMode:
@@ -84,6 +85,23 @@ class RegistrationEstimator:
             self.radar_ids.append(radar_id)
             self.filter.add_radar(is_ref)
         return self.radar_ids.index(radar_id)
+
+    def is_reference(self, radar_id: str) -> bool:
+        """``radar_id`` is a named reference (a report sensor enters the registration only
+        as one: it has no bias model of its own)."""
+        return radar_id in self.cfg.reference
+
+    def reference_quality(self, R: np.ndarray) -> np.ndarray:
+        """(k,) bool: the reports of a reference report sensor good enough to use, those
+        whose horizontal σ per axis √(tr R_xy / 2) (R (k, ≥2, ≥2) m² in the frame) is at
+        most ``max_reference_sigma`` (all when it is None); the others are counted in
+        ``reference_excluded``."""
+        limit = self.cfg.max_reference_sigma
+        if limit is None:
+            return np.ones(len(R), bool)
+        ok = 0.5 * (R[:, 0, 0] + R[:, 1, 1]) <= limit**2
+        self.reference_excluded += int((~ok).sum())
+        return ok
 
     def correction(self, radar_id: str) -> SensorBias | None:
         """The correction to pass to ``convert_plots(bias=…)``; None when ``off``."""
@@ -165,10 +183,11 @@ class RegistrationEstimator:
             "plots_waiting": len(self.pairs.store),
             "plots_dropped": self.pairs.dropped,
             "plots_not_finite": self.skipped,
+            "reference_excluded": self.reference_excluded,
         }
 
     # --- snapshots -----------------------------------------------------------------------
-    SNAPSHOT_VERSION = 1
+    SNAPSHOT_VERSION = 2  # 2: max_reference_sigma, reference_excluded
 
     def to_snapshot(self) -> dict:
         """The estimator's state by name: the version, the configuration that produced it
@@ -180,6 +199,7 @@ class RegistrationEstimator:
             "radar_ids": list(self.radar_ids),
             "t_last": self._t_last,
             "skipped": self.skipped,
+            "reference_excluded": self.reference_excluded,
             "filter": self.filter.to_snapshot(),
             "pairs": self.pairs.to_snapshot(),
         }
@@ -211,3 +231,4 @@ class RegistrationEstimator:
         self.set_mode(mode)
         self.radar_ids, self._t_last = list(radar_ids), t_last
         self.skipped = entry(snap, "skipped", int)
+        self.reference_excluded = entry(snap, "reference_excluded", int)

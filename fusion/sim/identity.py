@@ -90,7 +90,7 @@ def assign_identities(targets, rng: np.random.Generator, duration: float, p: Ide
     targets.ehs = has_s & (u_ehs < p.ehs_fraction)
 
 
-def _kinematics(index: np.ndarray, t: np.ndarray, locate) -> dict[str, np.ndarray]:
+def enu_kinematics(index: np.ndarray, t: np.ndarray, locate) -> dict[str, np.ndarray]:
     """Velocity east/north/up (m/s) and turn rate (rad/s, clockwise) at times ``t``
     from positions 0.5 s apart (pymap3d ENU offsets)."""
     lat, lon, alt = locate(index, t)
@@ -138,7 +138,7 @@ def reply_columns(targets, index: np.ndarray, t: np.ndarray, height: np.ndarray,
                  "inertial_vertical_rate", "baro_vertical_rate"):  # fmt: skip
         cols[name] = nan.copy()
     if ehs.any():
-        k = _kinematics(index[ehs], t[ehs], locate)
+        k = enu_kinematics(index[ehs], t[ehs], locate)
         gs = np.hypot(k["ve"], k["vn"])
         rate = np.clip(k["turn"], -0.27, 0.27)
         cols["ground_speed"][ehs] = np.minimum(gs, 1050.0)

@@ -11,6 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+REPORT_COLUMNS = ("lat", "lon", "sigma", "v_east", "v_north", "sigma_velocity")
+"""The columns of report sensors (besides x/y and altitude)."""
+
 
 @dataclass
 class ScanData:
@@ -21,7 +24,10 @@ class ScanData:
     sector boundaries (azimuth j·2π/n_sectors clockwise from north) during this scan;
     ``sector`` is each plot's sector index. Polar radars fill ``range`` (m, slant),
     ``azimuth`` (rad clockwise from north, [0, 2π)) and ``elevation`` (3d, rad) or
-    ``altitude`` (2d, m); the cartesian sensor fills ``x``/``y`` (m, scenario plane).
+    ``altitude`` (2d, m); the cartesian sensor fills ``x``/``y`` (m, scenario plane), a
+    multilateration ``x``/``y`` (m, east/north of its reference point) and ``altitude``,
+    ADS-B ``lat``/``lon`` (deg) and ``altitude``; report sensors (:mod:`fusion.sim.reports`)
+    also ``sigma`` (m per axis), ADS-B ``v_east``/``v_north``/``sigma_velocity`` (m/s).
     ``target_id`` is the originating target, -1 for clutter. ``mode_s``/``mode_3a`` use -1
     for "none"; ``secondary`` holds the other secondary-surveillance columns of
     :mod:`schemas.identity` (NaN, "" or False for none; :mod:`fusion.sim.identity`)."""
@@ -42,6 +48,12 @@ class ScanData:
     altitude: np.ndarray | None = None
     x: np.ndarray | None = None
     y: np.ndarray | None = None
+    lat: np.ndarray | None = None
+    lon: np.ndarray | None = None
+    sigma: np.ndarray | None = None
+    v_east: np.ndarray | None = None
+    v_north: np.ndarray | None = None
+    sigma_velocity: np.ndarray | None = None
     mode_s: np.ndarray | None = None
     mode_3a: np.ndarray | None = None
     secondary: dict[str, np.ndarray] | None = None
@@ -55,8 +67,10 @@ class ScanData:
 
     @property
     def z(self) -> np.ndarray:
-        """Measurement vectors: (m, 2) [x, y] for the cartesian sensor, (m, 3)
-        [range, azimuth, elevation] for 3d and (m, 2) [range, azimuth] for 2d radars."""
+        """Measurement vectors: (m, 2) [x, y] for cartesian sensors, [lat, lon] for ADS-B,
+        (m, 3) [range, azimuth, elevation] for 3d and (m, 2) [range, azimuth] for 2d radars."""
+        if self.lat is not None:
+            return np.column_stack([self.lat, self.lon])
         if self.x is not None:
             return np.column_stack([self.x, self.y])
         if self.elevation is not None:
@@ -73,7 +87,7 @@ class ScanData:
         cols = {}
         for name in (
             "time", "target_id", "sector", "range", "azimuth", "elevation", "altitude",
-            "x", "y", "mode_s", "mode_3a",
+            "x", "y", *REPORT_COLUMNS, "mode_s", "mode_3a",
         ):  # fmt: skip
             v = getattr(self, name)
             cols[name] = None if v is None else v[mask]

@@ -25,7 +25,8 @@
   others entering, some leaving or landing during the run; Mode-S on 80% of them, with
   callsigns, flight levels, a few code changes and garbled replies, half of them
   downlinking their track and turn (:mod:`fusion.sim.identity`); uniform clutter plus a
-  ground-clutter ring around each radar; horizon test at 0°.
+  ground-clutter ring around each radar; horizon test at 0°; optionally an ADS-B network
+  and a multilateration at Beograd (``adsb``, ``mlat``: :mod:`fusion.sim.report_sites`).
 
 Scan numbering of the planar thesis scenarios follows the thesis: scan k (k = 1..K) is a
 snapshot at t = k·T after the scenario start, and the targets' initial states are at
@@ -51,6 +52,7 @@ from skyfuse.fusion.frames import Stereographic
 from skyfuse.schemas import FrameKind, FrameSpec, RadarSite
 
 from .identity import IdentityParams, assign_identities, identity_rng
+from .report_sites import REPORT_PARAMETERS, report_sensors
 from .scenario import (
     DEFAULT_START_TIME,
     Param,
@@ -601,6 +603,7 @@ def _build_regional(p: dict, seed: int, duration: float, n: int) -> tuple:
     ident = IdentityParams(p["code_change_fraction"], p["emergency_fraction"], p["ehs_fraction"],
                            p["garble_probability"])  # fmt: skip
     assign_identities(targets, identity_rng(seed), duration, ident)
+    sensors += report_sensors(p, (lat_c, lon_c), (radars[0].lat, radars[0].lon, radars[0].alt))
     return targets, sensors, frame, plane
 
 
@@ -646,7 +649,8 @@ SCENARIO_SPECS: dict[str, _Spec] = {
     "regional": _Spec(
         "4 real radar sites (Belgrade, Vršac, Timișoara, Novi Sad; up to 6 with Osijek, "
         "Szeged), mixed 2d/3d, air traffic",
-        {**_REGIONAL_PARAMS, **bias_parameters([r.radar_id for r in _REGIONAL_RADARS])},
+        {**_REGIONAL_PARAMS, **REPORT_PARAMETERS,
+         **bias_parameters([r.radar_id for r in _REGIONAL_RADARS])},
         _build_regional, 300.0, 40,
     ),
 }  # fmt: skip

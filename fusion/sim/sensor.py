@@ -1,5 +1,6 @@
 """Simulation-side description of one sensor: its wire ``RadarSite`` plus what only the
-simulator needs (antenna phase, horizon, clutter regions, coverage of the planar sensor).
+simulator needs (antenna phase, horizon, clutter regions, coverage of the planar sensor,
+what a report sensor reports).
 """
 
 from __future__ import annotations
@@ -10,6 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from skyfuse.fusion.frames.sensor_bias import SensorBias
 from skyfuse.schemas import RadarSite
+from skyfuse.schemas.adsb_quality import position_sigma_nacp, velocity_sigma
+
+FT = 0.3048
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,32 @@ class AnnulusRegion:
         return r, az
 
 
+@dataclass(frozen=True)
+class ReportModel:
+    """What a report sensor reports (:mod:`fusion.sim.reports`): the share of the Mode-S aircraft
+    equipped (ADS-B), the NACp of their positions (a share ``poor_fraction`` with
+    ``poor_nacp``), the NACv of their velocities (0: none) and the altitude step, m."""
+
+    equipped_fraction: float = 1.0
+    nacp: int = 9
+    poor_fraction: float = 0.0
+    poor_nacp: int = 6
+    nac_v: int = 2
+    altitude_quantum: float = 25 * FT
+
+    def __post_init__(self) -> None:
+        for name in ("equipped_fraction", "poor_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} = {getattr(self, name)}: must be in [0, 1]")
+        for name in ("nacp", "poor_nacp"):
+            if position_sigma_nacp(getattr(self, name)) is None:
+                raise ValueError(f"{name} = {getattr(self, name)}: must be a NACp in 1..11")
+        if self.nac_v != 0 and velocity_sigma(self.nac_v) is None:
+            raise ValueError(f"nac_v = {self.nac_v}: must be 0 (no velocity) or 1..4")
+        if self.altitude_quantum < 0.0:
+            raise ValueError(f"altitude_quantum = {self.altitude_quantum}: must be >= 0 m")
+
+
 @dataclass
 class SensorConfig:
     """One simulated sensor.
@@ -105,6 +135,9 @@ class SensorConfig:
     * ``garble_probability``: the share of replies whose code, or flight level, is garbled.
     * ``bias``: the radar's systematic errors (polar radars; truth for registration,
       never told to the tracker).
+    * ``report``: a report sensor's (``site.detection = reports``: ADS-B, multilateration)
+      equipage, quality and altitude step (:mod:`fusion.sim.reports`); its cycle k covers
+      [phase + kT, phase + (k+1)T), like a radar's scan.
     """
 
     site: RadarSite
@@ -119,9 +152,25 @@ class SensorConfig:
     report_mode_s: bool = False
     garble_probability: float = 0.0
     bias: SensorBias = field(default_factory=SensorBias)
+    report: ReportModel = field(default_factory=ReportModel)
+
+    @property
+    def reports(self) -> bool:
+        """A report sensor (:mod:`fusion.sim.reports`), not a sweeping one."""
+        return self.site.detection == "reports"
 
     def __post_init__(self) -> None:
-        if self.site.kind == "cartesian":
+        if self.reports:
+            if (
+                self.regions
+                or not self.bias.is_zero
+                or self.site.kind not in ("cartesian", "wgs84")
+            ):
+                raise ValueError(
+                    f"report sensor {self.site.radar_id}: a cartesian (multilateration) or "
+                    "wgs84 (ADS-B) site without clutter regions or bias model"
+                )
+        elif self.site.kind == "cartesian":
             if self.coverage is None:
                 raise ValueError(f"cartesian sensor {self.site.radar_id}: coverage is required")
             x0, x1, y0, y1 = self.coverage
@@ -151,7 +200,7 @@ class SensorConfig:
         """Scan numbers whose window (polar) or snapshot (cartesian) ends by ``duration``."""
         t_period = self.site.scan_period
         eps = 1e-9 * max(1.0, duration)
-        if self.site.kind == "cartesian":
+        if self.site.kind == "cartesian" and not self.reports:
             last = math.floor((duration - self.phase) / t_period + eps)
             return range(self.first_scan, max(last + 1, self.first_scan))
         n = math.floor((duration - self.phase) / t_period + eps)

@@ -26,7 +26,8 @@ from skyfuse.schemas import PlotBatch, RadarBias, RadarSite, Truth, keys
 
 from .cartesian import cartesian_scan
 from .radar import radar_scan
-from .scan import ScanData
+from .reports import report_fleet, report_scan
+from .scan import REPORT_COLUMNS, ScanData
 from .scenario import Scenario
 
 _RANK = {"site": 0, "truth": 1, "plots": 2}
@@ -84,7 +85,12 @@ class Simulator:
         cfg = sc.sensors[index]
         rng = self._rng(index)
         scans = cfg.scans_in(sc.duration)
-        if cfg.site.kind == "cartesian":
+        if cfg.reports:
+            fleet = report_fleet(cfg, sc.targets, rng)
+            for k in scans:
+                yield report_scan(cfg, k, sc.targets, sc.geodetic, rng, sc.start_time, fleet,
+                                  index)  # fmt: skip
+        elif cfg.site.kind == "cartesian":
             # all snapshot positions at once (same numbers as per scan, less overhead)
             times = np.array([cfg.scan_time(k) for k in scans])[:, None]
             tgt = np.arange(len(sc.targets))[None, :]
@@ -127,26 +133,21 @@ class Simulator:
                 "time": scan.time[sl].tolist(),
                 "target_id": scan.target_id[sl].tolist(),
             }
-            if scan.x is not None:
-                cols["x"] = scan.x[sl].tolist()
-                cols["y"] = scan.y[sl].tolist()
-            else:
+            if scan.x is None and scan.lat is None:
                 cols["range"] = scan.range[sl].tolist()
                 cols["azimuth"] = scan.azimuth[sl].tolist()
-                if scan.elevation is not None:
-                    cols["elevation"] = scan.elevation[sl].tolist()
-                if scan.altitude is not None:
-                    alt = scan.altitude[sl]
-                    cols["altitude"] = (
-                        [None if x != x else x for x in alt.tolist()]
-                        if np.isnan(alt).any()
-                        else alt.tolist()
+            for name in ("x", "y", *REPORT_COLUMNS, "elevation", "altitude"):
+                v = getattr(scan, name)
+                if v is not None:
+                    part = v[sl].tolist()
+                    cols[name] = (
+                        [None if x != x else x for x in part] if np.isnan(v[sl]).any() else part
                     )
-                for name in ("mode_s", "mode_3a"):
-                    v = getattr(scan, name)
-                    if v is not None:
-                        cols[name] = [None if c < 0 else c for c in v[sl].tolist()]
-                cols.update(_secondary_columns(scan, sl))
+            for name in ("mode_s", "mode_3a"):
+                v = getattr(scan, name)
+                if v is not None:
+                    cols[name] = [None if c < 0 else c for c in v[sl].tolist()]
+            cols.update(_secondary_columns(scan, sl))
             out.append(
                 PlotBatch(
                     radar_id=scan.radar_id,

@@ -52,7 +52,7 @@ def apply_site_biases(sensors: list[SensorConfig], values: dict) -> list[SensorC
     """``sensors`` with each polar radar's ``bias`` set from the parameter values."""
     out = []
     for cfg in sensors:
-        if cfg.site.kind == "cartesian":
+        if cfg.site.kind == "cartesian" or cfg.reports:
             out.append(cfg)
         else:
             out.append(dataclasses.replace(cfg, bias=site_bias(values, cfg.site.radar_id)))

@@ -41,7 +41,7 @@ I021/020         emitter category                                    ``emitter_c
 2.x I021/161     track number                                        ``track_number``
 ===============  ==================================================  ==================
 
-Position σ (:mod:`.adsb_quality`): NACp when reported (2.x, second extent of I090),
+Position σ (:mod:`skyfuse.schemas.adsb_quality`): NACp when reported (2.x, second extent of I090),
 else NUCp (0.2x PA, or 2.x NUCp/NIC with MOPS version 0); ``sigma_source`` says which.
 In 2.x with VN ≥ 1 the NUCp/NIC field is the NIC (an integrity, not an accuracy): kept
 as ``nic``. Velocity σ from NUCr/NACv. Values are converted from the item bytes
@@ -57,8 +57,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import asterix.generated as gen
+from skyfuse.schemas import adsb_quality
 
-from . import adsb_quality
 from .fields import DAY_S, FT, NM, icao_chars, mode_3a, signed, signed_bits, unsigned
 from .layout import RecordLayout, compile_layout, split_record
 from .records import item_bytes

@@ -48,8 +48,8 @@ aircraft from the three sensors meet in one track's gate.
 ``altitude``: the geometric height when reported (CAT021
 geometric height, CAT020 I110, CAT010 I091), else the flight level as a height (as for
 CAT048); ``sigma``: multilateration I500 √((σx² + σy²)/2), ADS-B the σ of its NACp/NUCp
-(:mod:`.adsb_quality`) or ``adsb_sigma`` (an empirical σ for every ADS-B report); an ADS-B
-report whose quality gives no σ (NUCp 0) is dropped (``adsb_no_accuracy``) unless
+(:mod:`skyfuse.schemas.adsb_quality`) or ``adsb_sigma`` (an empirical σ for every ADS-B
+report); an ADS-B report whose quality gives no σ (NUCp 0) is dropped (``adsb_no_accuracy``) unless
 ``adsb_sigma`` is set. ``v_east``/``v_north``: I202 (CAT010), VX/VY (CAT020), the ADS-B
 velocity (σ from NUCr/NACv); ``flight_status`` 1 (on the ground) for the ground bit; the
 identity (``mode_s``, ``mode_3a``, ``callsign``, ``flight_level``) for evaluation and

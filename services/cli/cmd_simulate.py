@@ -136,10 +136,11 @@ def simulate_to_asterix(cfg: SimulateConfig) -> dict:
     from skyfuse.services.asterix.writer import AsterixPlotWriter
 
     scenario, sim = _build(cfg)
-    if any(s.kind.value == "cartesian" for s in scenario.sites):
+    other = [s.radar_id for s in scenario.sites if s.kind.value in ("cartesian", "wgs84")]
+    if other:
         raise ConfigError(
-            f"scenario {scenario.name!r} has cartesian sensors: ASTERIX CAT048 carries polar "
-            "plots only; use --format mcap"
+            f"scenario {scenario.name!r} has cartesian or WGS-84 sensors ({', '.join(other)}): "
+            "the simulator writes ASTERIX CAT048 polar plots only; use --format mcap"
         )
     sites = {s.radar_id: s for s in scenario.sites}
     sac_sic = asterix_sac_sic(list(sites), cfg.asterix_sac)

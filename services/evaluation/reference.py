@@ -8,7 +8,7 @@ record from ``date``) and keeps one kind of report (``kind``: ``adsb``, ``mlat``
 ``auto`` — ADS-B when the file has any, else multilateration):
 
 * **ADS-B**: every CAT021 report; the aircraft key is the target address (I080), σ the
-  one its quality indicator maps to (NACp, else NUCp; :mod:`~skyfuse.services.asterix
+  one its quality indicator maps to (NACp, else NUCp; :mod:`~skyfuse.schemas
   .adsb_quality`; NaN for category 0).
 * **Multilateration**: CAT010 target reports of a multilateration type (I020 TYP SSR,
   Mode S or HF multilateration) with a position and a Mode-S address (I220; others are

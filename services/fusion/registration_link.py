@@ -10,11 +10,14 @@ Per batch of radar r (method: :mod:`skyfuse.fusion.registration`, docs/concepts/
    wrong by b_t for the sweep too, so the batch time and the sector's time_start/end are
    shifted by −b̂_t (ns) like the plot times.
 2. :meth:`RegistrationLink.after` — the plots the tracker assigned to tracks that two or
-   more radars update feed the estimator (:func:`observe_tracker_output`).
+   more sensors update feed the estimator (:func:`observe_tracker_output`); a report
+   sensor's (ADS-B) only when it is a named reference (``--registration-reference
+   ADSB``: its positions are the datum, every radar is estimated against them), and only
+   its reports whose σ is within ``--registration-max-reference-sigma``.
 
 The correction is ``None`` (the conversion untouched) while the estimate is exactly 0
 (reference radars, a radar before its first common-target pair, ``off``) and for
-cartesian sensors (no polar bias model). With one radar, or radars without common
+cartesian and WGS-84 sensors (no polar bias model). With one radar, or radars without common
 coverage, no pair ever forms, so registration is in effect off; it is therefore on by
 default. Everything is a function of the batches in their order, so a live run and an
 offline run of the same recording give the same estimates and the same tracks.
@@ -117,13 +120,16 @@ class RegistrationLink:
 
 def registration_config(args=None, *, toml_path=None) -> RegistrationConfig:
     """RegistrationConfig: defaults < TOML ``[registration]`` < ``SKYFUSE_REGISTRATION_*`` <
-    the flags ``--registration MODE`` and ``--registration-reference A,B``."""
+    the flags ``--registration MODE``, ``--registration-reference A,B`` and
+    ``--registration-max-reference-sigma M``."""
     over = {}
     if args is not None:
         if getattr(args, "registration", None) is not None:
             over["mode"] = args.registration
         if getattr(args, "registration_reference", None) is not None:
             over["reference"] = args.registration_reference
+        if getattr(args, "registration_max_reference_sigma", None) is not None:
+            over["max_reference_sigma"] = args.registration_max_reference_sigma
     return build_config(
         RegistrationConfig,
         None,
@@ -144,12 +150,21 @@ class RegistrationFlags(BaseModel):
         "estimate reached; off (default: on; with one radar nothing is estimated)",
     )
     registration_reference: list[str] | None = Field(
-        None, description="Reference radars, bias fixed at 0 (default: the first radar seen)"
+        None,
+        description="Reference sensors, bias fixed at 0: radars, or an ADS-B sensor to "
+        "register every radar against its reports (default: the first radar seen)",
+    )
+    registration_max_reference_sigma: float | None = Field(
+        None,
+        gt=0,
+        description="Use only the reports of a reference ADS-B (or multilateration) whose "
+        "horizontal σ per axis is at most this many metres (default: all)",
     )
 
 
 def add_registration_arguments(parser) -> None:
-    """``--registration on|frozen|off`` and ``--registration-reference A,B``."""
+    """``--registration on|frozen|off``, ``--registration-reference A,B`` and
+    ``--registration-max-reference-sigma M``."""
     g = parser.add_argument_group(
         "sensor registration",
         "Online estimation and correction of each radar's azimuth, range, range-gain and "

@@ -2,24 +2,29 @@
 position error is below each sensor's alone, through the offline runner of ``skyfuse
 track`` (``run_offline``: conversion, adapter, tracker).
 
-Six aircraft fly straight at 3 km for 120 s within 20 km of the origin. The sensors'
-error models are written here, independently of the conversion: a 2-D rotating radar
-40 km south (4 s scans, σ 50 m in range and 1.5 mrad in azimuth, Mode-C heights), ADS-B
-(1 s, σ 20 m east and north at the aircraft, two of the six aircraft not equipped) and a
-multilateration (1 s, x/y east/north of its reference point, σ 15 m, P_D 0.9). Truth
-positions go into the system frame through pymap3d and the frame's own geodesy (checked
-against pyproj in ``test_frames``). Errors are taken after every batch at the batch
-time, for the confirmed track nearest to each aircraft, after a 30 s settling time.
+Six aircraft fly straight at 3 km for 120 s within 20 km of the origin. The scenario
+simulator (``fusion.sim``, whose error models are checked against Monte Carlo runs in
+``test_sim_radar`` and ``test_sim_report_sensors``) makes the sensors' data: a 2-D
+rotating radar 40 km south (4 s scans, σ 50 m in range and 1.5 mrad in azimuth, Mode-C
+heights), ADS-B (1 s, NACp 9: σ 12.3 m east and north at the aircraft, two of the six
+aircraft without a Mode-S address, so not equipped) and a multilateration (1 s, x/y
+east/north of its reference point, σ 15 m, P_D 0.9). Truth positions go into the system
+frame through the frame's own geodesy (checked against pyproj in ``test_frames``).
+Errors are taken after every batch at the batch time, for the confirmed track nearest to
+each aircraft, after a 30 s settling time.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-import pymap3d
 import pytest
-from skyfuse.fusion.frames import SystemFrame
+from skyfuse.fusion.frames import Stereographic, SystemFrame
+from skyfuse.fusion.sim import Scenario, SensorConfig, Simulator, TargetSet, TrajectoryBuilder
+from skyfuse.fusion.sim.sensor import ReportModel
 from skyfuse.fusion.tracker import TrackerConfig
-from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
+from skyfuse.schemas import FrameKind, FrameSpec, PlotBatch, RadarKind, RadarSite
 from skyfuse.services.evaluation.offline import Observer, OfflineConfig, Step, run_offline
 
 LAT0, LON0 = 41.3, 2.1
@@ -28,82 +33,55 @@ S = 10**9
 DURATION = 120
 N_AC = 6
 EQUIPPED = np.array([True, True, True, True, False, False])  # ADS-B out
-SIG_R, SIG_AZ, SIG_ADSB, SIG_MLAT = 50.0, 1.5e-3, 20.0, 15.0
+SIG_R, SIG_AZ, SIG_MLAT = 50.0, 1.5e-3, 15.0
 
 RADAR = RadarSite(radar_id="R", lat=41.3 - 40e3 / 111e3, lon=LON0, alt=50.0,
                   kind=RadarKind.TWO_D, sigma_range=SIG_R, sigma_azimuth=SIG_AZ,
                   p_detection=0.9, max_range=200e3)  # fmt: skip
 ADSB = RadarSite(radar_id="A-adsb", lat=LAT0, lon=LON0, alt=4.0, kind="wgs84",
-                 detection="reports", report_timeout=5.0, sigma_cartesian=SIG_ADSB,
-                 p_detection=0.95, max_range=250e3)  # fmt: skip
+                 detection="reports", report_timeout=5.0, sigma_cartesian=20.0,
+                 scan_period=1.0, p_detection=0.95, max_range=250e3, n_sectors=1,
+                 timing="plots")  # fmt: skip
 MLAT = RadarSite(radar_id="M", lat=LAT0 + 0.01, lon=LON0 + 0.02, alt=4.0,
                  kind=RadarKind.CARTESIAN, detection="reports", report_timeout=5.0,
-                 sigma_cartesian=SIG_MLAT, p_detection=0.9, max_range=60e3)  # fmt: skip
+                 sigma_cartesian=SIG_MLAT, scan_period=1.0, p_detection=0.9, max_range=60e3,
+                 n_sectors=1, timing="plots")  # fmt: skip
 SITES = {s.radar_id: s for s in (RADAR, ADSB, MLAT)}
+PLANE = Stereographic(LAT0, LON0)
 
 
-def truth(t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(lat, lon, h) of the aircraft (N_AC, len(t)): straight lines at 3 km in the ENU of
-    the origin, 120-220 m/s in six directions."""
+@functools.cache
+def scenario() -> Scenario:
+    """Straight lines at 3 km in the system plane, 120-220 m/s in six directions; every
+    aircraft has a Mode-3/A code (the multilateration locates it), the equipped ones a
+    Mode-S address."""
     rng = np.random.default_rng(7)
     p0 = rng.uniform(-12e3, 12e3, (N_AC, 2))
     course = np.arange(N_AC) * (2 * np.pi / N_AC) + 0.3
     speed = np.linspace(120.0, 220.0, N_AC)
     v = speed[:, None] * np.stack([np.sin(course), np.cos(course)], axis=1)
-    e = p0[:, :1] + v[:, :1] * t_s[None, :]
-    n = p0[:, 1:] + v[:, 1:] * t_s[None, :]
-    return pymap3d.enu2geodetic(e, n, np.full_like(e, 3000.0), LAT0, LON0, 0.0)
+    builders = [TrajectoryBuilder(0.0, (*p0[i], 3000.0), (*v[i], 0.0)) for i in range(N_AC)]
+    targets = TargetSet.from_builders(
+        builders, mode_s=np.where(EQUIPPED, 0x3C0000 + np.arange(N_AC), -1),
+        mode_3a=0o1000 + np.arange(N_AC),
+    )  # fmt: skip
+    sensors = [SensorConfig(site=RADAR),
+               SensorConfig(site=ADSB, report=ReportModel(equipped_fraction=1.0, nacp=9)),
+               SensorConfig(site=MLAT)]  # fmt: skip
+    return Scenario(
+        name="radar-adsb-mlat", description="", sites=[c.site for c in sensors],
+        frame=FrameSpec(kind=FrameKind.STEREOGRAPHIC, lat0=LAT0, lon0=LON0),
+        duration=float(DURATION), start_time=T0, n_targets=N_AC, params={}, targets=targets,
+        sensors=sensors, plane=PLANE, truth_period=1.0, seed=11,
+    )  # fmt: skip
 
 
-def _batch(site, seq, t_lo, t_hi, times, **cols) -> PlotBatch:
-    return PlotBatch(radar_id=site.radar_id, scan=seq, seq=seq, time_start=t_lo, time_end=t_hi,
-                     time=[int(t) for t in times],
-                     **{k: [float(x) for x in c] for k, c in cols.items()})  # fmt: skip
-
-
-def radar_batches(rng) -> list[PlotBatch]:
-    """One batch per 4-s scan; each aircraft seen (P_D 0.9) when the beam passes it."""
-    out = []
-    for k in range(DURATION // 4):
-        t_lo = k * 4.0
-        lat, lon, h = truth(np.array([t_lo + 2.0]))
-        az, _, rng_m = pymap3d.geodetic2aer(lat[:, 0], lon[:, 0], h[:, 0], RADAR.lat,
-                                            RADAR.lon, RADAR.alt)  # fmt: skip
-        az = np.deg2rad(az)
-        t = t_lo + 4.0 * az / (2 * np.pi)  # the beam's time at each aircraft
-        lat, lon, h = (a[np.arange(N_AC), np.arange(N_AC)] for a in truth(t))
-        az, _, rng_m = pymap3d.geodetic2aer(lat, lon, h, RADAR.lat, RADAR.lon, RADAR.alt)
-        seen = rng.random(N_AC) < 0.9
-        o = np.argsort(t[seen])
-        azm = (np.deg2rad(az[seen]) + rng.normal(0, SIG_AZ, seen.sum())) % (2 * np.pi)
-        out.append(_batch(RADAR, k, T0 + round(t_lo * S), T0 + round((t_lo + 4) * S),
-                          T0 + np.round(t[seen][o] * S),
-                          range=(rng_m[seen] + rng.normal(0, SIG_R, seen.sum()))[o],
-                          azimuth=azm[o], altitude=h[seen][o]))  # fmt: skip
-    return out
-
-
-def report_batches(rng, site, sigma, who, p_d) -> list[PlotBatch]:
-    """One batch a second of the reports of the aircraft ``who`` (P_D ``p_d``): noise
-    N(0, σ²) east and north at the aircraft (ADS-B, as lat/lon) or on x/y of the
-    reference point (multilateration)."""
-    out = []
-    for k in range(DURATION):
-        t = k + 0.3 + 0.05 * np.arange(N_AC)
-        lat, lon, h = (a[np.arange(N_AC), np.arange(N_AC)] for a in truth(t))
-        e, n, _ = pymap3d.geodetic2enu(lat, lon, h, site.lat, site.lon, site.alt)
-        sel = who & (rng.random(N_AC) < p_d)
-        de, dn = rng.normal(0, sigma, (2, sel.sum()))
-        times = T0 + np.round(t[sel] * S)
-        span = (T0 + k * S, T0 + (k + 1) * S)
-        if site.kind == "wgs84":
-            la, lo, _ = pymap3d.enu2geodetic(de, dn, 0.0, lat[sel], lon[sel], h[sel])
-            cols = {"lat": la, "lon": lo}
-        else:
-            cols = {"x": e[sel] + de, "y": n[sel] + dn}
-        out.append(_batch(site, k, *span, times, altitude=h[sel], sigma=np.full(sel.sum(), sigma),
-                          **cols))  # fmt: skip
-    return out
+def truth(t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lat, lon, h) of the aircraft (N_AC, len(t))."""
+    idx = np.broadcast_to(np.arange(N_AC)[:, None], (N_AC, len(t_s)))
+    p, _ = scenario().targets.state(np.broadcast_to(t_s, idx.shape), idx)
+    lat, lon = PLANE.inverse(p[..., 0], p[..., 1])
+    return np.asarray(lat), np.asarray(lon), p[..., 2]
 
 
 class Errors(Observer):
@@ -143,13 +121,13 @@ def run(batches) -> Errors:
 
 @pytest.fixture(scope="module")
 def sensors():
-    rng = np.random.default_rng(11)
-    every = np.ones(N_AC, bool)
-    return {
-        "radar": radar_batches(rng),
-        "adsb": report_batches(rng, ADSB, SIG_ADSB, EQUIPPED, 0.95),
-        "mlat": report_batches(rng, MLAT, SIG_MLAT, every, 0.9),
-    }
+    sim = Simulator(scenario())
+    names = {"R": "radar", "A-adsb": "adsb", "M": "mlat"}
+    out = {name: [] for name in names.values()}
+    for ev in sim.run(truth=False):
+        if isinstance(ev.message, PlotBatch):
+            out[names[ev.message.radar_id]].append(ev.message)
+    return out
 
 
 def test_fused_error_is_below_each_sensor_alone(sensors):

@@ -13,7 +13,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import stats as sps
 from service_support import SHARED_DATA
-from skyfuse.services.asterix import AsterixStreamDecoder, adsb_quality, cat010, cat020, cat021
+from skyfuse.schemas import adsb_quality
+from skyfuse.services.asterix import AsterixStreamDecoder, cat010, cat020, cat021
 from skyfuse.services.asterix.pcap import Datagram
 from skyfuse.services.asterix.records import RecordError, iter_records
 from skyfuse.services.asterix.surveillance import columns, read_reports

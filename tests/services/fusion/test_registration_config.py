@@ -1,7 +1,8 @@
 """The registration settings of ``skyfuse fusion``, ``track`` and ``eval``: defaults <
 the ``[registration]`` TOML table < ``SKYFUSE_REGISTRATION_*`` < ``--registration`` /
-``--registration-reference``, with the same flags on the three commands; and the link's
-correction: none for reference radars, zero estimates, ``off`` and cartesian sensors."""
+``--registration-reference`` / ``--registration-max-reference-sigma``, with the same flags
+on the three commands; and the link's correction: none for reference radars, zero
+estimates, ``off`` and cartesian sensors."""
 
 from __future__ import annotations
 
@@ -21,15 +22,20 @@ from skyfuse.services.runtime.config import ConfigError
 @pytest.mark.parametrize("command", [["fusion"], ["track", "r.mcap"], ["eval", "r.mcap"]])
 def test_toml_env_and_flags_in_order(tmp_path, monkeypatch, command):
     toml = tmp_path / "f.toml"
-    toml.write_text('[registration]\nmode = "frozen"\nreference = ["A"]\nprior_range_m = 100\n')
+    toml.write_text('[registration]\nmode = "frozen"\nreference = ["A"]\nprior_range_m = 100\n'
+                    "max_reference_sigma = 60\n")  # fmt: skip
     parse = build_parser(command[0]).parse_args
     cfg = registration_config(parse(command), toml_path=toml)
     assert (cfg.mode, cfg.reference, cfg.prior_range_m) == ("frozen", ["A"], 100.0)
+    assert cfg.max_reference_sigma == 60.0
     monkeypatch.setenv("SKYFUSE_REGISTRATION_PRIOR_RANGE_M", "50")
-    args = parse([*command, "--registration", "off", "--registration-reference", "B,C"])
+    args = parse([*command, "--registration", "off", "--registration-reference", "B,C",
+                  "--registration-max-reference-sigma", "40"])  # fmt: skip
     cfg = registration_config(args, toml_path=toml)
     assert (cfg.mode, cfg.reference, cfg.prior_range_m) == ("off", ["B", "C"], 50.0)
+    assert cfg.max_reference_sigma == 40.0
     assert registration_config(parse(command)).mode == "on"  # the default
+    assert registration_config(parse(command)).max_reference_sigma is None
     with pytest.raises(SystemExit):
         parse([*command, "--registration", "maybe"])
     toml.write_text('[registration]\ncomponents = ["azimuth", "skew"]\n')

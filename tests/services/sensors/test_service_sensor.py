@@ -1,4 +1,4 @@
-"""``skyfuse sensor`` as a real process: publishes exactly its radar's batches of the
+"""``skyfuse sensor`` as a real process: publishes exactly its radar's (or ADS-B's) batches of the
 scenario (compared with the offline simulator), the site also via queryable and
 liveliness, stops on SIGTERM within 5 s, and rejects an unknown radar id with exit 2."""
 
@@ -27,9 +27,12 @@ pytestmark = pytest.mark.service
 SCEN = ("--scenario", "regional", "--seed", "4", "--duration", "12", "--targets", "4")
 
 
-def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
-    sc = build_scenario("regional", seed=4, duration=12, targets=4)
-    radar = sc.sites[0].radar_id
+@pytest.mark.parametrize("radar", ["LYBE", "ADSB"])
+def test_sensor_publishes_its_radar_of_the_scenario(tmp_path, radar):
+    """A radar, and the scenario's ADS-B network (a report sensor: one batch a cycle)."""
+    extra = ("--param", "adsb=true") if radar == "ADSB" else ()
+    sc = build_scenario("regional", seed=4, duration=12, targets=4, adsb=radar == "ADSB")
+    site = next(x for x in sc.sites if x.radar_id == radar)
     expected = [
         ev.message.to_json_bytes()
         for ev in Simulator(sc, seed=4).run()
@@ -41,7 +44,7 @@ def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
         inbox.subscribe(s, keys.radar_plots(radar), "plots")
         inbox.subscribe(s, keys.radar_site(radar), "site")
         proc = skyfuse(
-            "sensor", "--radar", radar, *SCEN, "--speed", "30", "--connect", ep,
+            "sensor", "--radar", radar, *SCEN, *extra, "--speed", "30", "--connect", ep,
             "--linger", "1.0", log_path=tmp_path / "sensor.log",
         )  # fmt: skip
         got, sites = [], []
@@ -54,7 +57,7 @@ def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
             # while the sensor lingers: liveliness and the site queryable
             assert alive_tokens(s, keys.ALL_ALIVE) == [keys.radar_alive(radar)]
             (_key, payload), *_ = query(s, keys.ALL_SITES)
-            assert RadarSite.from_json_bytes(payload) == sc.sites[0]
+            assert RadarSite.from_json_bytes(payload) == site
         finally:
             rc, _ = stop(proc, timeout=10)
     assert rc == 0, (tmp_path / "sensor.log").read_text()
@@ -63,7 +66,7 @@ def test_sensor_publishes_its_radar_of_the_scenario(tmp_path):
     assert len(epochs) == 1 and 0 not in epochs  # the epoch of this run's numbering
     # same batches, same order, unchanged but for the epoch
     assert [b.model_copy(update={"epoch": 0}).to_json_bytes() for b in batches] == expected
-    assert RadarSite.from_json_bytes(sites[0].payload) == sc.sites[0]
+    assert RadarSite.from_json_bytes(sites[0].payload) == site
     # paced: wall stamps follow simulated time / speed
     t = [PlotBatch.from_json_bytes(g.payload).time_end for g in got]
     sim_span = (t[-1] - t[0]) / 1e9 / 30
