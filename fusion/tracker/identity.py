@@ -76,6 +76,9 @@ REGISTERS = tuple(DOWNLINK_REGISTERS)
 REGISTER_COLUMNS = tuple(
     np.array([DOWNLINK_NAMES.index(n) for n in DOWNLINK_REGISTERS[r]]) for r in REGISTERS
 )
+_IN_REGISTER = np.zeros((len(DOWNLINK_NAMES), len(REGISTERS)), bool)
+for _r, _cols in enumerate(REGISTER_COLUMNS):
+    _IN_REGISTER[_cols, _r] = True
 SSR, MODE_S_REPLY = 0, 1
 """The reply kinds of the (·, 2) ``reply_time`` column."""
 EMERGENCY = np.array(sorted(EMERGENCY_CODES), np.int64)
@@ -105,8 +108,17 @@ def unpack_callsigns(packed: np.ndarray) -> np.ndarray:
     """(n,) strings (``<U8``, trailing spaces removed) of packed callsigns (≥ 0)."""
     p = np.asarray(packed, np.int64).reshape(-1)
     six = (p[:, None] >> _SHIFTS) & 63
-    chars = np.where(six < 32, six | 64, six).astype(np.uint8)
-    return np.char.rstrip(np.char.decode(np.ascontiguousarray(chars).view("S8").ravel(), "ascii"))
+    chars = np.where(six < 32, six | 64, six).astype(np.uint32)
+    chars[np.logical_and.accumulate(chars[:, ::-1] == 32, axis=1)[:, ::-1]] = 0
+    return np.ascontiguousarray(chars).view("<U8").ravel()
+
+
+def is_emergency(mode_3a: np.ndarray) -> np.ndarray:
+    """Whether each Mode-3/A code is an emergency code (7500, 7600, 7700)."""
+    out = mode_3a == EMERGENCY[0]
+    for code in EMERGENCY[1:]:
+        out |= mode_3a == code
+    return out
 
 
 def code_text(attribute: int, code: int) -> str:
@@ -146,7 +158,7 @@ class PlotIdentity:
 
 
 def _values(obj) -> list:
-    return [getattr(obj, f.name) for f in fields(obj)]
+    return list(obj.__dict__.values())  # the dataclass fields, in their order
 
 
 def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | None:
@@ -284,22 +296,24 @@ class Identity:
             return
         t = np.asarray(t, np.int64)
         conf = self.tracks.confirmed[rows]
-        touched = self._codes(pid, rows, plots, t, conf)
-        touched |= self._level_and_replies(pid, rows, plots, t, conf)
+        obs = pid.codes[plots]
+        touched = self._codes(pid, rows, plots, t, conf, obs)
+        touched |= self._level_and_replies(pid, rows, plots, t, conf, obs)
         if pid.downlink is not None:
             touched |= self._downlink(pid.downlink[plots], rows, t)
         self.tracks.ident_revision[rows[touched]] += 1
 
-    def _codes(self, pid, rows, plots, t, conf) -> np.ndarray:
+    def _codes(self, pid, rows, plots, t, conf, obs) -> np.ndarray:
         """(I1)-(I3) and their events for the three codes at once; returns the rows
         whose codes or times changed."""
         tr, tt = self.tracks, t[:, None]
-        obs = pid.codes[plots]
         shown, t_shown = tr.ident_code[rows], tr.ident_time[rows]
         cand, count = tr.ident_cand[rows], tr.ident_seen[rows]
         seen = pid.shown[plots] & (tt > t_shown)
         same = seen & (obs == shown)
         other = seen & ~same
+        if not other.any():  # the usual step: the plots confirm the tracks' codes
+            return self._confirmed_codes(rows, tt, same, t_shown, cand, count)
         count = np.where(
             same, 0, np.where(other & (obs == cand), count + 1, np.where(other, 1, count))
         )
@@ -317,10 +331,21 @@ class Identity:
         tr.ident_changed[rows] = np.where(changed, tt, tr.ident_changed[rows])
         tr.ident_conflict[rows] = np.where(conflict, tt, tr.ident_conflict[rows])
         if changed.any() or conflict.any() or adopt[:, MODE_3A].any():
-            was = np.isin(shown[:, MODE_3A], EMERGENCY)
-            emergency = adopt[:, MODE_3A] & np.isin(new[:, MODE_3A], EMERGENCY) & ~was
+            was = is_emergency(shown[:, MODE_3A])
+            emergency = adopt[:, MODE_3A] & is_emergency(new[:, MODE_3A]) & ~was
             self._code_events(rows, t, conf, obs, shown, new, changed, conflict, emergency)
         return (same | adopt).any(axis=1)
+
+    def _confirmed_codes(self, rows, tt, same, t_shown, cand, count) -> np.ndarray:
+        """:meth:`_codes` when every shown code equals the track's, (I2): their times,
+        and no candidate left where one was."""
+        tr = self.tracks
+        tr.ident_time[rows] = np.where(same, tt, t_shown)
+        stale = same & ((cand != NONE) | (count != 0))
+        if stale.any():
+            tr.ident_cand[rows] = np.where(stale, NONE, cand)
+            tr.ident_seen[rows] = np.where(stale, 0, count)
+        return same.any(axis=1)
 
     def _code_events(self, rows, t, conf, obs, shown, new, changed, conflict, emergency):
         """The events of :meth:`_codes` for the confirmed tracks among ``rows``."""
@@ -336,40 +361,38 @@ class Identity:
         for i in np.flatnonzero(emergency & conf):
             self._emergency(rows[i], t[i], new[i, MODE_3A])
 
-    def _level_and_replies(self, pid, rows, plots, t, conf) -> np.ndarray:
+    def _level_and_replies(self, pid, rows, plots, t, conf, obs) -> np.ndarray:
         """Flight level, the reply times and SPI (set by every reply newer than the
         track's last one); returns the rows whose level or reply times changed."""
-        tr = self.tracks
+        tr, tt = self.tracks, t[:, None]
         fl = pid.flight_level[plots]
         ok = np.isfinite(fl) & (t > tr.flight_level_time[rows])
-        tr.flight_level[rows[ok]] = fl[ok]
-        tr.flight_level_time[rows[ok]] = t[ok]
-        ssr, mode_s = pid.ssr[plots], pid.codes[plots, MODE_S] >= 0
+        if ok.any():
+            tr.flight_level[rows[ok]] = fl[ok]
+            tr.flight_level_time[rows[ok]] = t[ok]
+        kinds = np.stack((pid.ssr[plots], obs[:, MODE_S] >= 0), axis=1)  # SSR, MODE_S_REPLY
         last = tr.reply_time[rows]
-        reply = (ssr | mode_s) & (t > last.max(axis=1))
-        tr.reply_time[rows, SSR] = np.where(ssr & (t > last[:, SSR]), t, last[:, SSR])
-        tr.reply_time[rows, MODE_S_REPLY] = np.where(mode_s & (t > last[:, MODE_S_REPLY]), t,
-                                                     last[:, MODE_S_REPLY])  # fmt: skip
+        newer = kinds & (tt > last)
+        tr.reply_time[rows] = np.where(newer, tt, last)
+        reply = kinds.any(axis=1) & (t > last.max(axis=1))
         if reply.any():
             r = rows[reply]
             before, after = tr.spi[r], pid.spi[plots[reply]]
             tr.spi[r] = after
             for i in np.flatnonzero(after & ~before & conf[reply]):
                 self._spi(r[i], t[reply][i])
-        return ok | (ssr & (t > last[:, SSR])) | (mode_s & (t > last[:, MODE_S_REPLY]))
+        return ok | newer.any(axis=1)
 
     def _downlink(self, dl: np.ndarray, rows: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Each register's parameters of the plots that carry any of them; returns the
         rows that took some."""
-        tr = self.tracks
-        touched = np.zeros(len(rows), bool)
-        for r, cols in enumerate(REGISTER_COLUMNS):
-            has = np.isfinite(dl[:, cols]).any(axis=1) & (t > tr.downlink_time[rows, r])
-            if has.any():
-                tr.downlink[rows[has][:, None], cols] = dl[has][:, cols]
-                tr.downlink_time[rows[has], r] = t[has]
-                touched |= has
-        return touched
+        tr, tt = self.tracks, t[:, None]
+        last = tr.downlink_time[rows]
+        take = (np.isfinite(dl) @ _IN_REGISTER) & (tt > last)
+        if take.any():
+            tr.downlink[rows] = np.where(take @ _IN_REGISTER.T, dl, tr.downlink[rows])
+            tr.downlink_time[rows] = np.where(take, tt, last)
+        return take.any(axis=1)
 
     # ------------------------------------------------------------------ events
     def _event(self, row, t, kind, attribute, value="", previous="", reason="") -> None:
@@ -391,7 +414,7 @@ class Identity:
     def confirmed(self, rows: np.ndarray, t_batch: int) -> None:
         """Tracks ``rows`` confirmed now: the emergency and SPI they already show."""
         tr = self.tracks
-        for r in rows[np.isin(tr.ident_code[rows, MODE_3A], EMERGENCY)]:
+        for r in rows[is_emergency(tr.ident_code[rows, MODE_3A])]:
             self._emergency(r, t_batch, tr.ident_code[r, MODE_3A])
         for r in rows[tr.spi[rows]]:
             self._spi(r, t_batch)
