@@ -56,7 +56,7 @@ with spaces; −1: none), the I048/240 and I062/245 value.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from skyfuse.schemas.identity import DOWNLINK_REGISTERS, DOWNLINKED, EMERGENCY_CODES
@@ -158,7 +158,7 @@ class PlotIdentity:
 
 
 def _values(obj) -> list:
-    return list(obj.__dict__.values())  # the dataclass fields, in their order
+    return list(obj.__dict__.values())  # the dataclass's fields, in their order
 
 
 def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | None:
@@ -200,54 +200,73 @@ def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | 
 
 
 # ---------------------------------------------------------------------------- tracks
-@dataclass
+_BLOCKS = {"ints": np.int64, "reals": np.float64, "flags": np.bool_}
+_LAYOUT = {
+    "codes": ("ints", slice(0, 3)), "code_time": ("ints", slice(3, 6)),
+    "mode_3a_changed": ("flags", 0), "flight_level": ("reals", 0),
+    "flight_level_time": ("ints", 6), "spi": ("flags", 1),
+    "downlink": ("reals", slice(1, 1 + len(DOWNLINK_NAMES))),
+    "downlink_time": ("ints", slice(7, 7 + len(REGISTERS))),
+    "reply_time": ("ints", slice(10, 12)), "revision": ("ints", 12),
+}  # fmt: skip
+"""Each field of :class:`TrackIdentity`: its block and columns there."""
+_WIDTH = {"ints": 13, "reals": 1 + len(DOWNLINK_NAMES), "flags": 2}
+_FILL = {"ints": NONE, "reals": np.nan, "flags": False}
+
+
 class TrackIdentity:
     """The identity of n tracks (copies of the store's columns, :class:`Identity`):
     ``codes`` (n, 3) and ``code_time`` (n, 3) ns (−1: none), ``mode_3a_changed`` (n,)
     bool (changed within ``hold``), ``flight_level`` (n,) FL (NaN: none) and its time,
     ``spi`` (n,), ``downlink`` (n, 12) with ``downlink_time`` (n, 3) per register,
     ``reply_time`` (n, 2): last update by a plot with an SSR / a Mode S reply;
-    ``revision`` (n,): +1 at every change of what a track shows (a published row moves)."""
+    ``revision`` (n,): +1 at every change of what a track shows (a published row moves).
+    Held in three blocks (``ints`` (n, 13), ``reals`` (n, 13), ``flags`` (n, 2),
+    :data:`_LAYOUT`), the fields views of them: taking or joining rows (the feed's
+    tables) is three copies."""
 
-    codes: np.ndarray
-    code_time: np.ndarray
-    mode_3a_changed: np.ndarray
-    flight_level: np.ndarray
-    flight_level_time: np.ndarray
-    spi: np.ndarray
-    downlink: np.ndarray
-    downlink_time: np.ndarray
-    reply_time: np.ndarray
-    revision: np.ndarray
+    __slots__ = tuple(_BLOCKS)
+
+    def __init__(self, ints: np.ndarray, reals: np.ndarray, flags: np.ndarray) -> None:
+        self.ints, self.reals, self.flags = ints, reals, flags
+
+    @classmethod
+    def of(cls, **fields_: np.ndarray) -> TrackIdentity:
+        """From every field of :data:`_LAYOUT` by name (arrays of n rows)."""
+        n = len(fields_["codes"])
+        blocks = {k: np.empty((n, _WIDTH[k]), dt) for k, dt in _BLOCKS.items()}
+        for name, (block, cols) in _LAYOUT.items():
+            blocks[block][:, cols] = fields_[name]
+        return cls(**blocks)
 
     def __len__(self) -> int:
-        return len(self.codes)
+        return len(self.ints)
 
     def take(self, idx: np.ndarray) -> TrackIdentity:
-        return TrackIdentity(*(v[idx] for v in _values(self)))
+        return TrackIdentity(self.ints[idx], self.reals[idx], self.flags[idx])
 
     @classmethod
     def none(cls, n: int) -> TrackIdentity:
         """n tracks without identity."""
-        i8 = np.int64
-        return cls(np.full((n, 3), NONE, i8), np.full((n, 3), NONE, i8), np.zeros(n, bool),
-                   np.full(n, np.nan), np.full(n, NONE, i8), np.zeros(n, bool),
-                   np.full((n, len(DOWNLINK_NAMES)), np.nan), np.full((n, 3), NONE, i8),
-                   np.full((n, 2), NONE, i8), np.zeros(n, i8))  # fmt: skip
+        return cls(*(np.full((n, _WIDTH[k]), _FILL[k], dt) for k, dt in _BLOCKS.items()))
 
     @staticmethod
     def concat(parts: list[TrackIdentity]) -> TrackIdentity:
-        return TrackIdentity(*(np.concatenate(v) for v in zip(*map(_values, parts))))
+        return TrackIdentity(*(np.concatenate([getattr(p, k) for p in parts]) for k in _BLOCKS))
 
     def to_snapshot(self) -> dict:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {name: np.ascontiguousarray(getattr(self, name)) for name in _LAYOUT}
 
     @classmethod
     def from_snapshot(cls, snap, n: int) -> TrackIdentity:
         """Read :meth:`to_snapshot` of n tracks (``SnapshotError`` if it does not fit)."""
         snap, ref = mapping(snap, "track identity"), cls.none(n)
-        return cls(*(array_field(snap, f.name, v.dtype, v.shape) for f, v in
-                     zip(fields(cls), _values(ref))))  # fmt: skip
+        like = {name: getattr(ref, name) for name in _LAYOUT}
+        return cls.of(**{k: array_field(snap, k, v.dtype, v.shape) for k, v in like.items()})
+
+
+for _name, (_block, _cols) in _LAYOUT.items():
+    setattr(TrackIdentity, _name, property(lambda self, b=_block, c=_cols: getattr(self, b)[:, c]))
 
 
 def identity_columns() -> ColumnGroup:
@@ -432,9 +451,15 @@ class Identity:
         """Copies of every track's identity at ``time_ns`` (the newest batch time)."""
         tr = self.tracks
         changed = tr.ident_changed[:, MODE_3A]
-        return TrackIdentity(
-            tr.ident_code.copy(), tr.ident_time.copy(),
-            (changed >= 0) & (time_ns - changed <= self.hold), tr.flight_level.copy(),
-            tr.flight_level_time.copy(), tr.spi.copy(), tr.downlink.copy(),
-            tr.downlink_time.copy(), tr.reply_time.copy(), tr.ident_revision.copy(),
-        )  # fmt: skip
+        return TrackIdentity.of(
+            codes=tr.ident_code,
+            code_time=tr.ident_time,
+            mode_3a_changed=(changed >= 0) & (time_ns - changed <= self.hold),
+            flight_level=tr.flight_level,
+            flight_level_time=tr.flight_level_time,
+            spi=tr.spi,
+            downlink=tr.downlink,
+            downlink_time=tr.downlink_time,
+            reply_time=tr.reply_time,
+            revision=tr.ident_revision,
+        )

@@ -11,6 +11,10 @@ time (``intention_time``: BDS 4,0, ``track_turn_time``: 5,0, ``heading_speed_tim
 6,0); ``ssr_time`` and ``mode_s_update_time`` (the last update by a plot with an SSR /
 a Mode S reply). A track without identity gets no field at all (its row is what it was
 before identity existed).
+
+The rows are built by which identity fields they have (:data:`FIELDS`, a bit each): the
+fields' values are taken out of the arrays once per message, and the rows of one pattern
+are made by one ``dict(zip())`` each, never field by field.
 """
 
 from __future__ import annotations
@@ -23,9 +27,7 @@ from skyfuse.fusion.tracker.identity import (
     CODE_NAMES,
     DOWNLINK_NAMES,
     MODE_3A,
-    MODE_S_REPLY,
     REGISTER_COLUMNS,
-    SSR,
     TrackIdentity,
     is_emergency,
     unpack_callsigns,
@@ -39,42 +41,45 @@ FIELDS = (
     "mode_3a_changed", "emergency", "spi", "flight_level", "flight_level_time",
     *(f for r, cols in enumerate(REGISTER_COLUMNS)
       for f in (*(DOWNLINK_NAMES[j] for j in cols), REGISTER_TIMES[r])),
-    "ssr_time", "mode_s_update_time",
+    "ssr_time", "mode_s_update_time",  # the reply_time columns SSR, MODE_S_REPLY
 )  # fmt: skip
 """The identity fields of a ``Track`` row, in the order a row lists those it has."""
 _BITS = 1 << np.arange(len(FIELDS), dtype=np.int64)
+_DOWNLINK_FIELDS = [FIELDS.index(name) for name in DOWNLINK_NAMES]
+_REGISTER_FIELDS = [FIELDS.index(name) for name in REGISTER_TIMES]
+_REGISTER_OF = np.zeros(len(DOWNLINK_NAMES), np.int64)
+for _r, _cols in enumerate(REGISTER_COLUMNS):
+    _REGISTER_OF[_cols] = _r
 
 
 def identity_fields(ident: TrackIdentity) -> tuple[np.ndarray, list[list]]:
     """(n, :data:`FIELDS`) bool: which rows have which field, and each field's values
     (plain lists of n; a value where a row lacks the field is never read)."""
     n = len(ident)
-    has, values = [], []
-    for k in range(len(CODE_NAMES)):
-        code = ident.codes[:, k]
-        has += [code >= 0] * 2
-        values += [code, ident.code_time[:, k]]
-    shown = has[2 * CALLSIGN]
-    callsign = np.full(n, "", dtype="<U8")
-    if shown.any():
-        callsign[shown] = unpack_callsigns(ident.codes[shown, CALLSIGN])
-    values[2 * CALLSIGN] = callsign
-    code = ident.codes[:, MODE_3A]
-    emergency = is_emergency(code)
-    names = np.full(n, "", dtype=object)
-    names[emergency] = [EMERGENCY_CODES[c] for c in code[emergency].tolist()]
+    has = np.empty((n, len(FIELDS)), bool)
+    shown = ident.codes >= 0
+    has[:, 0:6:2] = has[:, 1:6:2] = shown
+    mode_3a = ident.codes[:, MODE_3A]
+    emergency = is_emergency(mode_3a)
     level = np.isfinite(ident.flight_level)
-    has += [ident.mode_3a_changed, emergency, ident.spi, level, level]
-    values += [ident.mode_3a_changed, names, ident.spi, ident.flight_level,
-               ident.flight_level_time]  # fmt: skip
+    has[:, 6:11] = np.stack((ident.mode_3a_changed, emergency, ident.spi, level, level), 1)
+    reported = ident.downlink_time >= 0
+    has[:, _DOWNLINK_FIELDS] = np.isfinite(ident.downlink) & reported[:, _REGISTER_OF]
+    has[:, _REGISTER_FIELDS] = reported
+    has[:, -2:] = ident.reply_time >= 0
+    codes, times = ident.codes.T.tolist(), ident.code_time.T.tolist()
+    callsign = np.full(n, "", dtype="<U8")
+    callsign[shown[:, CALLSIGN]] = unpack_callsigns(ident.codes[shown[:, CALLSIGN], CALLSIGN])
+    codes[CALLSIGN] = callsign.tolist()
+    names = np.full(n, "", dtype=object)
+    names[emergency] = [EMERGENCY_CODES[c] for c in mode_3a[emergency].tolist()]
+    values = [v for k in range(len(CODE_NAMES)) for v in (codes[k], times[k])]
+    values += [ident.mode_3a_changed.tolist(), names.tolist(), ident.spi.tolist(),
+               ident.flight_level.tolist(), ident.flight_level_time.tolist()]  # fmt: skip
+    downlink, registers = ident.downlink.T.tolist(), ident.downlink_time.T.tolist()
     for r, cols in enumerate(REGISTER_COLUMNS):
-        reported = ident.downlink_time[:, r] >= 0
-        has += [reported & np.isfinite(ident.downlink[:, j]) for j in cols] + [reported]
-        values += [ident.downlink[:, j] for j in cols] + [ident.downlink_time[:, r]]
-    for k in (SSR, MODE_S_REPLY):
-        has.append(ident.reply_time[:, k] >= 0)
-        values.append(ident.reply_time[:, k])
-    return np.stack(has, axis=1), [v.tolist() for v in values]
+        values += [downlink[j] for j in cols] + [registers[r]]
+    return has, values + ident.reply_time.T.tolist()
 
 
 def track_rows(cols: dict[str, list], ident: TrackIdentity | None) -> list[dict]:
