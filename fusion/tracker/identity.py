@@ -200,8 +200,8 @@ def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | 
 
 
 # ---------------------------------------------------------------------------- tracks
-_BLOCKS = {"ints": np.int64, "reals": np.float64, "flags": np.bool_}
-_LAYOUT = {
+BLOCKS = {"ints": np.int64, "reals": np.float64, "flags": np.bool_}
+LAYOUT = {
     "codes": ("ints", slice(0, 3)), "code_time": ("ints", slice(3, 6)),
     "mode_3a_changed": ("flags", 0), "flight_level": ("reals", 0),
     "flight_level_time": ("ints", 6), "spi": ("flags", 1),
@@ -210,7 +210,7 @@ _LAYOUT = {
     "reply_time": ("ints", slice(10, 12)), "revision": ("ints", 12),
 }  # fmt: skip
 """Each field of :class:`TrackIdentity`: its block and columns there."""
-_WIDTH = {"ints": 13, "reals": 1 + len(DOWNLINK_NAMES), "flags": 2}
+BLOCK_WIDTH = {"ints": 13, "reals": 1 + len(DOWNLINK_NAMES), "flags": 2}
 _FILL = {"ints": NONE, "reals": np.nan, "flags": False}
 
 
@@ -222,20 +222,20 @@ class TrackIdentity:
     ``reply_time`` (n, 2): last update by a plot with an SSR / a Mode S reply;
     ``revision`` (n,): +1 at every change of what a track shows (a published row moves).
     Held in three blocks (``ints`` (n, 13), ``reals`` (n, 13), ``flags`` (n, 2),
-    :data:`_LAYOUT`), the fields views of them: taking or joining rows (the feed's
+    :data:`LAYOUT`), the fields views of them: taking or joining rows (the feed's
     tables) is three copies."""
 
-    __slots__ = tuple(_BLOCKS)
+    __slots__ = tuple(BLOCKS)
 
     def __init__(self, ints: np.ndarray, reals: np.ndarray, flags: np.ndarray) -> None:
         self.ints, self.reals, self.flags = ints, reals, flags
 
     @classmethod
     def of(cls, **fields_: np.ndarray) -> TrackIdentity:
-        """From every field of :data:`_LAYOUT` by name (arrays of n rows)."""
+        """From every field of :data:`LAYOUT` by name (arrays of n rows)."""
         n = len(fields_["codes"])
-        blocks = {k: np.empty((n, _WIDTH[k]), dt) for k, dt in _BLOCKS.items()}
-        for name, (block, cols) in _LAYOUT.items():
+        blocks = {k: np.empty((n, BLOCK_WIDTH[k]), dt) for k, dt in BLOCKS.items()}
+        for name, (block, cols) in LAYOUT.items():
             blocks[block][:, cols] = fields_[name]
         return cls(**blocks)
 
@@ -248,24 +248,24 @@ class TrackIdentity:
     @classmethod
     def none(cls, n: int) -> TrackIdentity:
         """n tracks without identity."""
-        return cls(*(np.full((n, _WIDTH[k]), _FILL[k], dt) for k, dt in _BLOCKS.items()))
+        return cls(*(np.full((n, BLOCK_WIDTH[k]), _FILL[k], dt) for k, dt in BLOCKS.items()))
 
     @staticmethod
     def concat(parts: list[TrackIdentity]) -> TrackIdentity:
-        return TrackIdentity(*(np.concatenate([getattr(p, k) for p in parts]) for k in _BLOCKS))
+        return TrackIdentity(*(np.concatenate([getattr(p, k) for p in parts]) for k in BLOCKS))
 
     def to_snapshot(self) -> dict:
-        return {name: np.ascontiguousarray(getattr(self, name)) for name in _LAYOUT}
+        return {name: np.ascontiguousarray(getattr(self, name)) for name in LAYOUT}
 
     @classmethod
     def from_snapshot(cls, snap, n: int) -> TrackIdentity:
         """Read :meth:`to_snapshot` of n tracks (``SnapshotError`` if it does not fit)."""
         snap, ref = mapping(snap, "track identity"), cls.none(n)
-        like = {name: getattr(ref, name) for name in _LAYOUT}
+        like = {name: getattr(ref, name) for name in LAYOUT}
         return cls.of(**{k: array_field(snap, k, v.dtype, v.shape) for k, v in like.items()})
 
 
-for _name, (_block, _cols) in _LAYOUT.items():
+for _name, (_block, _cols) in LAYOUT.items():
     setattr(TrackIdentity, _name, property(lambda self, b=_block, c=_cols: getattr(self, b)[:, c]))
 
 
