@@ -86,6 +86,11 @@ EVENT_COUNTERS = {"identity_changed": "identity_changes", "identity_conflict": "
                   "emergency": "emergencies", "spi": "spi_raised"}  # fmt: skip
 """The step stats (and tracker totals) counting each identity event kind."""
 _SHIFTS = np.arange(42, -1, -6, dtype=np.int64)
+_WEIGHTS = 1 << _SHIFTS
+_SIX_BITS = np.full(129, -1, np.int64)
+"""The 6-bit code of each character code (−1: not in the ICAO set; 0: padding, a space)."""
+for _c in (0, 32, *range(48, 58), *range(65, 91)):
+    _SIX_BITS[_c] = (32 if _c == 0 else _c) & 63
 NONE = -1
 
 
@@ -97,11 +102,8 @@ def pack_callsigns(text: np.ndarray) -> np.ndarray:
     m = len(a)
     if m == 0:
         return np.zeros(0, np.int64)
-    cp = a.view(np.uint32).reshape(m, 8).astype(np.int64)
-    cp = np.where(cp == 0, 32, cp)  # the padding of a shorter string is spaces
-    ok = (((cp >= 65) & (cp <= 90)) | ((cp >= 48) & (cp <= 57)) | (cp == 32)).all(axis=1)
-    packed = ((cp & 63) << _SHIFTS).sum(axis=1)
-    return np.where(ok & (a != ""), packed, NONE)
+    six = _SIX_BITS[np.minimum(a.view(np.uint32).reshape(m, 8), 128)]
+    return np.where((six >= 0).all(axis=1) & (a != ""), six @ _WEIGHTS, NONE)
 
 
 def unpack_callsigns(packed: np.ndarray) -> np.ndarray:
@@ -314,15 +316,14 @@ class Identity:
         if pid is None or len(rows) == 0:
             return
         t = np.asarray(t, np.int64)
-        conf = self.tracks.confirmed[rows]
         obs = pid.codes[plots]
-        touched = self._codes(pid, rows, plots, t, conf, obs)
-        touched |= self._level_and_replies(pid, rows, plots, t, conf, obs)
+        touched = self._codes(pid, rows, plots, t, obs)
+        touched |= self._level_and_replies(pid, rows, plots, t, obs)
         if pid.downlink is not None:
             touched |= self._downlink(pid.downlink[plots], rows, t)
         self.tracks.ident_revision[rows[touched]] += 1
 
-    def _codes(self, pid, rows, plots, t, conf, obs) -> np.ndarray:
+    def _codes(self, pid, rows, plots, t, obs) -> np.ndarray:
         """(I1)-(I3) and their events for the three codes at once; returns the rows
         whose codes or times changed."""
         tr, tt = self.tracks, t[:, None]
@@ -352,6 +353,7 @@ class Identity:
         if changed.any() or conflict.any() or adopt[:, MODE_3A].any():
             was = is_emergency(shown[:, MODE_3A])
             emergency = adopt[:, MODE_3A] & is_emergency(new[:, MODE_3A]) & ~was
+            conf = tr.confirmed[rows]
             self._code_events(rows, t, conf, obs, shown, new, changed, conflict, emergency)
         return (same | adopt).any(axis=1)
 
@@ -380,15 +382,15 @@ class Identity:
         for i in np.flatnonzero(emergency & conf):
             self._emergency(rows[i], t[i], new[i, MODE_3A])
 
-    def _level_and_replies(self, pid, rows, plots, t, conf, obs) -> np.ndarray:
+    def _level_and_replies(self, pid, rows, plots, t, obs) -> np.ndarray:
         """Flight level, the reply times and SPI (set by every reply newer than the
         track's last one); returns the rows whose level or reply times changed."""
         tr, tt = self.tracks, t[:, None]
         fl = pid.flight_level[plots]
         ok = np.isfinite(fl) & (t > tr.flight_level_time[rows])
         if ok.any():
-            tr.flight_level[rows[ok]] = fl[ok]
-            tr.flight_level_time[rows[ok]] = t[ok]
+            r = rows[ok]
+            tr.flight_level[r], tr.flight_level_time[r] = fl[ok], t[ok]
         kinds = np.stack((pid.ssr[plots], obs[:, MODE_S] >= 0), axis=1)  # SSR, MODE_S_REPLY
         last = tr.reply_time[rows]
         newer = kinds & (tt > last)
@@ -398,7 +400,7 @@ class Identity:
             r = rows[reply]
             before, after = tr.spi[r], pid.spi[plots[reply]]
             tr.spi[r] = after
-            for i in np.flatnonzero(after & ~before & conf[reply]):
+            for i in np.flatnonzero(after & ~before & tr.confirmed[r]):
                 self._spi(r[i], t[reply][i])
         return ok | newer.any(axis=1)
 
