@@ -56,7 +56,7 @@ with spaces; −1: none), the I048/240 and I062/245 value.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from skyfuse.schemas.identity import DOWNLINK_REGISTERS, DOWNLINKED, EMERGENCY_CODES
@@ -76,6 +76,9 @@ REGISTERS = tuple(DOWNLINK_REGISTERS)
 REGISTER_COLUMNS = tuple(
     np.array([DOWNLINK_NAMES.index(n) for n in DOWNLINK_REGISTERS[r]]) for r in REGISTERS
 )
+_IN_REGISTER = np.zeros((len(DOWNLINK_NAMES), len(REGISTERS)), bool)
+for _r, _cols in enumerate(REGISTER_COLUMNS):
+    _IN_REGISTER[_cols, _r] = True
 SSR, MODE_S_REPLY = 0, 1
 """The reply kinds of the (·, 2) ``reply_time`` column."""
 EMERGENCY = np.array(sorted(EMERGENCY_CODES), np.int64)
@@ -83,6 +86,11 @@ EVENT_COUNTERS = {"identity_changed": "identity_changes", "identity_conflict": "
                   "emergency": "emergencies", "spi": "spi_raised"}  # fmt: skip
 """The step stats (and tracker totals) counting each identity event kind."""
 _SHIFTS = np.arange(42, -1, -6, dtype=np.int64)
+_WEIGHTS = 1 << _SHIFTS
+_SIX_BITS = np.full(129, -1, np.int64)
+"""The 6-bit code of each character code (−1: not in the ICAO set; 0: padding, a space)."""
+for _c in (0, 32, *range(48, 58), *range(65, 91)):
+    _SIX_BITS[_c] = (32 if _c == 0 else _c) & 63
 NONE = -1
 
 
@@ -94,19 +102,25 @@ def pack_callsigns(text: np.ndarray) -> np.ndarray:
     m = len(a)
     if m == 0:
         return np.zeros(0, np.int64)
-    cp = a.view(np.uint32).reshape(m, 8).astype(np.int64)
-    cp = np.where(cp == 0, 32, cp)  # the padding of a shorter string is spaces
-    ok = (((cp >= 65) & (cp <= 90)) | ((cp >= 48) & (cp <= 57)) | (cp == 32)).all(axis=1)
-    packed = ((cp & 63) << _SHIFTS).sum(axis=1)
-    return np.where(ok & (a != ""), packed, NONE)
+    six = _SIX_BITS[np.minimum(a.view(np.uint32).reshape(m, 8), 128)]
+    return np.where((six >= 0).all(axis=1) & (a != ""), six @ _WEIGHTS, NONE)
 
 
 def unpack_callsigns(packed: np.ndarray) -> np.ndarray:
     """(n,) strings (``<U8``, trailing spaces removed) of packed callsigns (≥ 0)."""
     p = np.asarray(packed, np.int64).reshape(-1)
     six = (p[:, None] >> _SHIFTS) & 63
-    chars = np.where(six < 32, six | 64, six).astype(np.uint8)
-    return np.char.rstrip(np.char.decode(np.ascontiguousarray(chars).view("S8").ravel(), "ascii"))
+    chars = np.where(six < 32, six | 64, six).astype(np.uint32)
+    chars[np.logical_and.accumulate(chars[:, ::-1] == 32, axis=1)[:, ::-1]] = 0
+    return np.ascontiguousarray(chars).view("<U8").ravel()
+
+
+def is_emergency(mode_3a: np.ndarray) -> np.ndarray:
+    """Whether each Mode-3/A code is an emergency code (7500, 7600, 7700)."""
+    out = mode_3a == EMERGENCY[0]
+    for code in EMERGENCY[1:]:
+        out |= mode_3a == code
+    return out
 
 
 def code_text(attribute: int, code: int) -> str:
@@ -146,7 +160,7 @@ class PlotIdentity:
 
 
 def _values(obj) -> list:
-    return [getattr(obj, f.name) for f in fields(obj)]
+    return list(obj.__dict__.values())  # the dataclass's fields, in their order
 
 
 def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | None:
@@ -188,54 +202,73 @@ def plot_identity(column: Callable[[str], np.ndarray | None]) -> PlotIdentity | 
 
 
 # ---------------------------------------------------------------------------- tracks
-@dataclass
+BLOCKS = {"ints": np.int64, "reals": np.float64, "flags": np.bool_}
+LAYOUT = {
+    "codes": ("ints", slice(0, 3)), "code_time": ("ints", slice(3, 6)),
+    "mode_3a_changed": ("flags", 0), "flight_level": ("reals", 0),
+    "flight_level_time": ("ints", 6), "spi": ("flags", 1),
+    "downlink": ("reals", slice(1, 1 + len(DOWNLINK_NAMES))),
+    "downlink_time": ("ints", slice(7, 7 + len(REGISTERS))),
+    "reply_time": ("ints", slice(10, 12)), "revision": ("ints", 12),
+}  # fmt: skip
+"""Each field of :class:`TrackIdentity`: its block and columns there."""
+BLOCK_WIDTH = {"ints": 13, "reals": 1 + len(DOWNLINK_NAMES), "flags": 2}
+_FILL = {"ints": NONE, "reals": np.nan, "flags": False}
+
+
 class TrackIdentity:
     """The identity of n tracks (copies of the store's columns, :class:`Identity`):
     ``codes`` (n, 3) and ``code_time`` (n, 3) ns (−1: none), ``mode_3a_changed`` (n,)
     bool (changed within ``hold``), ``flight_level`` (n,) FL (NaN: none) and its time,
     ``spi`` (n,), ``downlink`` (n, 12) with ``downlink_time`` (n, 3) per register,
     ``reply_time`` (n, 2): last update by a plot with an SSR / a Mode S reply;
-    ``revision`` (n,): +1 at every change of what a track shows (a published row moves)."""
+    ``revision`` (n,): +1 at every change of what a track shows (a published row moves).
+    Held in three blocks (``ints`` (n, 13), ``reals`` (n, 13), ``flags`` (n, 2),
+    :data:`LAYOUT`), the fields views of them: taking or joining rows (the feed's
+    tables) is three copies."""
 
-    codes: np.ndarray
-    code_time: np.ndarray
-    mode_3a_changed: np.ndarray
-    flight_level: np.ndarray
-    flight_level_time: np.ndarray
-    spi: np.ndarray
-    downlink: np.ndarray
-    downlink_time: np.ndarray
-    reply_time: np.ndarray
-    revision: np.ndarray
+    __slots__ = tuple(BLOCKS)
+
+    def __init__(self, ints: np.ndarray, reals: np.ndarray, flags: np.ndarray) -> None:
+        self.ints, self.reals, self.flags = ints, reals, flags
+
+    @classmethod
+    def of(cls, **fields_: np.ndarray) -> TrackIdentity:
+        """From every field of :data:`LAYOUT` by name (arrays of n rows)."""
+        n = len(fields_["codes"])
+        blocks = {k: np.empty((n, BLOCK_WIDTH[k]), dt) for k, dt in BLOCKS.items()}
+        for name, (block, cols) in LAYOUT.items():
+            blocks[block][:, cols] = fields_[name]
+        return cls(**blocks)
 
     def __len__(self) -> int:
-        return len(self.codes)
+        return len(self.ints)
 
     def take(self, idx: np.ndarray) -> TrackIdentity:
-        return TrackIdentity(*(v[idx] for v in _values(self)))
+        return TrackIdentity(self.ints[idx], self.reals[idx], self.flags[idx])
 
     @classmethod
     def none(cls, n: int) -> TrackIdentity:
         """n tracks without identity."""
-        i8 = np.int64
-        return cls(np.full((n, 3), NONE, i8), np.full((n, 3), NONE, i8), np.zeros(n, bool),
-                   np.full(n, np.nan), np.full(n, NONE, i8), np.zeros(n, bool),
-                   np.full((n, len(DOWNLINK_NAMES)), np.nan), np.full((n, 3), NONE, i8),
-                   np.full((n, 2), NONE, i8), np.zeros(n, i8))  # fmt: skip
+        return cls(*(np.full((n, BLOCK_WIDTH[k]), _FILL[k], dt) for k, dt in BLOCKS.items()))
 
     @staticmethod
     def concat(parts: list[TrackIdentity]) -> TrackIdentity:
-        return TrackIdentity(*(np.concatenate(v) for v in zip(*map(_values, parts))))
+        return TrackIdentity(*(np.concatenate([getattr(p, k) for p in parts]) for k in BLOCKS))
 
     def to_snapshot(self) -> dict:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {name: np.ascontiguousarray(getattr(self, name)) for name in LAYOUT}
 
     @classmethod
     def from_snapshot(cls, snap, n: int) -> TrackIdentity:
         """Read :meth:`to_snapshot` of n tracks (``SnapshotError`` if it does not fit)."""
         snap, ref = mapping(snap, "track identity"), cls.none(n)
-        return cls(*(array_field(snap, f.name, v.dtype, v.shape) for f, v in
-                     zip(fields(cls), _values(ref))))  # fmt: skip
+        like = {name: getattr(ref, name) for name in LAYOUT}
+        return cls.of(**{k: array_field(snap, k, v.dtype, v.shape) for k, v in like.items()})
+
+
+for _name, (_block, _cols) in LAYOUT.items():
+    setattr(TrackIdentity, _name, property(lambda self, b=_block, c=_cols: getattr(self, b)[:, c]))
 
 
 def identity_columns() -> ColumnGroup:
@@ -283,23 +316,24 @@ class Identity:
         if pid is None or len(rows) == 0:
             return
         t = np.asarray(t, np.int64)
-        conf = self.tracks.confirmed[rows]
-        touched = self._codes(pid, rows, plots, t, conf)
-        touched |= self._level_and_replies(pid, rows, plots, t, conf)
+        obs = pid.codes[plots]
+        touched = self._codes(pid, rows, plots, t, obs)
+        touched |= self._level_and_replies(pid, rows, plots, t, obs)
         if pid.downlink is not None:
             touched |= self._downlink(pid.downlink[plots], rows, t)
         self.tracks.ident_revision[rows[touched]] += 1
 
-    def _codes(self, pid, rows, plots, t, conf) -> np.ndarray:
+    def _codes(self, pid, rows, plots, t, obs) -> np.ndarray:
         """(I1)-(I3) and their events for the three codes at once; returns the rows
         whose codes or times changed."""
         tr, tt = self.tracks, t[:, None]
-        obs = pid.codes[plots]
         shown, t_shown = tr.ident_code[rows], tr.ident_time[rows]
         cand, count = tr.ident_cand[rows], tr.ident_seen[rows]
         seen = pid.shown[plots] & (tt > t_shown)
         same = seen & (obs == shown)
         other = seen & ~same
+        if not other.any():  # the usual step: the plots confirm the tracks' codes
+            return self._confirmed_codes(rows, tt, same, t_shown, cand, count)
         count = np.where(
             same, 0, np.where(other & (obs == cand), count + 1, np.where(other, 1, count))
         )
@@ -317,10 +351,22 @@ class Identity:
         tr.ident_changed[rows] = np.where(changed, tt, tr.ident_changed[rows])
         tr.ident_conflict[rows] = np.where(conflict, tt, tr.ident_conflict[rows])
         if changed.any() or conflict.any() or adopt[:, MODE_3A].any():
-            was = np.isin(shown[:, MODE_3A], EMERGENCY)
-            emergency = adopt[:, MODE_3A] & np.isin(new[:, MODE_3A], EMERGENCY) & ~was
+            was = is_emergency(shown[:, MODE_3A])
+            emergency = adopt[:, MODE_3A] & is_emergency(new[:, MODE_3A]) & ~was
+            conf = tr.confirmed[rows]
             self._code_events(rows, t, conf, obs, shown, new, changed, conflict, emergency)
         return (same | adopt).any(axis=1)
+
+    def _confirmed_codes(self, rows, tt, same, t_shown, cand, count) -> np.ndarray:
+        """:meth:`_codes` when every shown code equals the track's, (I2): their times,
+        and no candidate left where one was."""
+        tr = self.tracks
+        tr.ident_time[rows] = np.where(same, tt, t_shown)
+        stale = same & ((cand != NONE) | (count != 0))
+        if stale.any():
+            tr.ident_cand[rows] = np.where(stale, NONE, cand)
+            tr.ident_seen[rows] = np.where(stale, 0, count)
+        return same.any(axis=1)
 
     def _code_events(self, rows, t, conf, obs, shown, new, changed, conflict, emergency):
         """The events of :meth:`_codes` for the confirmed tracks among ``rows``."""
@@ -336,40 +382,38 @@ class Identity:
         for i in np.flatnonzero(emergency & conf):
             self._emergency(rows[i], t[i], new[i, MODE_3A])
 
-    def _level_and_replies(self, pid, rows, plots, t, conf) -> np.ndarray:
+    def _level_and_replies(self, pid, rows, plots, t, obs) -> np.ndarray:
         """Flight level, the reply times and SPI (set by every reply newer than the
         track's last one); returns the rows whose level or reply times changed."""
-        tr = self.tracks
+        tr, tt = self.tracks, t[:, None]
         fl = pid.flight_level[plots]
         ok = np.isfinite(fl) & (t > tr.flight_level_time[rows])
-        tr.flight_level[rows[ok]] = fl[ok]
-        tr.flight_level_time[rows[ok]] = t[ok]
-        ssr, mode_s = pid.ssr[plots], pid.codes[plots, MODE_S] >= 0
+        if ok.any():
+            r = rows[ok]
+            tr.flight_level[r], tr.flight_level_time[r] = fl[ok], t[ok]
+        kinds = np.stack((pid.ssr[plots], obs[:, MODE_S] >= 0), axis=1)  # SSR, MODE_S_REPLY
         last = tr.reply_time[rows]
-        reply = (ssr | mode_s) & (t > last.max(axis=1))
-        tr.reply_time[rows, SSR] = np.where(ssr & (t > last[:, SSR]), t, last[:, SSR])
-        tr.reply_time[rows, MODE_S_REPLY] = np.where(mode_s & (t > last[:, MODE_S_REPLY]), t,
-                                                     last[:, MODE_S_REPLY])  # fmt: skip
+        newer = kinds & (tt > last)
+        tr.reply_time[rows] = np.where(newer, tt, last)
+        reply = kinds.any(axis=1) & (t > last.max(axis=1))
         if reply.any():
             r = rows[reply]
             before, after = tr.spi[r], pid.spi[plots[reply]]
             tr.spi[r] = after
-            for i in np.flatnonzero(after & ~before & conf[reply]):
+            for i in np.flatnonzero(after & ~before & tr.confirmed[r]):
                 self._spi(r[i], t[reply][i])
-        return ok | (ssr & (t > last[:, SSR])) | (mode_s & (t > last[:, MODE_S_REPLY]))
+        return ok | newer.any(axis=1)
 
     def _downlink(self, dl: np.ndarray, rows: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Each register's parameters of the plots that carry any of them; returns the
         rows that took some."""
-        tr = self.tracks
-        touched = np.zeros(len(rows), bool)
-        for r, cols in enumerate(REGISTER_COLUMNS):
-            has = np.isfinite(dl[:, cols]).any(axis=1) & (t > tr.downlink_time[rows, r])
-            if has.any():
-                tr.downlink[rows[has][:, None], cols] = dl[has][:, cols]
-                tr.downlink_time[rows[has], r] = t[has]
-                touched |= has
-        return touched
+        tr, tt = self.tracks, t[:, None]
+        last = tr.downlink_time[rows]
+        take = (np.isfinite(dl) @ _IN_REGISTER) & (tt > last)
+        if take.any():
+            tr.downlink[rows] = np.where(take @ _IN_REGISTER.T, dl, tr.downlink[rows])
+            tr.downlink_time[rows] = np.where(take, tt, last)
+        return take.any(axis=1)
 
     # ------------------------------------------------------------------ events
     def _event(self, row, t, kind, attribute, value="", previous="", reason="") -> None:
@@ -391,7 +435,7 @@ class Identity:
     def confirmed(self, rows: np.ndarray, t_batch: int) -> None:
         """Tracks ``rows`` confirmed now: the emergency and SPI they already show."""
         tr = self.tracks
-        for r in rows[np.isin(tr.ident_code[rows, MODE_3A], EMERGENCY)]:
+        for r in rows[is_emergency(tr.ident_code[rows, MODE_3A])]:
             self._emergency(r, t_batch, tr.ident_code[r, MODE_3A])
         for r in rows[tr.spi[rows]]:
             self._spi(r, t_batch)
@@ -409,9 +453,15 @@ class Identity:
         """Copies of every track's identity at ``time_ns`` (the newest batch time)."""
         tr = self.tracks
         changed = tr.ident_changed[:, MODE_3A]
-        return TrackIdentity(
-            tr.ident_code.copy(), tr.ident_time.copy(),
-            (changed >= 0) & (time_ns - changed <= self.hold), tr.flight_level.copy(),
-            tr.flight_level_time.copy(), tr.spi.copy(), tr.downlink.copy(),
-            tr.downlink_time.copy(), tr.reply_time.copy(), tr.ident_revision.copy(),
-        )  # fmt: skip
+        return TrackIdentity.of(
+            codes=tr.ident_code,
+            code_time=tr.ident_time,
+            mode_3a_changed=(changed >= 0) & (time_ns - changed <= self.hold),
+            flight_level=tr.flight_level,
+            flight_level_time=tr.flight_level_time,
+            spi=tr.spi,
+            downlink=tr.downlink,
+            downlink_time=tr.downlink_time,
+            reply_time=tr.reply_time,
+            revision=tr.ident_revision,
+        )

@@ -36,7 +36,7 @@ from skyfuse.fusion.tracker.identity import TrackIdentity
 from skyfuse.fusion.tracker.tracker import TrackerOutput
 from skyfuse.schemas import FeedKind, TrackBatch
 from skyfuse.schemas.snapshot import SnapshotError, array_field, counts, entry, mapping
-from skyfuse.services.fusion.feed_identity import add_identity
+from skyfuse.services.fusion.feed_identity import track_rows
 
 TWO_PI = 2.0 * math.pi
 
@@ -199,8 +199,7 @@ class TrackTable:
             "radars": [names[m] for m in self.radar_mask.tolist()],
             "updates": self.updates.tolist(),
         }
-        keys = list(cols)
-        return add_identity([dict(zip(keys, r)) for r in zip(*cols.values())], self.ident)
+        return track_rows(cols, self.ident)
 
 
 @dataclass
