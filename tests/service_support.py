@@ -259,3 +259,21 @@ def independent_asterix_decode(
     if done.returncode != 0:
         raise RuntimeError(f"asterix-decoder failed: {done.stderr.decode()[-800:]}")
     return json.loads(done.stdout)
+
+
+LEBL_SITES_TOML = """
+[[radar]]
+sac = 0
+sic = 107
+lat = 41.29706278
+lon = 2.07844722
+alt = 4.0
+[[radar]]
+sac = 0
+sic = 7
+lat = 41.29561833
+lon = 2.09511417
+alt = 4.0
+"""
+"""The Barcelona–El Prat sensors of the shared LEBL recordings as a sites TOML: the
+multilateration (SAC 0 / SIC 107) and the surface movement radar (SAC 0 / SIC 7)."""

@@ -49,8 +49,9 @@ import logging
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import Field
 from skyfuse.schemas import FrameKind, PlotBatch, keys
+from skyfuse.services.asterix.read_options import AsterixReadOptions
 from skyfuse.services.fusion.registration_link import (
     add_registration_arguments,
     registration_config,
@@ -66,7 +67,7 @@ from skyfuse.services.runtime.progress import progress_bar
 log = logging.getLogger(__name__)
 
 
-class TrackCommandConfig(BaseModel):
+class TrackCommandConfig(AsterixReadOptions):
     """Options of ``skyfuse track`` (the tracker itself is ``[tracker]`` / TrackerConfig)."""
 
     file: list[Path] = Field(
@@ -101,23 +102,6 @@ class TrackCommandConfig(BaseModel):
         None,
         description="ASTERIX: UTC date of the first record, YYYY-MM-DD (default: pcap capture "
         "time, else today)",
-    )
-    sector_count: int = Field(
-        16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
-    )
-    report_window: float = Field(
-        1.0,
-        ge=0.05,
-        le=60,
-        description="ASTERIX: batch window of report sensors without update-cycle messages "
-        "(ADS-B), s",
-    )
-    adsb_sigma: float | None = Field(
-        None,
-        ge=0.01,
-        le=10_000,
-        description="ASTERIX: σ per axis of every ADS-B position, m (an empirical figure; default: "
-        "the one its NACp/NUCp gives)",
     )
     assumed_altitude: float | None = Field(
         None,

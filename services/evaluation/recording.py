@@ -32,13 +32,14 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from pydantic import BaseModel, Field
+from pydantic import Field
 from skyfuse.schemas import FrameKind
+from skyfuse.services.asterix.read_options import AsterixReadOptions
 
 log = logging.getLogger(__name__)
 
 
-class RecordingEvalOptions(BaseModel):
+class RecordingEvalOptions(AsterixReadOptions):
     """Evaluation options of a recording (the tracker is a ``TrackerConfig``)."""
 
     frame_kind: FrameKind = Field(FrameKind.STEREOGRAPHIC, description="System frame")
@@ -54,13 +55,6 @@ class RecordingEvalOptions(BaseModel):
         "60 for ASTERIX)",
     )
     min_label_share: float = Field(0.5, gt=0, le=1, description="Label share of a true track")
-    sector_count: int = Field(16, ge=1, le=360, description="ASTERIX: sectors per turn")
-    report_window: float = Field(
-        1.0, ge=0.05, le=60, description="ASTERIX: batch window of ADS-B-like sensors, s"
-    )
-    adsb_sigma: float | None = Field(
-        None, ge=0.01, le=10_000, description="ASTERIX: σ of every ADS-B position, m"
-    )
     assumed_altitude: float | None = Field(
         None,
         ge=-1000,

@@ -16,11 +16,12 @@ from pathlib import Path
 
 from pydantic import Field, field_validator
 from skyfuse.schemas import keys
+from skyfuse.services.asterix.read_options import AsterixReadOptions
 from skyfuse.services.runtime.transport import PLOT_CACHE
 from skyfuse.services.sensors.scenario_config import ScenarioSelection
 
 
-class SensorServiceConfig(ScenarioSelection):
+class SensorServiceConfig(ScenarioSelection, AsterixReadOptions):
     """Options of ``skyfuse sensor`` (TOML table ``[sensor]``): the input (a scenario's
     simulated radar, ``--replay`` MCAP, ``--asterix`` file or ``--asterix-udp`` feed), its
     pacing and start, and the Status period."""
@@ -52,23 +53,6 @@ class SensorServiceConfig(ScenarioSelection):
         description="ASTERIX: UTC date of the first record, YYYY-MM-DD (default: --asterix: the "
         "pcap capture time, else today; --asterix-udp: the receive clock, each record on the "
         "day nearest its arrival — give --date for an old capture)",
-    )
-    sector_count: int = Field(
-        16, ge=1, le=360, description="ASTERIX: fixed sectors per turn for radars without CAT034"
-    )
-    report_window: float = Field(
-        1.0,
-        ge=0.05,
-        le=60,
-        description="ASTERIX: batch window of report sensors without update-cycle messages "
-        "(ADS-B), s",
-    )
-    adsb_sigma: float | None = Field(
-        None,
-        ge=0.01,
-        le=10_000,
-        description="ASTERIX: σ per axis of every ADS-B position, m (an empirical figure; default: "
-        "the one its NACp/NUCp gives)",
     )
     data_start: float | None = Field(
         None,

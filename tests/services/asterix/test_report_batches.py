@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from service_support import SHARED_DATA
+from service_support import LEBL_SITES_TOML, SHARED_DATA
 from skyfuse.schemas import PlotBatch, RadarKind
 from skyfuse.services.asterix import cat010, cat021, load_sites, merge_results, read_asterix
 from skyfuse.services.asterix.report_batches import ReportBatcher
@@ -18,20 +18,6 @@ from skyfuse.services.asterix.surveillance import read_reports
 from skyfuse.services.evaluation.inputs import InputError, open_input
 
 DAY = dt.date(2016, 5, 10)
-SITES = """
-[[radar]]
-sac = 0
-sic = 107
-lat = 41.29706278
-lon = 2.07844722
-alt = 4.0
-[[radar]]
-sac = 0
-sic = 7
-lat = 41.29561833
-lon = 2.09511417
-alt = 4.0
-"""
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +25,7 @@ def lebl(tmp_path_factory):
     if not SHARED_DATA.is_dir():
         pytest.skip(f"{SHARED_DATA} is absent")
     path = tmp_path_factory.mktemp("lebl") / "lebl.toml"
-    path.write_text(SITES)
+    path.write_text(LEBL_SITES_TOML)
     files = {k: SHARED_DATA / f"lebl_20160510_2200_2215_{k}.ast" for k in ("mlat", "smr", "adsb")}
     return files, load_sites(path), path
 

@@ -9,6 +9,7 @@ import json
 import asterix.generated as gen
 import numpy as np
 import pytest
+from service_support import LEBL_SITES_TOML
 from skyfuse.schemas import Truth
 from skyfuse.services.asterix.cat010 import Cat010Report
 from skyfuse.services.asterix.cat021 import Cat021Report
@@ -17,20 +18,6 @@ from skyfuse.services.evaluation.sensor_tracks import track_lives
 from skyfuse.services.evaluation.surveillance_positions import ground_flags
 from skyfuse.services.recording.mcap_io import iter_recording
 
-LEBL_SITES = """
-[[radar]]
-sac = 0
-sic = 107
-lat = 41.29706278
-lon = 2.07844722
-alt = 4.0
-[[radar]]
-sac = 0
-sic = 7
-lat = 41.29561833
-lon = 2.09511417
-alt = 4.0
-"""
 FIELD_MONITORS = ["342383", "342384", "342385", "342386", "342387", "3433D5"]
 
 
@@ -93,7 +80,7 @@ def lebl(tmp_path_factory):
     if not (SHARED_DATA / "lebl_20160510_2200_2215_adsb.ast").is_file():
         pytest.skip(f"{SHARED_DATA} has no LEBL recordings")
     sites = tmp_path_factory.mktemp("lebl") / "lebl.toml"
-    sites.write_text(LEBL_SITES)
+    sites.write_text(LEBL_SITES_TOML)
     return SHARED_DATA, sites
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from service_support import SHARED_DATA, peer, skyfuse, stop
+from service_support import LEBL_SITES_TOML, SHARED_DATA, peer, skyfuse, stop
 from skyfuse.schemas import FeedKind, PlotBatch, TrackBatch, TrackPicture, keys
 from skyfuse.services.asterix import AsterixStreamDecoder
 from skyfuse.services.cli.main import main as skyfuse_main
@@ -32,20 +32,6 @@ pytestmark = pytest.mark.service
 
 DATE = "2016-05-10"
 FIRST_TOD, LAST_TOD = 79203.0, 79243.0  # 22:00:03-22:00:43 (no two batches end together)
-SITES = """
-[[radar]]
-sac = 0
-sic = 107
-lat = 41.29706278
-lon = 2.07844722
-alt = 4.0
-[[radar]]
-sac = 0
-sic = 7
-lat = 41.29561833
-lon = 2.09511417
-alt = 4.0
-"""
 
 
 def stretch(src: Path, out: Path) -> Path:
@@ -84,7 +70,7 @@ def test_three_lebl_sensors_live_through_fusion_equal_offline_track(tmp_path):
     if not all(p.is_file() for p in srcs):
         pytest.skip(f"the LEBL recordings are not in {SHARED_DATA}")
     sites = tmp_path / "lebl.toml"
-    sites.write_text(SITES)
+    sites.write_text(LEBL_SITES_TOML)
     files = [stretch(p, tmp_path / f"{k}.ast") for p, k in zip(srcs, names)]
     merged = [b for b in open_input(files, sites_file=sites, date=DATE).messages()]
     ends = [b.time_end for b in merged]
@@ -161,7 +147,7 @@ def test_plot_batches_of_the_stretch_are_report_batches(tmp_path):
         pytest.skip(f"{src} absent")
     f = stretch(src, tmp_path / "m.ast")
     sites = tmp_path / "s.toml"
-    sites.write_text(SITES)
+    sites.write_text(LEBL_SITES_TOML)
     batches = [b for b in open_input(f, sites_file=sites, date=DATE).messages()]
     assert all(isinstance(b, PlotBatch) and b.radar_id == "0-107" for b in batches)
     assert 38 <= len(batches) <= 42  # one per 1-s update cycle
