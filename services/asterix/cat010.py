@@ -69,7 +69,7 @@ from .fields import (
     time_of_day,
     unsigned,
 )
-from .layout import compile_layout, split_record
+from .layout import compile_layout, split_item_bytes
 from .records import item_bytes
 
 SPEC = gen.Cat_010_1_1
@@ -304,8 +304,8 @@ def decode_fast(data: bytes, pos: int) -> tuple[Cat010Record, int] | None:
     """Decode the record at ``pos`` with the compiled layout: ``(values, end offset)``,
     or ``None`` when the record is not well formed (the caller re-parses it with
     libasterix for the authoritative error)."""
-    split = split_record(data, pos, LAYOUT)
-    if isinstance(split, str):
+    split = split_item_bytes(data, pos, LAYOUT)
+    if split is None:
         return None
-    end, spans = split
-    return decode_items({k: data[s:e] for k, (s, e) in spans.items()}), end
+    items, end = split
+    return decode_items(items), end

@@ -43,7 +43,7 @@ from typing import Any
 import asterix.generated as gen
 
 from .fields import DAY_S, FT, flight_level, icao_chars, mode_3a, signed, time_of_day, unsigned
-from .layout import compile_layout, split_record
+from .layout import compile_layout, split_item_bytes
 from .records import item_bytes
 
 SPEC = gen.Cat_020_1_10
@@ -191,8 +191,8 @@ def decode_record(rec: Any) -> Cat020Report | Cat020Reject:
 def decode_fast(data: bytes, pos: int) -> tuple[Cat020Report | Cat020Reject, int] | None:
     """Decode the record at ``pos`` with the compiled layout: ``(values, end offset)``,
     or ``None`` when it is not well formed."""
-    split = split_record(data, pos, LAYOUT)
-    if isinstance(split, str):
+    split = split_item_bytes(data, pos, LAYOUT)
+    if split is None:
         return None
-    end, spans = split
-    return decode_items({k: data[s:e] for k, (s, e) in spans.items()}), end
+    items, end = split
+    return decode_items(items), end

@@ -60,7 +60,7 @@ import asterix.generated as gen
 from skyfuse.schemas import adsb_quality
 
 from .fields import DAY_S, FT, NM, icao_chars, mode_3a, signed, signed_bits, unsigned
-from .layout import RecordLayout, compile_layout, split_record
+from .layout import RecordLayout, compile_layout, split_item_bytes
 from .records import item_bytes
 
 CATEGORY = 21
@@ -295,11 +295,11 @@ def decode_fast(
 ) -> tuple[Cat021Report | Cat021Reject, int] | None:
     """Decode the record at ``pos`` with the compiled layout of ``edition``: ``(values,
     end offset)``, or ``None`` when it is not well formed in that edition."""
-    split = split_record(data, pos, layout(edition))
-    if isinstance(split, str):
+    split = split_item_bytes(data, pos, layout(edition))
+    if split is None:
         return None
-    end, spans = split
-    return decode_items({k: data[s:e] for k, (s, e) in spans.items()}, edition), end
+    items, end = split
+    return decode_items(items, edition), end
 
 
 def block_fits(data: bytes, edition: str) -> bool:
@@ -310,11 +310,10 @@ def block_fits(data: bytes, edition: str) -> bool:
     lay = layout(edition)
     time_items = ("071", "073") if edition.startswith("2.") else ("030",)
     while pos < n:
-        split = split_record(data, pos, lay)
-        if isinstance(split, str):
+        split = split_item_bytes(data, pos, lay)
+        if split is None:
             return False
-        pos, spans = split
-        items = {k: data[s:e] for k, (s, e) in spans.items()}
+        items, pos = split
         if "010" not in items or "080" not in items:
             return False
         tod = next((_tod(items[k]) for k in time_items if k in items), None)

@@ -219,6 +219,20 @@ def split_record(
     return p, items
 
 
+def split_item_bytes(
+    data: bytes, pos: int, layout: RecordLayout
+) -> tuple[dict[str, bytes], int] | None:
+    """The record at ``pos`` as ``({item name: item bytes}, end)`` — the form the
+    item-byte decoders read (:func:`.records.item_bytes` gives it for a libasterix
+    record) — or ``None`` when :func:`split_record` does not handle it (re-parse with
+    libasterix for the authoritative error)."""
+    split = split_record(data, pos, layout)
+    if isinstance(split, str):
+        return None
+    end, spans = split
+    return {k: data[s:e] for k, (s, e) in spans.items()}, end
+
+
 def build_fspec(layout: RecordLayout, present: list[str]) -> bytes:
     """The FSPEC announcing the ``present`` items of ``layout`` (FX bits set on all but
     the last byte), as libasterix writes it."""
