@@ -277,3 +277,22 @@ alt = 4.0
 """
 """The Barcelona–El Prat sensors of the shared LEBL recordings as a sites TOML: the
 multilateration (SAC 0 / SIC 107) and the surface movement radar (SAC 0 / SIC 7)."""
+
+
+def confirmed_ids(b) -> list[int]:
+    """The ids of the confirmed tracks of a ``TrackBatch``, sorted."""
+    return sorted(t.track_id for t in b.tracks if t.status == "confirmed")
+
+
+def feed_pictures(feed: list) -> list[tuple[int, object]]:
+    """(plot batches applied so far, the rebuilt picture as a ``TrackBatch``) after each
+    delta of a fusion ``feed`` (``schemas.TrackPicture``)."""
+    from skyfuse.schemas import FeedKind, TrackPicture
+
+    pic, n, out = TrackPicture(), 0, []
+    for b in feed:
+        pic.apply(b)
+        if b.kind is FeedKind.DELTA:
+            n += b.batches
+            out.append((n, pic.batch()))
+    return out

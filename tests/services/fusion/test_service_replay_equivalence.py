@@ -10,14 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from service_support import peer, skyfuse, stop
+from service_support import confirmed_ids, feed_pictures, peer, skyfuse, stop
 from skyfuse.schemas import (
     FeedKind,
     PlotBatch,
     RadarSite,
     Status,
     TrackBatch,
-    TrackPicture,
     keys,
 )
 from skyfuse.services.cli.main import main as skyfuse_main
@@ -37,10 +36,6 @@ from skyfuse.services.sensors.replay import replay
 pytestmark = pytest.mark.service
 
 
-def confirmed_ids(b: TrackBatch) -> list[int]:
-    return sorted(t.track_id for t in b.tracks if t.status == "confirmed")
-
-
 def wait_for_sites(session, sites: list[RadarSite], timeout: float = 20.0) -> None:
     """Publish ``sites`` and wait until the fusion's Status reports every one known."""
     for site in sites:
@@ -53,17 +48,6 @@ def wait_for_sites(session, sites: list[RadarSite], timeout: float = 20.0) -> No
                 return
         time.sleep(0.2)
     raise AssertionError("the fusion never reported every site known")
-
-
-def pictures(feed: list[TrackBatch]) -> list[tuple[int, TrackBatch]]:
-    """(plot batches applied so far, rebuilt picture) after each delta of ``feed``."""
-    pic, n, out = TrackPicture(), 0, []
-    for b in feed:
-        pic.apply(b)
-        if b.kind is FeedKind.DELTA:
-            n += b.batches
-            out.append((n, pic.batch()))
-    return out
 
 
 def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulated_recording):
@@ -109,7 +93,7 @@ def test_live_replay_through_fusion_equals_offline_track(tmp_path: Path, simulat
     finally:
         rc, took = stop(proc)
     assert rc == 0 and took < 5.0, (tmp_path / "fusion.log").read_text()[-3000:]
-    pl, po = pictures(live), dict(pictures(off))
+    pl, po = feed_pictures(live), dict(feed_pictures(off))
     assert len(po) == n_batches and pl[-1][0] == n_batches
     assert live[0].frame == off[0].frame == expected
     assert [(b.source_radar, b.source_seq) for b in off if b.kind is FeedKind.DELTA] == [

@@ -12,8 +12,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from service_support import LEBL_SITES_TOML, SHARED_DATA, peer, skyfuse, stop
-from skyfuse.schemas import FeedKind, PlotBatch, TrackBatch, TrackPicture, keys
+from service_support import (
+    LEBL_SITES_TOML,
+    SHARED_DATA,
+    confirmed_ids,
+    feed_pictures,
+    peer,
+    skyfuse,
+    stop,
+)
+from skyfuse.schemas import PlotBatch, TrackBatch, keys
 from skyfuse.services.asterix import AsterixStreamDecoder
 from skyfuse.services.cli.main import main as skyfuse_main
 from skyfuse.services.evaluation.inputs import open_input
@@ -50,20 +58,6 @@ def stretch(src: Path, out: Path) -> Path:
     return out
 
 
-def confirmed_ids(b: TrackBatch) -> list[int]:
-    return sorted(t.track_id for t in b.tracks if t.status == "confirmed")
-
-
-def pictures(feed: list[TrackBatch]) -> list[tuple[int, TrackBatch]]:
-    pic, n, out = TrackPicture(), 0, []
-    for b in feed:
-        pic.apply(b)
-        if b.kind is FeedKind.DELTA:
-            n += b.batches
-            out.append((n, pic.batch()))
-    return out
-
-
 def test_three_lebl_sensors_live_through_fusion_equal_offline_track(tmp_path):
     names = ("smr", "mlat", "adsb")
     srcs = [SHARED_DATA / f"lebl_20160510_2200_2215_{k}.ast" for k in names]
@@ -94,7 +88,7 @@ def test_three_lebl_sensors_live_through_fusion_equal_offline_track(tmp_path):
         assert rc == 0, (tmp_path / f"sensor{i}.log").read_text()[-2000:]
     rc, took = stop(fusion)
     assert rc == 0 and took < 5.0, (tmp_path / "fusion.log").read_text()[-3000:]
-    pl, po = pictures(live), dict(pictures(off))
+    pl, po = feed_pictures(live), dict(feed_pictures(off))
     assert len(po) == len(merged) and pl[-1][0] == len(merged)
     assert live[0].frame == off[0].frame
     assert [confirmed_ids(b) for _, b in pl] == [confirmed_ids(po[n]) for n, _ in pl]
