@@ -94,6 +94,21 @@ def parse_date(date: dt.date | str | None) -> dt.date | None:
     return date
 
 
+def read_report_file(path: Path, what: str, date: dt.date | str | None = None):
+    """The CAT010/CAT020/CAT021 reports of the recording ``path`` and the decoder's
+    counts (:func:`services.asterix.read_reports`), ``what`` naming the file in the
+    :class:`InputError` when it is missing or cannot be read."""
+    from skyfuse.services.asterix import read_reports
+
+    if not path.is_file():
+        raise InputError(f"{what}: {str(path)!r} does not exist", usage=True)
+    try:
+        reports, stats, _ = read_reports(path, date=parse_date(date))
+    except ValueError as e:
+        raise InputError(f"{path}: {e}") from None
+    return reports, stats
+
+
 def _open_asterix(
     paths: list[Path], sites_file, date, sector_count: int, report_window: float = 1.0,
     adsb_sigma: float | None = None,

@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 from skyfuse.fusion.metrics.reference_association import ReferenceSamples
-from skyfuse.services.asterix import cat010, cat021, read_reports
-from skyfuse.services.evaluation.inputs import InputError, parse_date
+from skyfuse.services.asterix import cat010, cat021
+from skyfuse.services.evaluation.inputs import InputError, read_report_file
 from skyfuse.services.evaluation.surveillance_positions import (
     ReportPositions,
     cat010_positions,
@@ -144,12 +144,7 @@ def read_reference(
     path = Path(path)
     if kind not in KINDS:
         raise InputError(f"reference kind {kind!r}: must be one of {', '.join(KINDS)}", True)
-    if not path.is_file():
-        raise InputError(f"reference file: {str(path)!r} does not exist", usage=True)
-    try:
-        reports, stats, _ = read_reports(path, date=parse_date(date))
-    except ValueError as e:
-        raise InputError(f"{path}: {e}") from None
+    reports, stats = read_report_file(path, "reference file", date)
     adsb = [r for r in reports if isinstance(r, cat021.Cat021Report)]
     tgt = [r for r in reports if isinstance(r, cat010.Cat010Report)]
     if kind == "auto":

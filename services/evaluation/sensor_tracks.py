@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 from skyfuse.fusion.metrics.reference_association import TrackUpdates
-from skyfuse.services.asterix import cat010, read_reports
+from skyfuse.services.asterix import cat010
 from skyfuse.services.asterix.sites import radar_id_for
-from skyfuse.services.evaluation.inputs import InputError, parse_date
+from skyfuse.services.evaluation.inputs import InputError, read_report_file
 from skyfuse.services.evaluation.surveillance_positions import (
     ReportPositions,
     cat010_positions,
@@ -105,12 +105,7 @@ def read_sensor_tracks(
     """The CAT010 reports of ``path`` as tracks (module docstring); InputError when the
     file is missing or holds no CAT010 target reports with track numbers."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"sensor tracks file: {str(path)!r} does not exist", usage=True)
-    try:
-        reports, stats, _ = read_reports(path, date=parse_date(date))
-    except ValueError as e:
-        raise InputError(f"{path}: {e}") from None
+    reports, stats = read_report_file(path, "sensor tracks file", date)
     reps = [r for r in reports if isinstance(r, cat010.Cat010Report) and r.track_number is not None]
     if not reps:
         read = ", ".join(f"{k} {v}" for k, v in stats.items()) or "nothing decoded"
