@@ -40,6 +40,7 @@ def measurement_batch_from(
     *,
     clutter_density: float | None = None,
     vertical_extent: float = 15_000.0,
+    identity: bool = True,
 ) -> MeasurementBatch:
     """Build the tracker input from ``converted`` (a ``ConvertedPlots``: z, R, time, valid,
     reasons, site_position) of ``plot_batch`` measured by ``site``.
@@ -48,7 +49,8 @@ def measurement_batch_from(
     3-D tracking the areal density is spread over ``vertical_extent`` metres of height to
     give a volume density. ``frame``: the system frame the plots were converted into,
     needed only for a site's coverage polygon (tracker axes are x east, y north in every
-    frame)."""
+    frame). ``identity``: whether the tracker attributes identity (``TrackerConfig.
+    identity``); without it the plots' identity view is not built."""
     valid = np.asarray(converted.valid, dtype=bool)
     ndim = converted.z.shape[1]
     rho = float(site.clutter_density if clutter_density is None else clutter_density)
@@ -60,7 +62,7 @@ def measurement_batch_from(
     tid = plot_batch.column("target_id")
     coverage = _coverage(converted, site, plot_batch, frame)
     alt = plot_batch.column("altitude")
-    identity = plot_identity(plot_batch.column)  # None without secondary columns
+    ident = plot_identity(plot_batch.column) if identity else None  # None: no columns
     return MeasurementBatch(
         time_ns=int(plot_batch.time_end),
         radar_id=site.radar_id,
@@ -73,7 +75,7 @@ def measurement_batch_from(
         plot_ids=np.flatnonzero(valid),
         target_ids=None if tid is None else tid[valid],
         heights=_heights(alt, plot_batch, site, valid),
-        identity=None if identity is None else identity.take(valid),
+        identity=None if ident is None else ident.take(valid),
         rejected=dict(rejected),
     )
 

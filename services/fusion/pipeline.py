@@ -114,7 +114,7 @@ class TrackPipeline:
     def _track(self, converted, site: RadarSite, batch: PlotBatch) -> TrackerOutput:
         # the batch times move by the time offset of the correction its plots were converted
         # with (``converted.bias``), not by a second look-up of the estimate
-        mb = measurement_batch_from(converted, site, batch, self.frame)
+        mb = measurement_batch_from(converted, site, batch, self.frame, identity=self.cfg.identity)
         mb = self.registration.shift_times(mb, converted.bias)
         out = self.tracker.step(mb)
         self._count_oosm(out.stats)
