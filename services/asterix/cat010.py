@@ -3,7 +3,7 @@
 Message types (I010/000): 1 target report → :class:`Cat010Report`; 2 start of update
 cycle, 3 periodic status, 4 event-triggered status → :class:`Cat010Status`; anything
 else, or a record without I010/I000/I140 or a target report without a position, →
-:class:`Cat010Reject` with a reason from :data:`REJECT_REASONS`. A target report
+:class:`RecordReject` with a reason from :data:`REJECT_REASONS`. A target report
 without a position but with I170 TRE = 1 (last report of a track: the SMR sends these
 as track ends, I161 + I170 only) is kept as a report without position, ``last`` set.
 
@@ -59,17 +59,16 @@ from typing import Any
 import asterix.generated as gen
 
 from .fields import (
-    DAY_S,
     FT,
     NM,
     flight_level,
     icao_chars,
     mode_3a,
     signed,
-    time_of_day,
     unsigned,
 )
 from .layout import compile_layout, split_item_bytes
+from .record_reject import RecordReject, source_and_time, wgs84_reject
 from .records import item_bytes
 
 SPEC = gen.Cat_010_1_1
@@ -96,6 +95,7 @@ REJECT_REASONS = (
     "cat010_no_time",
     "cat010_bad_time",
     "cat010_no_position",
+    "cat010_bad_position",
     "cat010_unknown_message_type",
 )
 VELOCITY_LSB = 0.25  # m/s, I010/202
@@ -165,42 +165,25 @@ class Cat010Status:
     time_ns: int | None = None
 
 
-@dataclass(slots=True)
-class Cat010Reject:
-    """A parsed record that is not usable; ``reason`` is one of :data:`REJECT_REASONS`."""
-
-    reason: str
-    detail: str
-    sac: int | None = None
-    sic: int | None = None
-
-
-Cat010Record = Cat010Report | Cat010Status | Cat010Reject
+Cat010Record = Cat010Report | Cat010Status | RecordReject
 
 
 def decode_items(items: Mapping[str, bytes]) -> Cat010Record:
     """Values of one record given as item name → item bytes."""
-    b = items.get("010")
-    if b is None:
-        return Cat010Reject("cat010_no_data_source", "record has no I010/010 (SAC/SIC)")
-    sac, sic = b[0], b[1]
+    header = source_and_time(items, CATEGORY)
+    if isinstance(header, RecordReject):
+        return header
+    sac, sic, tod = header
     b = items.get("000")
     if b is None:
-        return Cat010Reject("cat010_no_message_type", "record has no I010/000", sac, sic)
+        return RecordReject("cat010_no_message_type", "record has no I010/000", sac, sic)
     mtype = b[0]
-    b = items.get("140")
-    if b is None:
-        return Cat010Reject("cat010_no_time", "record has no I010/140 time of day", sac, sic)
-    tod = time_of_day(b)
-    if tod >= DAY_S + 1.0:
-        detail = f"I010/140 time of day = {tod} s is outside one day"
-        return Cat010Reject("cat010_bad_time", detail, sac, sic)
     if mtype == TARGET_REPORT:
         return _target_report(items, sac, sic, tod)
     if mtype in (START_OF_UPDATE_CYCLE, PERIODIC_STATUS, EVENT_STATUS):
         return _status(items, sac, sic, mtype, tod)
     detail = f"I010/000 message type = {mtype} is not 1-4"
-    return Cat010Reject("cat010_unknown_message_type", detail, sac, sic)
+    return RecordReject("cat010_unknown_message_type", detail, sac, sic)
 
 
 def _status(items: Mapping[str, bytes], sac: int, sic: int, mtype: int, tod: float) -> Any:
@@ -221,7 +204,7 @@ def _target_report(items: Mapping[str, bytes], sac: int, sic: int, tod: float) -
     _track(items, r)
     if not ("040" in items or "041" in items or "042" in items) and not r.last:
         detail = "target report has no position (I010/040, /041 or /042)"
-        return Cat010Reject("cat010_no_position", detail, sac, sic)
+        return RecordReject("cat010_no_position", detail, sac, sic)
     b = items.get("020")
     if b is not None:
         r.typ = b[0] >> 5
@@ -230,6 +213,9 @@ def _target_report(items: Mapping[str, bytes], sac: int, sic: int, tod: float) -
             r.sim, r.tst, r.rab = bool(b[1] & 0x80), bool(b[1] & 0x40), bool(b[1] & 0x20)
             r.target_type = (b[1] >> 1) & 0x03
     _position(items, r)
+    bad = wgs84_reject(r.lat, r.lon, "I010/041", sac, sic)
+    if bad is not None:
+        return bad
     b = items.get("060")
     if b is not None:
         r.mode_3a = mode_3a(b)

@@ -42,8 +42,9 @@ from typing import Any
 
 import asterix.generated as gen
 
-from .fields import DAY_S, FT, flight_level, icao_chars, mode_3a, signed, time_of_day, unsigned
+from .fields import FT, flight_level, icao_chars, mode_3a, signed, unsigned
 from .layout import compile_layout, split_item_bytes
+from .record_reject import RecordReject, source_and_time, wgs84_reject
 from .records import item_bytes
 
 SPEC = gen.Cat_020_1_10
@@ -54,6 +55,7 @@ REJECT_REASONS = (
     "cat020_no_time",
     "cat020_bad_time",
     "cat020_no_position",
+    "cat020_bad_position",
 )
 
 
@@ -92,31 +94,14 @@ class Cat020Report:
     time_ns: int | None = None
 
 
-@dataclass(slots=True)
-class Cat020Reject:
-    """A parsed record that is not usable (``reason`` in :data:`REJECT_REASONS`)."""
-
-    reason: str
-    detail: str
-    sac: int | None = None
-    sic: int | None = None
-
-
-def decode_items(items: Mapping[str, bytes]) -> Cat020Report | Cat020Reject:
+def decode_items(items: Mapping[str, bytes]) -> Cat020Report | RecordReject:
     """Values of one record given as item name → item bytes."""
-    b = items.get("010")
-    if b is None:
-        return Cat020Reject("cat020_no_data_source", "record has no I020/010 (SAC/SIC)")
-    sac, sic = b[0], b[1]
-    b = items.get("140")
-    if b is None:
-        return Cat020Reject("cat020_no_time", "record has no I020/140 time of day", sac, sic)
-    tod = time_of_day(b)
-    if tod >= DAY_S + 1.0:
-        detail = f"I020/140 time of day = {tod} s is outside one day"
-        return Cat020Reject("cat020_bad_time", detail, sac, sic)
+    header = source_and_time(items, CATEGORY)
+    if isinstance(header, RecordReject):
+        return header
+    sac, sic, tod = header
     if "041" not in items and "042" not in items:
-        return Cat020Reject("cat020_no_position", "record has no I020/041 or /042", sac, sic)
+        return RecordReject("cat020_no_position", "record has no I020/041 or /042", sac, sic)
     r = Cat020Report(sac, sic, tod)
     b = items.get("020")
     if b is not None:
@@ -128,6 +113,9 @@ def decode_items(items: Mapping[str, bytes]) -> Cat020Report | Cat020Reject:
     if b is not None:
         r.lat = signed(b[0:4]) * (180.0 / 2**25)
         r.lon = signed(b[4:8]) * (180.0 / 2**25)
+        bad = wgs84_reject(r.lat, r.lon, "I020/041", sac, sic)
+        if bad is not None:
+            return bad
     b = items.get("042")
     if b is not None:
         r.x_m, r.y_m = signed(b[0:3]) * 0.5, signed(b[3:6]) * 0.5
@@ -183,12 +171,12 @@ def _accuracy(b: bytes, r: Cat020Report) -> None:
         r.sigma_h_m = unsigned(b[pos : pos + 2]) * 0.5
 
 
-def decode_record(rec: Any) -> Cat020Report | Cat020Reject:
+def decode_record(rec: Any) -> Cat020Report | RecordReject:
     """Values of one record parsed by libasterix (``Cat_020_1_10``)."""
     return decode_items(item_bytes(rec))
 
 
-def decode_fast(data: bytes, pos: int) -> tuple[Cat020Report | Cat020Reject, int] | None:
+def decode_fast(data: bytes, pos: int) -> tuple[Cat020Report | RecordReject, int] | None:
     """Decode the record at ``pos`` with the compiled layout: ``(values, end offset)``,
     or ``None`` when it is not well formed."""
     split = split_item_bytes(data, pos, LAYOUT)

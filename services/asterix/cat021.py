@@ -61,6 +61,7 @@ from skyfuse.schemas import adsb_quality
 
 from .fields import DAY_S, FT, NM, icao_chars, mode_3a, signed, signed_bits, unsigned
 from .layout import RecordLayout, compile_layout, split_item_bytes
+from .record_reject import RecordReject, wgs84_reject
 from .records import item_bytes
 
 CATEGORY = 21
@@ -122,43 +123,33 @@ class Cat021Report:
     time_ns: int | None = None
 
 
-@dataclass(slots=True)
-class Cat021Reject:
-    """A parsed record that is not a usable report (``reason`` in :data:`REJECT_REASONS`)."""
-
-    reason: str
-    detail: str
-    sac: int | None = None
-    sic: int | None = None
-
-
 @functools.cache
 def layout(edition: str) -> RecordLayout:
     """The compiled UAP of an edition (``KeyError`` for an unknown name)."""
     return compile_layout(EDITIONS[edition])
 
 
-def decode_items(items: Mapping[str, bytes], edition: str) -> Cat021Report | Cat021Reject:
+def decode_items(items: Mapping[str, bytes], edition: str) -> Cat021Report | RecordReject:
     """Values of one record of ``edition`` given as item name → item bytes."""
     b = items.get("010")
     if b is None:
-        return Cat021Reject("cat021_no_data_source", "record has no I021/010 (SAC/SIC)")
+        return RecordReject("cat021_no_data_source", "record has no I021/010 (SAC/SIC)")
     sac, sic = b[0], b[1]
     v2 = edition.startswith("2.")
     tod, reception = _times_v2(items) if v2 else (_tod(items.get("030")), None)
     if tod is None:
-        return Cat021Reject("cat021_no_time", "record has no time of the position", sac, sic)
+        return RecordReject("cat021_no_time", "record has no time of the position", sac, sic)
     if not 0.0 <= tod < DAY_S + 1.0:
-        return Cat021Reject("cat021_bad_time", f"time of day {tod} s is outside a day", sac, sic)
+        return RecordReject("cat021_bad_time", f"time of day {tod} s is outside a day", sac, sic)
     pos = _position(items)
     if pos is None:
-        return Cat021Reject("cat021_no_position", "record has no I021/130 or /131", sac, sic)
-    if not (-90.0 <= pos[0] <= 90.0 and -180.0 <= pos[1] <= 180.0):
-        detail = f"latitude/longitude {pos[0]:.5f}/{pos[1]:.5f} outside WGS-84 ranges"
-        return Cat021Reject("cat021_bad_position", detail, sac, sic)
+        return RecordReject("cat021_no_position", "record has no I021/130 or /131", sac, sic)
+    bad = wgs84_reject(pos[0], pos[1], "I021/130", sac, sic)
+    if bad is not None:
+        return bad
     b = items.get("080")
     if b is None:
-        return Cat021Reject("cat021_no_address", "record has no I021/080 address", sac, sic)
+        return RecordReject("cat021_no_address", "record has no I021/080 address", sac, sic)
     r = Cat021Report(sac, sic, edition, tod, pos[0], pos[1], unsigned(b), reception)
     r.high_resolution = pos[2]
     _descriptor(items.get("040"), v2, r)
@@ -285,14 +276,14 @@ def _identity(items: Mapping[str, bytes], v2: bool, r: Cat021Report) -> None:
         r.track_number = unsigned(b) & 0x0FFF
 
 
-def decode_record(rec: Any, edition: str) -> Cat021Report | Cat021Reject:
+def decode_record(rec: Any, edition: str) -> Cat021Report | RecordReject:
     """Values of one record parsed by libasterix with ``EDITIONS[edition]``."""
     return decode_items(item_bytes(rec), edition)
 
 
 def decode_fast(
     data: bytes, pos: int, edition: str
-) -> tuple[Cat021Report | Cat021Reject, int] | None:
+) -> tuple[Cat021Report | RecordReject, int] | None:
     """Decode the record at ``pos`` with the compiled layout of ``edition``: ``(values,
     end offset)``, or ``None`` when it is not well formed in that edition."""
     split = split_item_bytes(data, pos, layout(edition))

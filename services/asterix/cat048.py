@@ -29,7 +29,7 @@ Codes and levels are kept whatever their V/G/L flags (the flags travel with them
 reader uses only validated, ungarbled flight levels as altitudes.
 
 A record that parses but is not a usable plot (no I010/I140/I040, TYP 0 "no
-detection", a time of day outside one day) is returned as a :class:`Cat048Reject`
+detection", a time of day outside one day) is returned as a :class:`RecordReject`
 with the reason, so the caller can count it.
 """
 
@@ -41,6 +41,7 @@ from typing import Any
 import asterix.generated as gen
 
 from .layout import build_fspec, compile_layout, split_record
+from .record_reject import RecordReject
 from .records import quantity, sub_quantity, sub_uint
 
 SPEC = gen.Cat_048_1_32
@@ -118,28 +119,18 @@ def encode_callsign(text: str) -> int:
     return raw
 
 
-@dataclass(slots=True)
-class Cat048Reject:
-    """A parsed record that is not a usable plot; ``reason`` is a short count key."""
-
-    reason: str
-    detail: str
-    sac: int | None = None
-    sic: int | None = None
-
-
-def decode_record(rec: Any) -> Cat048Plot | Cat048Reject:
+def decode_record(rec: Any) -> Cat048Plot | RecordReject:
     """Physical values of one parsed CAT048 record (libasterix ``Record``)."""
     i010 = rec.get_item("010")
     if i010 is None:
-        return Cat048Reject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)")
+        return RecordReject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)")
     sac = sub_uint(i010.variation, "SAC")
     sic = sub_uint(i010.variation, "SIC")
     tod = quantity(rec, "140", "s")
     if tod is None:
-        return Cat048Reject("cat048_no_time", "record has no I048/140 time of day", sac, sic)
+        return RecordReject("cat048_no_time", "record has no I048/140 time of day", sac, sic)
     if not 0.0 <= tod < DAY_S + 1.0:
-        return Cat048Reject(
+        return RecordReject(
             "cat048_bad_time", f"I048/140 time of day = {tod} s is outside one day", sac, sic
         )
     typ, sim, tst, spi = 0, False, False, False
@@ -152,10 +143,10 @@ def decode_record(rec: Any) -> Cat048Plot | Cat048Reject:
         t = v.get_item("TST")
         tst = bool(t.as_uint()) if t is not None else False
         if typ == 0:
-            return Cat048Reject("cat048_no_detection", "I048/020 TYP = 0 (no detection)", sac, sic)
+            return RecordReject("cat048_no_detection", "I048/020 TYP = 0 (no detection)", sac, sic)
     i040 = rec.get_item("040")
     if i040 is None:
-        return Cat048Reject(
+        return RecordReject(
             "cat048_no_position", "record has no I048/040 measured position", sac, sic
         )
     rho = sub_quantity(i040.variation, "RHO", "NM")
@@ -352,7 +343,7 @@ def encode_record(**values: Any) -> bytes:
     return build_fspec(LAYOUT, list(raw)) + bytes(body)
 
 
-def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | Cat048Reject, int] | None:
+def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | RecordReject, int] | None:
     """Decode the record at ``pos`` without building libasterix objects.
 
     Returns ``(plot or reject, end offset)``, or ``None`` when the record is not
@@ -365,15 +356,15 @@ def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | Cat048Reject, int] 
     end, items = split
     span = items.get("010")
     if span is None:
-        return Cat048Reject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)"), end
+        return RecordReject("cat048_no_data_source", "record has no I048/010 (SAC/SIC)"), end
     sac, sic = data[span[0]], data[span[0] + 1]
     span = items.get("140")
     if span is None:
-        return Cat048Reject("cat048_no_time", "record has no I048/140 time of day", sac, sic), end
+        return RecordReject("cat048_no_time", "record has no I048/140 time of day", sac, sic), end
     tod = int.from_bytes(data[span[0] : span[1]], "big") / 128.0
     if not 0.0 <= tod < DAY_S + 1.0:
         reason = f"I048/140 time of day = {tod} s is outside one day"
-        return Cat048Reject("cat048_bad_time", reason, sac, sic), end
+        return RecordReject("cat048_bad_time", reason, sac, sic), end
     typ, sim, tst, spi = 0, False, False, False
     span = items.get("020")
     if span is not None:
@@ -383,11 +374,11 @@ def decode_fast(data: bytes, pos: int) -> tuple[Cat048Plot | Cat048Reject, int] 
             tst = bool(data[span[0] + 1] & 0x80)
         if typ == 0:
             reason = "I048/020 TYP = 0 (no detection)"
-            return Cat048Reject("cat048_no_detection", reason, sac, sic), end
+            return RecordReject("cat048_no_detection", reason, sac, sic), end
     span = items.get("040")
     if span is None:
         reason = "record has no I048/040 measured position"
-        return Cat048Reject("cat048_no_position", reason, sac, sic), end
+        return RecordReject("cat048_no_position", reason, sac, sic), end
     s0 = span[0]
     rho = int.from_bytes(data[s0 : s0 + 2], "big") / 256.0
     theta = int.from_bytes(data[s0 + 2 : s0 + 4], "big") * (360.0 / 65536.0)

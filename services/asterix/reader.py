@@ -89,6 +89,7 @@ from skyfuse.schemas.identity import CALLSIGN_RE, DOWNLINKED
 
 from . import bds, cat034, cat048, surveillance
 from .pcap import Datagram, iter_file_datagrams, split_datablocks
+from .record_reject import RecordReject
 from .records import RecordError, iter_records
 from .report_batches import ReportBatcher
 from .scan_period import estimate_scan_period
@@ -497,7 +498,7 @@ class AsterixStreamDecoder:
 
     def _cat048_plot(
         self,
-        plot: cat048.Cat048Plot | cat048.Cat048Reject,
+        plot: cat048.Cat048Plot | RecordReject,
         raw: bytes,
         recv_ns: int | None,
         index: int,
@@ -506,7 +507,7 @@ class AsterixStreamDecoder:
         self.stats["cat048_records"] += 1
         if self._is_duplicate(48, raw):
             return
-        if isinstance(plot, cat048.Cat048Reject):
+        if isinstance(plot, RecordReject):
             self.stats[plot.reason] += 1
             if self.stats[plot.reason] <= 3:
                 self._note(f"{where}: CAT048 record {index + 1} skipped: {plot.detail}")

@@ -73,6 +73,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydantic import ValidationError
 from skyfuse.schemas import PlotBatch, RadarKind, RadarSite
 from skyfuse.schemas.identity import CALLSIGN_RE, FLIGHT_LEVEL_MAX, FLIGHT_LEVEL_MIN
 
@@ -285,20 +286,52 @@ class ReportBatcher:
             s.start = end
             return
         start = end if s.start is None else s.start
+        if end < start:  # a cycle message timed before the batch began (clock step, corruption)
+            self.stats["report_cycle_time_backwards"] += 1
+            start = end
         if reports:
             start = min(start, reports[0].time_ns)
             end = max(end, reports[-1].time_ns)
-        cols = _columns(s.kind, kind, reports, site, self.adsb_sigma, self.stats)
-        batch = PlotBatch(
-            radar_id=s.radar_id, scan=s.seq, seq=s.seq, time_start=start, time_end=end,
-            time=[r.time_ns for r in reports], **cols,
-        )  # fmt: skip
+        batch, reports = self._valid_batch(s, kind, site, start, end, reports)
         out.append((batch, [_report_type(r) for r in reports]))
         self.stats["report_batches"] += 1
         self.stats["report_plots"] += len(reports)
         s.plots += len(reports)
         s.seq += 1
         s.start = end
+
+    def _valid_batch(self, s: _Sensor, kind, site, start: int, end: int, reports: list):
+        """The PlotBatch of ``reports`` and the reports it holds. A report the wire
+        contract refuses (a value outside its range, e.g. a velocity beyond 2000 m/s from
+        a corrupted I202) is dropped and counted (``report_invalid``, the contract's
+        message noted: field, value, why); the batch keeps the others."""
+        try:
+            return self._batch(s, kind, site, start, end, reports), reports
+        except ValidationError:
+            pass
+        kept = []
+        for r in reports:
+            try:
+                self._batch(s, kind, site, start, end, [r], Counter())
+                kept.append(r)
+            except ValidationError as exc:
+                self.stats["report_invalid"] += 1
+                if self.stats["report_invalid"] <= 3:
+                    detail = exc.errors()[0]["msg"] if exc.errors() else str(exc)
+                    self.note(f"{s.radar_id}: report dropped: {detail}")
+        return self._batch(s, kind, site, start, end, kept), kept
+
+    def _batch(self, s, kind, site, start, end, reports, stats=None) -> PlotBatch:
+        """A batch's PlotBatch; the columns' counts go to ``stats`` (the reader's) only
+        when the wire contract accepts it."""
+        tally: Counter = Counter()
+        cols = _columns(s.kind, kind, reports, site, self.adsb_sigma, tally)
+        batch = PlotBatch(
+            radar_id=s.radar_id, scan=s.seq, seq=s.seq, time_start=start, time_end=end,
+            time=[r.time_ns for r in reports], **cols,
+        )  # fmt: skip
+        (self.stats if stats is None else stats).update(tally)
+        return batch
 
     def _has_geometry(self, r, kind: RadarKind) -> bool:
         ok = {
@@ -352,10 +385,13 @@ class ReportBatcher:
             return base
         return RadarSite(**{**base.model_dump(exclude_unset=True), **update})
 
-    def _adsb_anchor(self, s: _Sensor) -> RadarSite:
+    def _adsb_anchor(self, s: _Sensor) -> RadarSite | None:
         """An ADS-B sensor's site without a table: at its SAC/SIC's other site, else at
-        its first report (module docstring)."""
+        its first report (module docstring); none while that report has no WGS-84
+        position (a CAT010 TYP 2 report with I042 only)."""
         other = self.input_sites.get(radar_id_for(s.sac, s.sic))
+        if other is None and s.first.lat is None:
+            return None
         lat, lon, alt = (
             (other.lat, other.lon, other.alt) if other else (s.first.lat, s.first.lon, 0.0)
         )

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from . import cat010, cat020, cat021
+from .record_reject import RecordReject
 from .records import RecordError, iter_records
 
 CATEGORIES = frozenset({10, 20, 21})
@@ -120,10 +121,9 @@ class SurveillanceDecoder:
         self.stats[f"{prefix}_records"] += 1
         if self.is_duplicate(cat, raw):
             return
-        reason = getattr(rec, "reason", None)
-        if reason is not None:
-            self.stats[reason] += 1
-            if self.stats[reason] <= 3:
+        if isinstance(rec, RecordReject):
+            self.stats[rec.reason] += 1
+            if self.stats[rec.reason] <= 3:
                 self.note(f"CAT{cat:03d} record skipped: {rec.detail}")
             return
         if isinstance(rec, cat010.Cat010Status):
