@@ -171,8 +171,10 @@ class ScoreArea:
             return np.ones(x.shape, bool)
         p = np.column_stack([x, y])
         out = np.zeros(len(p), bool)
-        for poly in self.polygons:
-            out |= inside(p, poly)
+        for poly in self.polygons:  # only the points in a polygon's bounding box are tested
+            lo, hi = poly.min(axis=0), poly.max(axis=0)
+            box = np.flatnonzero(((p >= lo) & (p <= hi)).all(axis=1) & ~out)
+            out[box[inside(p[box], poly)]] = True
         return out
 
 

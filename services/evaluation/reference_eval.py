@@ -327,7 +327,7 @@ def reference_table(summary: dict, title: str = "scored against the reference"):
     t = Table(title=title)
     for col in ("phase", "aircraft", "PoU", "in", "PoU|in", "RMS m", "p95 m", "ids/ac",
                 "changes", "dupl.", "false", "outside", "Mode-S"):  # fmt: skip
-        t.add_column(col, justify="left" if col == "phase" else "right", no_wrap=col == "phase")
+        t.add_column(col, justify="left" if col == "phase" else "right")
     for p in PHASES:
         d = summary.get(p)
         if d is None:
