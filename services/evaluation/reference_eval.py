@@ -19,7 +19,11 @@ track was last seen — a plot updated it — at that row's time, in the frame o
 ``--reference-time-offset`` moves the reference's time stamps (s; ``auto``: by minus
 the median along-track lead of the tracks over the reference, measured on updates
 moving faster than ``min_offset_speed``, then scored again; both results are
-reported). Output: the JSON summary under ``reference`` and a table.
+reported). With the tracker's input (the plots of its steps; for ``--sensor-tracks`` the
+file's measured reports) each phase also has the input-bound PoU and the PoU where the
+input reported; with ``--score-area`` / ``--min-surface-speed`` the same phases inside
+the assessed area, beside the whole (:mod:`~skyfuse.fusion.metrics.reference_coverage`,
+:mod:`.reference_area`). Output: the JSON summary under ``reference`` and a table.
 """
 
 from __future__ import annotations
