@@ -306,10 +306,13 @@ class Association:
 
 def nearest_labels(
     t: np.ndarray, x: np.ndarray, y: np.ndarray, ref: ReferenceIndex,
-    gate_surface_m: float, gate_airborne_m: float,
+    gate_surface_m: float, gate_airborne_m: float, known_key: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Step 1 of the rule: (label, its distance m, nearest distance any aircraft m, that
-    aircraft's ground flag) per update; ``t`` in s after the epoch."""
+    aircraft's ground flag) per update; ``t`` in s after the epoch. ``known_key`` (n,)
+    (−1 unknown) is for the plots of the input bound only
+    (:mod:`.reference_coverage`), never for track updates: a row whose address is known
+    is labelled only to the aircraft of that address."""
     n = len(t)
     label = np.full(n, NO_AIRCRAFT, np.int64)
     best = np.full(n, np.inf)
@@ -325,6 +328,8 @@ def nearest_labels(
         p = ref.at(a, t[idx])
         d = np.hypot(x[idx] - p.x, y[idx] - p.y)
         d[~p.valid] = np.inf
+        if known_key is not None:
+            d[(known_key[idx] >= 0) & (known_key[idx] != ref.keys[a])] = np.inf
         closer = d < nearest[idx]
         nearest[idx[closer]] = d[closer]
         nearest_ground[idx[closer]] = p.ground[closer]

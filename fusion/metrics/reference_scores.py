@@ -56,6 +56,11 @@ phase and both (the phase is the reference's: its ground bit at the time).
   the surface, 300 m airborne); none of its updates is credited, so it counts as an
   unassociated track (outside the reference, or false) rather than as one more track id
   and a few large errors of each aircraft that passed it.
+* **What the inputs allow, and the assessed area** (:mod:`.reference_coverage`): with
+  the tracker's input plots given, each phase also counts the windows the input reported
+  (input-bound PoU) and the PoU over those windows; with an assessed area (polygons, a
+  minimum surface speed), the windows, PoU and position error inside it — beside the
+  unrestricted figures, never instead.
 * **Correct identification** (ED-117 probability of correct identification; COMPASS
   "Identification Correct"): among credited updates that show a Mode-S address, the
   share equal to the reference aircraft's; the same for the callsign and the Mode-3/A
@@ -66,6 +71,7 @@ Times ns (int64); positions m in one east/north plane; durations s.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -77,6 +83,13 @@ from .reference_association import (
     ReferenceSamples,
     TrackUpdates,
     associate,
+)
+from .reference_coverage import (
+    InputPlots,
+    ScoreArea,
+    assessed_updates,
+    assessed_windows,
+    input_windows,
 )
 
 PHASES = ("surface", "airborne", "all")
@@ -112,6 +125,16 @@ class ReferenceScoreConfig(BaseModel):
     )
     max_range_m: float | None = Field(
         None, gt=0, description="Score only within this distance of the plane's origin, m"
+    )
+    min_surface_speed: float = Field(
+        0.0,
+        ge=0,
+        description="Assessed area: surface windows and updates where the reference moves "
+        "slower than this are outside it (a parked aircraft is not on the manoeuvring area), "
+        "m/s; 0: any speed",
+    )
+    speed_span_s: float = Field(
+        10.0, gt=0, description="Span of the reference's speed for --min-surface-speed, s"
     )
     min_track_share: float = Field(
         0.0,
@@ -155,8 +178,52 @@ class IdentityScore:
 
 
 @dataclass(frozen=True)
+class WindowCounts:
+    """Update windows of one phase (:mod:`.reference_coverage`): ``windows``, those
+    ``updated`` by a credited track; with the tracker's input given (else None), those
+    reported by the input (``input``), reported and updated (``input_updated``), updated
+    but not reported (``updated_without_input``)."""
+
+    windows: int
+    updated: int
+    input: int | None = None
+    input_updated: int | None = None
+    updated_without_input: int | None = None
+
+    @property
+    def probability_of_update(self) -> float:
+        return self.updated / self.windows if self.windows else float("nan")
+
+    @property
+    def input_bound(self) -> float | None:
+        """Input-bound PoU: windows reported by the input / windows."""
+        if self.input is None:
+            return None
+        return self.input / self.windows if self.windows else float("nan")
+
+    @property
+    def where_input(self) -> float | None:
+        """PoU where the input reported: reported and updated / reported."""
+        if self.input is None:
+            return None
+        return self.input_updated / self.input if self.input else float("nan")
+
+
+@dataclass(frozen=True)
+class AreaScores:
+    """A phase restricted to the assessed area (:mod:`.reference_coverage`): its windows
+    and the position error of its assessed credited updates."""
+
+    aircraft: int
+    counts: WindowCounts
+    position: PositionScores
+
+
+@dataclass(frozen=True)
 class PhaseScores:
-    """All measures of one phase (``surface``, ``airborne`` or ``all``)."""
+    """All measures of one phase (``surface``, ``airborne`` or ``all``); ``coverage``:
+    the windows with the input's (:class:`WindowCounts`), ``area``: the same phase in the
+    assessed area (None without one)."""
 
     aircraft: int
     windows: int
@@ -176,6 +243,8 @@ class PhaseScores:
     mode_s: IdentityScore
     callsign: IdentityScore
     mode_3a: IdentityScore
+    coverage: WindowCounts | None = None
+    area: AreaScores | None = None
 
     @property
     def probability_of_update(self) -> float:
@@ -194,7 +263,8 @@ class PhaseScores:
 class AircraftScores:
     """Per reference aircraft (arrays over ``key``): update windows and updated windows
     on the surface and airborne, distinct tracks credited, id changes, position RMS (m,
-    NaN without credited updates)."""
+    NaN without credited updates); with the input given, its windows reported by the
+    input and those also updated, per phase (else None)."""
 
     key: np.ndarray
     windows_surface: np.ndarray
@@ -204,6 +274,10 @@ class AircraftScores:
     tracks: np.ndarray
     id_changes: np.ndarray
     rms_m: np.ndarray
+    input_surface: np.ndarray | None = None
+    input_updated_surface: np.ndarray | None = None
+    input_airborne: np.ndarray | None = None
+    input_updated_airborne: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -229,9 +303,12 @@ class ReferenceScores:
 @dataclass(frozen=True)
 class Windows:
     """The update windows of all aircraft (one row per window, aircraft by aircraft in
-    time order) and the (window, track) pairs of second tracks in them."""
+    time order: ``start`` s after the epoch, ``width`` s) and the (window, track) pairs of
+    second tracks in them."""
 
     aircraft: np.ndarray
+    start: np.ndarray
+    width: np.ndarray
     ground: np.ndarray
     updated: np.ndarray
     n_tracks: np.ndarray
@@ -289,7 +366,7 @@ def position_scores(assoc: Association, mask: np.ndarray, cfg: ReferenceScoreCon
 
 def _aircraft_windows(a, ref: ReferenceIndex, t, track, cfg) -> tuple[np.ndarray, ...] | None:
     """Windows of aircraft ``a``: (ground, updated, n_tracks, holder, extra tracks, extra
-    window rows), from the credited update times ``t`` (s) and tracks ``track``."""
+    window rows, start, width), from the credited update times ``t`` (s) and tracks ``track``."""
     seg = ref.segments[a]
     width = np.where(seg[:, 2] == 1, cfg.surface_window_s, cfg.airborne_window_s)
     n_win = np.floor((seg[:, 1] - seg[:, 0]) / width + 1e-9).astype(np.int64)
@@ -318,7 +395,7 @@ def _aircraft_windows(a, ref: ReferenceIndex, t, track, cfg) -> tuple[np.ndarray
     holder[pairs[head, 0]] = names[np.argsort(rank_of)][pairs[head, 1]]
     extra = pairs[~head]
     extra_track = names[np.argsort(rank_of)][extra[:, 1]] if len(extra) else np.zeros(0, int)
-    return ground, updated, n_tracks, holder, extra_track, extra[:, 0]
+    return ground, updated, n_tracks, holder, extra_track, extra[:, 0], w0, width[sid]
 
 
 def reference_windows(
@@ -330,21 +407,21 @@ def reference_windows(
     cred = np.flatnonzero(assoc.credited)
     by_aircraft = cred[np.argsort(assoc.assigned[cred], kind="stable")]
     owner = assoc.assigned[by_aircraft]
-    cols: list[list[np.ndarray]] = [[] for _ in range(7)]
+    cols: list[list[np.ndarray]] = [[] for _ in range(9)]
     for a in range(len(ref)):
         lo, hi = np.searchsorted(owner, a, "left"), np.searchsorted(owner, a, "right")
         idx = by_aircraft[lo:hi]
         got = _aircraft_windows(a, ref, t[idx], updates.track_id[idx], cfg)
         if got is None:
             continue
-        ground, updated, n_tracks, holder, extra_track, extra_row = got
+        ground, updated, n_tracks, holder, extra_track, extra_row, w0, width = got
         seq = holder[holder >= 0]
         change = np.zeros(len(holder), bool)
         change[np.flatnonzero(holder >= 0)[1:]] = seq[1:] != seq[:-1]
-        for c, v in zip(cols, (np.full(len(holder), a), ground, updated, n_tracks, change,
-                               extra_track, ground[extra_row])):  # fmt: skip
+        for c, v in zip(cols, (np.full(len(holder), a), w0, width, ground, updated, n_tracks,
+                               change, extra_track, ground[extra_row])):  # fmt: skip
             c.append(v)
-    dtypes = (np.int64, bool, bool, np.int64, bool, np.int64, bool)
+    dtypes = (np.int64, float, float, bool, bool, np.int64, bool, np.int64, bool)
     return Windows(*(np.concatenate(c) if c else np.zeros(0, d) for c, d in zip(cols, dtypes)))
 
 
@@ -388,8 +465,9 @@ def unassociated_stretches(updates: TrackUpdates, assoc: Association, cfg) -> St
     return Stretches(trk[start], dur, false, ground)
 
 
-def aircraft_scores(ref: ReferenceIndex, win: Windows, assoc: Association, track_id):
-    """:class:`AircraftScores` from the windows and the credited updates."""
+def aircraft_scores(ref: ReferenceIndex, win: Windows, assoc: Association, track_id, hit=None):
+    """:class:`AircraftScores` from the windows and the credited updates (``hit``: the
+    windows reported by the input, or None)."""
     n = len(ref)
 
     def count(mask):
@@ -408,6 +486,12 @@ def aircraft_scores(ref: ReferenceIndex, win: Windows, assoc: Association, track
         windows_airborne=count(~win.ground), updated_airborne=count(~win.ground & win.updated),
         tracks=np.bincount(pairs[:, 0], minlength=n) if len(pairs) else np.zeros(n, np.int64),
         id_changes=count(win.change), rms_m=rms,
+        **({} if hit is None else {
+            "input_surface": count(win.ground & hit),
+            "input_updated_surface": count(win.ground & hit & win.updated),
+            "input_airborne": count(~win.ground & hit),
+            "input_updated_airborne": count(~win.ground & hit & win.updated),
+        }),
     )  # fmt: skip
 
 
@@ -445,8 +529,44 @@ def _continuity(updates, assoc, m) -> tuple[int, float, float]:
     return len(ids), float(ids.mean()), float((ids == 1).mean())
 
 
-def _phase(updates, assoc, ref, win: Windows, st: Stretches, which: str, cfg) -> PhaseScores:
+def window_counts(win: Windows, wm: np.ndarray, hit: np.ndarray | None) -> WindowCounts:
+    """:class:`WindowCounts` of the windows ``wm``; ``hit``: reported by the input."""
+    updated = int((wm & win.updated).sum())
+    if hit is None:
+        return WindowCounts(int(wm.sum()), updated)
+    return WindowCounts(
+        int(wm.sum()), updated, int((wm & hit).sum()), int((wm & hit & win.updated).sum()),
+        int((wm & ~hit & win.updated).sum()),
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class WindowFlags:
+    """Per window: reported by the input (``hit``, None without input), in the assessed
+    area (``assessed``, None without one); per update: credited and assessed
+    (``assessed_updates``)."""
+
+    hit: np.ndarray | None = None
+    assessed: np.ndarray | None = None
+    assessed_updates: np.ndarray | None = None
+
+
+def _area(assoc, win: Windows, wm, m, flags: WindowFlags, cfg) -> AreaScores | None:
+    """The phase (windows ``wm``, updates ``m``) in the assessed area, or None."""
+    if flags.assessed is None:
+        return None
+    wa = wm & flags.assessed
+    return AreaScores(
+        aircraft=len(np.unique(win.aircraft[wa])),
+        counts=window_counts(win, wa, flags.hit),
+        position=position_scores(assoc, m & flags.assessed_updates, cfg),
+    )
+
+
+def _phase(updates, assoc, ref, win: Windows, st: Stretches, which: str, cfg,
+           flags: WindowFlags | None = None) -> PhaseScores:  # fmt: skip
     """The measures of one phase from the per-update, per-window and stretch arrays."""
+    flags = flags or WindowFlags()
     sel = {"surface": (1,), "airborne": (0,), "all": (0, 1, -1)}[which]
     m = np.isin(assoc.ground.astype(np.int8), sel)
     wm = np.isin(win.ground.astype(np.int8), sel)
@@ -478,6 +598,23 @@ def _phase(updates, assoc, ref, win: Windows, st: Stretches, which: str, cfg) ->
         mode_s=ms,
         callsign=cs,
         mode_3a=m3,
+        coverage=window_counts(win, wm, flags.hit),
+        area=_area(assoc, win, wm, m, flags, cfg),
+    )
+
+
+def window_flags(updates, assoc, ref, win: Windows, epoch: int, cfg, plots, area) -> WindowFlags:
+    """The input's windows (with ``plots``) and the assessed area's (when it restricts)."""
+    hit = None
+    if plots is not None:
+        hit = input_windows(plots, ref, win.aircraft, win.start, win.width, epoch, cfg)
+    if not area.restricts:
+        return WindowFlags(hit)
+    t = (updates.time_ns - epoch) * 1e-9
+    return WindowFlags(
+        hit,
+        assessed_windows(area, ref, win.aircraft, win.start, win.width),
+        assessed_updates(area, ref, assoc, t),
     )
 
 
@@ -502,15 +639,21 @@ def score_against_reference(
     config: ReferenceScoreConfig | None = None,
     *,
     time_offset_s: float = 0.0,
+    plots: InputPlots | None = None,
+    area_polygons: Sequence[np.ndarray] = (),
 ) -> ReferenceScores:
     """Score the track ``updates`` against ``reference`` (module docstring), the
-    reference's time stamps moved by ``time_offset_s`` seconds first."""
+    reference's time stamps moved by ``time_offset_s`` seconds first; ``plots``: the
+    tracker's input, for the input bound, ``area_polygons`` ((k, 2) m in the plane) and
+    ``config.min_surface_speed``: the assessed area (:mod:`.reference_coverage`)."""
     cfg = config or ReferenceScoreConfig()
     if time_offset_s:
         reference = reference.shifted(time_offset_s)
     if cfg.max_range_m is not None:
         updates = updates.take(np.hypot(updates.x, updates.y) <= cfg.max_range_m)
         reference = reference.take(np.hypot(reference.x, reference.y) <= cfg.max_range_m)
+        if plots is not None:
+            plots = plots.take(np.hypot(plots.x, plots.y) <= cfg.max_range_m)
     times = [a.min() for a in (updates.time_ns, reference.time_ns) if len(a)]
     epoch = int(min(times)) if times else 0
     ref = ReferenceIndex.build(reference, epoch, cfg.max_reference_gap_s, cfg.min_reference_samples)
@@ -522,7 +665,9 @@ def score_against_reference(
         assoc = without_passing_tracks(updates.track_id, assoc, cfg.min_track_share)
     win = reference_windows(updates, assoc, ref, epoch, cfg)
     st = unassociated_stretches(updates, assoc, cfg)
-    phases = {p: _phase(updates, assoc, ref, win, st, p, cfg) for p in PHASES}
+    area = ScoreArea(tuple(area_polygons), cfg.min_surface_speed, cfg.speed_span_s)
+    flags = window_flags(updates, assoc, ref, win, epoch, cfg, plots, area)
+    phases = {p: _phase(updates, assoc, ref, win, st, p, cfg, flags) for p in PHASES}
     t = updates.time_ns
     return ReferenceScores(
         **phases,
@@ -534,5 +679,5 @@ def score_against_reference(
         duration_s=float((t.max() - t.min()) * 1e-9) if len(t) else 0.0,
         time_offset_s=float(time_offset_s),
         association=assoc,
-        per_aircraft=aircraft_scores(ref, win, assoc, updates.track_id),
+        per_aircraft=aircraft_scores(ref, win, assoc, updates.track_id, flags.hit),
     )

@@ -489,17 +489,22 @@ class ReferenceObserver(Observer):
     ``reference``. ``reference``: a :class:`~skyfuse.services.evaluation.reference
     .ReferenceRecording`; ``sites``: radar id → RadarSite for references given relative
     to a site (CAT010 I042); ``config``: a ``ReferenceScoreConfig``; ``time_offset``:
-    seconds added to the reference's times, or ``"auto"``."""
+    seconds added to the reference's times, or ``"auto"``; ``area``: the assessed area's
+    polygons (:mod:`~skyfuse.services.evaluation.reference_area`). The plots the tracker
+    was given are the input of the input bound."""
 
-    def __init__(self, reference, sites=None, config=None, time_offset=0.0) -> None:
+    def __init__(self, reference, sites=None, config=None, time_offset=0.0, area=()) -> None:
         from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig
-        from skyfuse.services.evaluation.reference_eval import UpdateCollector
+        from skyfuse.services.evaluation.reference_eval import PlotCollector, UpdateCollector
 
         self.reference = reference
         self.sites = dict(sites or {})
         self.config = config or ReferenceScoreConfig()
         self.time_offset = time_offset
+        self.area = list(area)
         self.collector = UpdateCollector()
+        self.plots = PlotCollector()
+        self.steps = 0
         self.frame = None
 
     def start(self, frame) -> None:
@@ -507,20 +512,27 @@ class ReferenceObserver(Observer):
 
     def on_step(self, step: Step) -> None:
         self.collector.add_output(step.out)
+        self.plots.add_output(step.out, step.batch)
+        self.steps += 1
 
     def on_tracks(self, tracks: TrackBatch) -> None:
         self.collector.add_batch(tracks)
 
     def summary(self) -> dict:
+        from skyfuse.services.evaluation.reference_area import area_in_frame, area_summary
         from skyfuse.services.evaluation.reference_eval import score_reference
 
         out = {"reference_file": self.reference.summary()}
         if self.frame is None:
             return {"reference": {**out, "note": "no tracks: nothing was scored"}}
         samples = self.reference.samples(self.frame, self.sites)
-        scores = score_reference(self.collector.updates(), samples, self.config, self.time_offset)
+        scores = score_reference(
+            self.collector.updates(), samples, self.config, self.time_offset,
+            plots=self.plots.plots() if self.steps else None,
+            area=area_in_frame(self.area, self.frame),
+        )  # fmt: skip
         out["reference_file"] = self.reference.summary()  # with the no_site count
-        return {"reference": {**out, **scores}}
+        return {"reference": {**out, **scores, "score_area": area_summary(self.area, self.config)}}
 
 
 class TrackWriter(Observer):

@@ -227,4 +227,7 @@ def _reference_observer(args):
     ref = open_reference(opts, getattr(args, "date", None))
     sites = load_site_map(getattr(args, "sites", None))
     cfg = build_config(ReferenceScoreConfig, args)
-    return ReferenceObserver(ref, sites, cfg, opts.reference_time_offset)
+    from skyfuse.services.evaluation.reference_area import read_score_area
+
+    area = read_score_area(opts.score_area)
+    return ReferenceObserver(ref, sites, cfg, opts.reference_time_offset, area=area)

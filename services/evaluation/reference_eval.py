@@ -19,7 +19,11 @@ track was last seen — a plot updated it — at that row's time, in the frame o
 ``--reference-time-offset`` moves the reference's time stamps (s; ``auto``: by minus
 the median along-track lead of the tracks over the reference, measured on updates
 moving faster than ``min_offset_speed``, then scored again; both results are
-reported). Output: the JSON summary under ``reference`` and a table.
+reported). With the tracker's input (the plots of its steps; for ``--sensor-tracks`` the
+file's measured reports) each phase also has the input-bound PoU and the PoU where the
+input reported; with ``--score-area`` / ``--min-surface-speed`` the same phases inside
+the assessed area, beside the whole (:mod:`~skyfuse.fusion.metrics.reference_coverage`,
+:mod:`.reference_area`). Output: the JSON summary under ``reference`` and a table.
 """
 
 from __future__ import annotations
@@ -32,11 +36,14 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, Field
 from skyfuse.fusion.metrics.reference_association import TrackUpdates
+from skyfuse.fusion.metrics.reference_coverage import InputPlots
 from skyfuse.fusion.metrics.reference_scores import (
     PHASES,
+    AreaScores,
     PhaseScores,
     ReferenceScoreConfig,
     ReferenceScores,
+    WindowCounts,
     along_track_lead,
     score_against_reference,
 )
@@ -73,6 +80,11 @@ class ReferenceEvalOptions(BaseModel):
     )
     sensor_tracks: Path | None = Field(
         None, description="Score this CAT010 file's own tracks (I161) instead of tracking"
+    )
+    score_area: list[str] = Field(
+        default_factory=list,
+        description="Assessed area, scored beside the whole: a TOML file of [[area]] polygons "
+        "(vertices = [[lat, lon], ...]) or one polygon 'LAT LON; LAT LON; LAT LON'",
     )
 
 
@@ -139,13 +151,70 @@ class UpdateCollector:
         return TrackUpdates.concat(self.parts)
 
 
+class PlotCollector:
+    """The plots the tracker was given (its validated measurement batches: positions in
+    the frame, each plot's time, the batch time, the Mode-S address when the plots show
+    one), as :class:`~skyfuse.fusion.metrics.reference_coverage.InputPlots`."""
+
+    def __init__(self) -> None:
+        self.parts: list[InputPlots] = []
+
+    def add_output(self, out, batch) -> None:
+        """A tracker output (its ``batch``: the MeasurementBatch applied) of PlotBatch
+        ``batch``."""
+        mb = out.batch
+        if mb is None or not len(mb.z):
+            return
+        n = len(mb.z)
+        t = mb.plot_times if mb.plot_times is not None else np.full(n, mb.time_ns)
+        ms = batch.column("mode_s")
+        ids = mb.plot_ids
+        mode_s = None if ms is None or ids is None else ms[ids]
+        self.parts.append(InputPlots(np.asarray(t, np.int64), mb.z[:, 0], mb.z[:, 1],
+                                     np.full(n, out.time_ns, np.int64), mode_s))  # fmt: skip
+
+    def plots(self) -> InputPlots:
+        return InputPlots.concat(self.parts)
+
+
 def _num(v, digits: int = 4):
     return json_number(v, digits)
 
 
+def counts_dict(c: WindowCounts | None) -> dict:
+    """Windows of a phase with the input's: ``input_bound_pou``, ``pou_where_input``
+    (None without the input)."""
+    if c is None:
+        return {}
+    return {
+        "input_windows": c.input,
+        "input_bound_pou": None if c.input is None else _num(c.input_bound),
+        "pou_where_input": None if c.input is None else _num(c.where_input),
+        "windows_updated_without_input": c.updated_without_input,
+    }
+
+
+def _position_dict(p) -> dict:
+    return {k: (_num(v, 3) if isinstance(v, float) else v) for k, v in asdict(p).items()}
+
+
+def area_dict(a: AreaScores | None) -> dict | None:
+    """A phase in the assessed area as JSON values (None without one)."""
+    if a is None:
+        return None
+    return {
+        "aircraft": a.aircraft,
+        "windows": a.counts.windows,
+        "windows_updated": a.counts.updated,
+        "probability_of_update": _num(a.counts.probability_of_update),
+        **counts_dict(a.counts),
+        "position": _position_dict(a.position),
+    }
+
+
 def phase_dict(p: PhaseScores) -> dict:
     """One phase's scores as JSON values."""
-    pos = {k: (_num(v, 3) if isinstance(v, float) else v) for k, v in asdict(p.position).items()}
+    pos = _position_dict(p.position)
     ident = {
         name: {"checked": s.checked, "correct": s.correct, "share": _num(s.share)}
         for name, s in (("mode_s", p.mode_s), ("callsign", p.callsign), ("mode_3a", p.mode_3a))
@@ -155,6 +224,7 @@ def phase_dict(p: PhaseScores) -> dict:
         "windows": p.windows,
         "windows_updated": p.windows_updated,
         "probability_of_update": _num(p.probability_of_update),
+        **counts_dict(p.coverage),
         "position": pos,
         "aircraft_tracked": p.aircraft_tracked,
         "track_ids_per_aircraft": _num(p.track_ids_per_aircraft),
@@ -170,6 +240,7 @@ def phase_dict(p: PhaseScores) -> dict:
         "outside_reference_tracks": p.outside_reference_tracks,
         "unassociated_near": p.unassociated_near,
         "identity": ident,
+        "area": area_dict(p.area),
     }
 
 
@@ -203,16 +274,28 @@ def aircraft_rows(s: ReferenceScores) -> list[dict]:
             "tracks": int(a.tracks[i]), "id_changes": int(a.id_changes[i]),
             "rms_m": _num(a.rms_m[i], 2),
         })  # fmt: skip
+        if a.input_surface is not None:
+            rows[-1].update({
+                "surface_input": int(a.input_surface[i]),
+                "surface_input_updated": int(a.input_updated_surface[i]),
+                "airborne_input": int(a.input_airborne[i]),
+                "airborne_input_updated": int(a.input_updated_airborne[i]),
+            })  # fmt: skip
     return rows
 
 
-def score_reference(updates: TrackUpdates, samples, cfg: ReferenceScoreConfig, offset) -> dict:
+def score_reference(
+    updates: TrackUpdates, samples, cfg: ReferenceScoreConfig, offset, *, plots=None, area=()
+) -> dict:
     """Score with the given offset (s), or ``"auto"``: estimate it first (module
-    docstring). The summary dict, with ``time_offset`` telling what was applied."""
+    docstring). The summary dict, with ``time_offset`` telling what was applied.
+    ``plots``: the tracker's input (InputPlots) for the input bound; ``area``: the
+    assessed area's polygons in the frame ((k, 2) m each)."""
+    extra = {"plots": plots, "area_polygons": area}
     if offset != "auto":
-        s = score_against_reference(updates, samples, cfg, time_offset_s=float(offset))
+        s = score_against_reference(updates, samples, cfg, time_offset_s=float(offset), **extra)
         return {**scores_dict(s), "time_offset": {"mode": "given", "applied_s": float(offset)}}
-    first = score_against_reference(updates, samples, cfg)
+    first = score_against_reference(updates, samples, cfg, **extra)
     a = first.association
     lead = along_track_lead(a.err_x, a.err_y, a.vx, a.vy, cfg.min_offset_speed)
     info = {"mode": "auto", "lead_samples": len(lead)}
@@ -231,7 +314,7 @@ def score_reference(updates: TrackUpdates, samples, cfg: ReferenceScoreConfig, o
         }
         for p in PHASES
     }
-    s = score_against_reference(updates, samples, cfg, time_offset_s=offset_s)
+    s = score_against_reference(updates, samples, cfg, time_offset_s=offset_s, **extra)
     return {**scores_dict(s), "time_offset": info}
 
 
@@ -240,12 +323,14 @@ def _cell(v, fmt: str) -> str:
 
 
 def reference_table(summary: dict, title: str = "scored against the reference"):
-    """A rich Table of a ``reference`` summary: one row per phase."""
+    """A rich Table of a ``reference`` summary: one row per phase, then one per phase in
+    the assessed area when there is one. "in": input-bound PoU; "PoU|in": PoU
+    where the input reported."""
     from rich.table import Table
 
     t = Table(title=title)
-    for col in ("phase", "aircraft", "PoU", "RMS m", "p95 m", "ids/ac", "changes", "dupl.",
-                "false", "outside", "Mode-S"):  # fmt: skip
+    for col in ("phase", "aircraft", "PoU", "in", "PoU|in", "RMS m", "p95 m", "ids/ac",
+                "changes", "dupl.", "false", "outside", "Mode-S"):  # fmt: skip
         t.add_column(col, justify="left" if col == "phase" else "right")
     for p in PHASES:
         d = summary.get(p)
@@ -253,14 +338,25 @@ def reference_table(summary: dict, title: str = "scored against the reference"):
             continue
         ident = d["identity"]["mode_s"]
         t.add_row(
-            p, str(d["aircraft"]), _cell(d["probability_of_update"], ".3f"),
+            p, str(d["aircraft"]), *_pou_cells(d),
             _cell(d["position"]["rms_m"], ".1f"), _cell(d["position"]["p95_m"], ".1f"),
             _cell(d["track_ids_per_aircraft"], ".2f"), str(d["id_changes"]),
             str(d["duplicate_tracks"]), str(d["false_tracks"]),
             str(d["outside_reference_tracks"]),
             "–" if not ident["checked"] else f"{ident['share']:.3f}",
         )  # fmt: skip
+    for p in PHASES:
+        a = (summary.get(p) or {}).get("area")
+        if a is not None:
+            t.add_row(f"{p} (area)", str(a["aircraft"]), *_pou_cells(a),
+                      _cell(a["position"]["rms_m"], ".1f"), _cell(a["position"]["p95_m"], ".1f"),
+                      *["" for _ in range(6)])  # fmt: skip
     return t
+
+
+def _pou_cells(d: dict) -> tuple[str, str, str]:
+    return (_cell(d["probability_of_update"], ".3f"), _cell(d.get("input_bound_pou"), ".3f"),
+            _cell(d.get("pou_where_input"), ".3f"))  # fmt: skip
 
 
 def print_table(summary: dict, title: str) -> None:
@@ -308,9 +404,11 @@ def _checked(samples, updates, what: str) -> None:
         raise InputError(f"{what}: no track update could be placed: {hint}")
 
 
-def evaluate_track_recording(path, reference, sites: dict, cfg, offset) -> dict:
+def evaluate_track_recording(path, reference, sites: dict, cfg, offset, area=()) -> dict:
     """Score the TrackBatch messages of an MCAP recording (no tracker) against
-    ``reference`` (a ReferenceRecording); the summary dict."""
+    ``reference`` (a ReferenceRecording; ``area``: the assessed area's AreaPolygons); the
+    summary dict. The recording's plots are not the tracker's input as it was converted,
+    so there is no input bound."""
     from skyfuse.services.evaluation.inputs import InputError, is_mcap
     from skyfuse.services.evaluation.observers import ReferenceObserver
     from skyfuse.services.evaluation.offline import OfflineConfig, run_offline
@@ -321,7 +419,7 @@ def evaluate_track_recording(path, reference, sites: dict, cfg, offset) -> dict:
         raise InputError(f"tracks file: {str(path)!r} does not exist", usage=True)
     if not is_mcap(path):
         raise InputError(f"{path}: --tracks takes an MCAP recording with TrackBatch messages")
-    obs = ReferenceObserver(reference, sites, cfg, offset)
+    obs = ReferenceObserver(reference, sites, cfg, offset, area=area)
     stats = ReadStats()
     msgs = (rec.message for rec in iter_recording(path, stats=stats))
     result = run_offline(msgs, None, OfflineConfig(tracker=None), [obs])
@@ -333,11 +431,14 @@ def evaluate_track_recording(path, reference, sites: dict, cfg, offset) -> dict:
 
 
 def evaluate_sensor_tracks(path, reference, sites: dict, cfg, offset, *, date=None,
-                           frame_kind="stereographic") -> dict:  # fmt: skip
+                           frame_kind="stereographic", area=()) -> dict:  # fmt: skip
     """Score a CAT010 file's own tracks against ``reference``; the frame is placed at the
     sensors' sites by the offline runner's rule (:func:`~skyfuse.services.fusion
-    .system_frame.frame_for_sites`)."""
+    .system_frame.frame_for_sites`). The input bound counts the file's measured reports,
+    confirmed or not (the sensor's own plots are not in the file); ``area``: the assessed
+    area's AreaPolygons."""
     from skyfuse.fusion.frames import SystemFrame
+    from skyfuse.services.evaluation.reference_area import area_in_frame
     from skyfuse.services.evaluation.sensor_tracks import read_sensor_tracks
     from skyfuse.services.fusion.system_frame import frame_for_sites
 
@@ -352,7 +453,8 @@ def evaluate_sensor_tracks(path, reference, sites: dict, cfg, offset, *, date=No
     updates = tracks.updates(frame, sites)
     samples = reference.samples(frame, sites)
     _checked(samples, updates, str(path))
-    scores = score_reference(updates, samples, cfg, offset)
+    scores = score_reference(updates, samples, cfg, offset, plots=tracks.plots(frame, sites),
+                             area=area_in_frame(list(area), frame))  # fmt: skip
     return {
         "sensor_tracks": tracks.summary(),
         "frame": spec.model_dump(mode="json"),
@@ -375,15 +477,19 @@ def run_reference(args) -> int:
         raise ConfigError("give --tracks or --sensor-tracks, not both")
     date = getattr(args, "date", None)
     try:
+        from skyfuse.services.evaluation.reference_area import area_summary, read_score_area
+
+        area = read_score_area(opts.score_area)
         sites = load_site_map(getattr(args, "sites", None))
         ref = open_reference(opts, date)
         offset = opts.reference_time_offset
         if opts.tracks is not None:
-            summary = evaluate_track_recording(opts.tracks, ref, sites, cfg, offset)
+            summary = evaluate_track_recording(opts.tracks, ref, sites, cfg, offset, area)
             title = f"{opts.tracks.name} against {ref.path.name}"
         else:
             summary = evaluate_sensor_tracks(opts.sensor_tracks, ref, sites, cfg, offset,
-                                             date=date)  # fmt: skip
+                                             date=date, area=area)  # fmt: skip
+            summary["reference"]["score_area"] = area_summary(area, cfg)
             title = f"{opts.sensor_tracks.name} (sensor tracks) against {ref.path.name}"
     except InputError as e:
         if e.usage:

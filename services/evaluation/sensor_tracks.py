@@ -47,7 +47,9 @@ NEW_TRACK_GAP_S = 30.0
 
 @dataclass
 class SensorTracks:
-    """The kept reports of a CAT010 file as track updates, positions as read."""
+    """The kept reports of a CAT010 file as track updates, positions as read, and the
+    measured reports of tracks not (yet) confirmed (``confirmed`` False: not updates,
+    but the sensor's input, for the input bound; :meth:`plots`)."""
 
     path: Path
     time_ns: np.ndarray
@@ -59,23 +61,36 @@ class SensorTracks:
     positions: ReportPositions
     sensors: list[str] = field(default_factory=list)
     counts: Counter = field(default_factory=Counter)
+    confirmed: np.ndarray | None = None
 
     def updates(self, frame, sites: dict) -> TrackUpdates:
         """The updates placed in ``frame``; rows whose sensor has no site in ``sites``
         are left out (``no_site``)."""
         x, y, ok = self.positions.in_frame(frame, sites)
         self.counts["no_site"] = int((~ok).sum())
+        if self.confirmed is not None:
+            ok &= self.confirmed
         return TrackUpdates(
             self.time_ns[ok], self.track_id[ok], x[ok], y[ok], self.mode_s[ok],
             self.callsign[ok], self.mode_3a[ok], self.ground[ok].astype(np.int8),
         )  # fmt: skip
 
+    def plots(self, frame, sites: dict):
+        """Every measured report, confirmed or not, as the input plots of the input bound
+        (:class:`~skyfuse.fusion.metrics.reference_coverage.InputPlots`, with the
+        Mode-S address the report shows)."""
+        from skyfuse.fusion.metrics.reference_coverage import InputPlots
+
+        x, y, ok = self.positions.in_frame(frame, sites)
+        return InputPlots(self.time_ns[ok], x[ok], y[ok], mode_s=self.mode_s[ok])
+
     def summary(self) -> dict:
+        conf = np.ones(len(self.time_ns), bool) if self.confirmed is None else self.confirmed
         return {
             "file": str(self.path),
             "sensors": self.sensors,
-            "reports": len(self.time_ns),
-            "tracks": len(np.unique(self.track_id)),
+            "reports": int(conf.sum()),
+            "tracks": len(np.unique(self.track_id[conf])),
             "counts": dict(self.counts),
         }
 
@@ -123,7 +138,8 @@ def read_sensor_tracks(
     )
     pos = cat010_positions(reps)
     keep = _kept(reps, pos, counts)
-    rows = np.flatnonzero(keep)
+    measured = keep | _unconfirmed_measured(reps, pos)
+    rows = np.flatnonzero(measured)
     kept = [reps[i] for i in rows]
     return SensorTracks(
         path=path,
@@ -134,9 +150,17 @@ def read_sensor_tracks(
         mode_3a=np.array([-1 if r.mode_3a is None else r.mode_3a for r in kept], np.int64),
         ground=ground_flags(kept),
         positions=pos.take(rows),
-        sensors=sorted({radar_id_for(r.sac, r.sic) for r in kept}),
+        sensors=sorted({radar_id_for(r.sac, r.sic) for r, k in zip(kept, keep[rows]) if k}),
         counts=counts,
+        confirmed=keep[rows],
     )
+
+
+def _unconfirmed_measured(reps: list, pos: ReportPositions) -> np.ndarray:
+    """Reports of tracks not confirmed, measured (not coasted), with a position, neither
+    field monitors nor simulated: the sensor's input, not its updates."""
+    ok = [r.confirmed is False and not (r.coasted or r.rab or r.sim) for r in reps]
+    return pos.placeable & np.array(ok, bool)
 
 
 def _kept(reps: list, pos: ReportPositions, counts: Counter) -> np.ndarray:

@@ -217,7 +217,16 @@ def test_eval_scores_the_tracker_against_the_truth_as_adsb(simulated_recording, 
     code = main(["eval", "--tracks", str(tracks), "--reference", str(ref),
                  "--reference-date", date, "--json", str(out2)])  # fmt: skip
     assert code == 0
-    assert json.loads(out2.read_text())["reference"] == r
+    # the input bound needs the plots the tracker was given: the live run only
+    live = _without_input(r)
+    assert r["surface"]["input_windows"] >= r["surface"]["windows_updated"] * 0.5
+    assert _without_input(json.loads(out2.read_text())["reference"]) == live
+
+
+def _without_input(d):
+    if isinstance(d, dict):
+        return {k: _without_input(v) for k, v in d.items() if "input" not in k}
+    return [_without_input(v) for v in d] if isinstance(d, list) else d
 
 
 def test_eval_reference_command_line_errors(tmp_path, capsys):
