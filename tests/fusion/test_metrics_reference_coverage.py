@@ -138,11 +138,13 @@ def scene(seed: int):
             ms = 0x100 + int(rng.integers(0, n_ac + 1)) if rng.random() < 0.3 else -1
             plots.append((ti, *(p0 + v * ti + off), ti + rng.uniform(0, 1.2), ms))
     ref = np.array(ref, dtype=float)
-    r = ReferenceSamples(T0 + (ref[:, 0] * S).astype(np.int64), ref[:, 1].astype(np.int64),
+    # times rounded to the ns (truncating 46.999999999999 s would leave a segment 1 ns short
+    # of a whole window, where the scorer's and this file's float tolerances differ)
+    r = ReferenceSamples(T0 + np.round(ref[:, 0] * S).astype(np.int64), ref[:, 1].astype(np.int64),
                          ref[:, 2], ref[:, 3], ref[:, 4].astype(bool))  # fmt: skip
     p = np.array(plots, dtype=float).reshape(-1, 5)
-    ip = InputPlots(T0 + (p[:, 0] * S).astype(np.int64), p[:, 1], p[:, 2],
-                    T0 + (p[:, 3] * S).astype(np.int64), p[:, 4].astype(np.int64))  # fmt: skip
+    t_plot, t_window = (T0 + np.round(p[:, c] * S).astype(np.int64) for c in (0, 3))
+    ip = InputPlots(t_plot, p[:, 1], p[:, 2], t_window, p[:, 4].astype(np.int64))
     return r, ip
 
 
