@@ -23,13 +23,14 @@ Per batch, for the components of the tracks in coverage over their dt:
    manoeuvre mode takes the CV mode's prediction (converted to its layout, eq. 22):
    a lost aircraft is assumed to fly straight, as the output model and the
    re-identification assume; a ``stationary`` mode (the stopped mode of
-   :mod:`.surface_motion`) keeps its own prediction. In one step the discrete models' noise lets a single
-   piecewise-constant acceleration act for the whole gap (σ_pos = √q dt²/2, ≈ 10 km
-   for q = 4 m²/s⁴ over 100 s), and the turn mode's turn-rate noise (σ_ω ≈ 0.3 rad/s
-   after 100 s) linearised over it gave σ_pos ≈ 150 km on the Barcelona recording;
-   such a gate holds other aircraft's plots, which then count as detections at full
-   P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
-   track seen every scan) are predicted as before, in one step.
+   :mod:`.surface_motion`) keeps its own prediction. In one step the discrete
+   models' noise lets a single piecewise-constant acceleration act for the whole gap
+   (σ_pos = √q dt²/2, ≈ 10 km for q = 4 m²/s⁴ over 100 s), and the turn mode's
+   turn-rate noise (σ_ω ≈ 0.3 rad/s after 100 s) linearised over it gave σ_pos ≈
+   150 km on the Barcelona recording; such a gate holds other aircraft's plots, which
+   then count as detections at full P_D, erode the track and let it take another
+   aircraft on emergence. Shorter dt (a track seen every scan) are predicted as before,
+   in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
    per-model gating of [MZD]; ``gating = "mixed"``: if the gate of the component's
    mode-mixed prediction holds it); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G
