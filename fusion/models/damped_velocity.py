@@ -27,7 +27,6 @@ layout conversions treat it as CV; the prediction is one compiled loop
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
@@ -42,9 +41,6 @@ class DampedVelocity(ConstantVelocity):
     q_vertical as :class:`ConstantVelocity` (the vertical velocity decays at β too)."""
 
     damping: float = 1.0
-    stationary: ClassVar[bool] = True
-    """A stopped target stays stopped: on a long coast an IMM keeps this mode's own
-    prediction (:mod:`fusion.tracker.density.imm_mixture`, step 2)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

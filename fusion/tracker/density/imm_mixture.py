@@ -22,15 +22,13 @@ Per batch, for the components of the tracks in coverage over their dt:
    scans) is predicted in ⌈dt / coast_step⌉ equal steps, and afterwards every
    manoeuvre mode takes the CV mode's prediction (converted to its layout, eq. 22):
    a lost aircraft is assumed to fly straight, as the output model and the
-   re-identification assume; a ``stationary`` mode (the stopped mode of
-   :mod:`.surface_motion`) keeps its own prediction. In one step the discrete
-   models' noise lets a single piecewise-constant acceleration act for the whole gap
-   (σ_pos = √q dt²/2, ≈ 10 km for q = 4 m²/s⁴ over 100 s), and the turn mode's
-   turn-rate noise (σ_ω ≈ 0.3 rad/s after 100 s) linearised over it gave σ_pos ≈
-   150 km on the Barcelona recording; such a gate holds other aircraft's plots, which
-   then count as detections at full P_D, erode the track and let it take another
-   aircraft on emergence. Shorter dt (a track seen every scan) are predicted as before,
-   in one step.
+   re-identification assume. In one step the discrete models' noise lets a single
+   piecewise-constant acceleration act for the whole gap (σ_pos = √q dt²/2, ≈ 10 km
+   for q = 4 m²/s⁴ over 100 s), and the turn mode's turn-rate noise (σ_ω ≈ 0.3 rad/s
+   after 100 s) linearised over it gave σ_pos ≈ 150 km on the Barcelona recording;
+   such a gate holds other aircraft's plots, which then count as detections at full
+   P_D, erode the track and let it take another aircraft on emergence. Shorter dt (a
+   track seen every scan) are predicted as before, in one step.
 3. **Likelihoods**: a plot is gated by a component if any mode's gate holds it (the
    per-model gating of [MZD]; ``gating = "mixed"``: if the gate of the component's
    mode-mixed prediction holds it); p^c_i = Σ_j c_j N(z_i; H x̂_j, H P_j Hᵀ + R_i) / P_G
@@ -372,8 +370,7 @@ class IMMMixtureDensity:
             return
         xc, Pc = self._common(0, xs[0][long], Ps[0][long])
         for j in range(1, self.r):
-            if not getattr(self.models[j], "stationary", False):  # a stopped mode stays
-                xs[j][long], Ps[j][long] = self._native(j, xc, Pc)
+            xs[j][long], Ps[j][long] = self._native(j, xc, Pc)
 
     def _predict_mode(
         self, model, x: np.ndarray, P: np.ndarray, dt: np.ndarray

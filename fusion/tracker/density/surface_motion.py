@@ -27,9 +27,9 @@ lasts minutes (p_ss close to 1), a taxi leg tens of seconds, a turn a few second
 stopped target starts again in CV. New tracks start with ``surface_mu0``. Mixing is in
 the common layout of [Dikić] eq. 22 (the turn mode's (ψ, ω, v) against the velocities of
 the two CV-layout modes). Every other setting (memory, pruning, coasting, reachability,
-gating) is the IMM density's; on a long coast (``imm_coast_after``) the turn mode takes
-the CV mode's prediction and the stopped mode keeps its own: a target lost while parked
-is still parked.
+gating) is the IMM density's; on a long coast (``imm_coast_after``) the stopped and turn
+modes take the CV mode's prediction, as the manoeuvre modes of ``imm-cv-ct`` do (keeping
+the stopped mode's own prediction instead measured the same on the LEBL recordings).
 """
 
 from __future__ import annotations
