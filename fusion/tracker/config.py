@@ -302,10 +302,10 @@ class TrackerConfig(BaseModel):
         1.0, ge=0.0, description="imm-surface: turn-mode tangential acceleration σ, m/s²"
     )
     surface_ct_sigma_omega: float = Field(
-        0.1, gt=0.0, description="imm-surface: turn-mode turn-rate acceleration σ, rad/s²"
+        0.2, gt=0.0, description="imm-surface: turn-mode turn-rate acceleration σ, rad/s²"
     )
     surface_tpm: list[float] = Field(
-        [0.90, 0.03, 0.07, 0.03, 0.97, 0.0, 0.25, 0.02, 0.73],
+        [0.85, 0.05, 0.10, 0.10, 0.90, 0.0, 0.30, 0.05, 0.65],
         description="imm-surface: 3x3 mode transition matrix per imm_tpm_period, row-major, "
         "modes (CV, stopped, turn)",
     )

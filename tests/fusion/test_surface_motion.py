@@ -142,7 +142,7 @@ def test_mode_probabilities_follow_a_stop_and_the_estimate_of_a_parked_target_is
     stop = np.flatnonzero(phase == "stopped")
     moving = np.flatnonzero(phase != "stopped")
     settled = stop[stop >= stop[0] + 10]  # 10 s after the stop
-    assert np.mean(mu_stop[settled]) > 0.9
+    assert np.mean(mu_stop[settled]) > 0.85  # the ceiling of surface_tpm: ≈ 0.92
     after = moving[moving > stop[-1] + 8]  # 8 s after it starts again (≈ 32 m moved)
     assert np.mean(mu_stop[after]) < 0.1
     taxi = moving[(moving > 10) & (moving < stop[0] - 8)]
