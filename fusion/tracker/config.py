@@ -305,7 +305,7 @@ class TrackerConfig(BaseModel):
         0.2, gt=0.0, description="imm-surface: turn-mode turn-rate acceleration σ, rad/s²"
     )
     surface_tpm: list[float] = Field(
-        [0.85, 0.05, 0.10, 0.10, 0.90, 0.0, 0.30, 0.05, 0.65],
+        [0.90, 0.05, 0.05, 0.10, 0.90, 0.0, 0.30, 0.05, 0.65],
         description="imm-surface: 3x3 mode transition matrix per imm_tpm_period, row-major, "
         "modes (CV, stopped, turn)",
     )
