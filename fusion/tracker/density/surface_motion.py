@@ -64,5 +64,7 @@ def imm_surface_density(cfg) -> IMMMixtureDensity:
 def warm_up() -> None:
     """Load the stopped mode's compiled prediction (the other modes' kernels are the IMM
     density's warm-up)."""
-    DampedVelocity(q=0.01, damping=1.0).predict(np.zeros((1, 4)), np.eye(4)[None], 1.0)
+    stopped = DampedVelocity(q=0.01, damping=1.0)
+    stopped.predict(np.zeros((1, 4)), np.eye(4)[None], 1.0)
+    stopped.F(1.0)  # its terms alone (the retrodiction's F and Q)
     IMMMixtureDensity.warm_up()
