@@ -286,9 +286,9 @@ class TrackerConfig(BaseModel):
         "the gate of the mode-mixed prediction does (mixed)",
     )
     # surface-movement IMM (motion = imm-surface; fusion/tracker/density/surface_motion.py)
-    # [IMPL] defaults chosen on the LEBL recordings (docs/real-data.md): modes CV (taxi and
-    # flight), stopped (damped velocity) and tight turn (coordinated turn); tpm per
-    # imm_tpm_period.
+    # [IMPL] defaults chosen on the LEBL recordings (docs/how-to/airport-surface.md, "Surface
+    # motion"): modes CV (taxi and flight), stopped (damped velocity) and tight turn
+    # (coordinated turn); surface_tpm per imm_tpm_period.
     surface_q_cv: float = Field(
         4.0, ge=0.0, description="imm-surface: CV-mode acceleration variance, m²/s⁴"
     )

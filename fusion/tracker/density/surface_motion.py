@@ -1,8 +1,9 @@
 """Surface-movement motion (``imm-surface``): an IMM for aircraft and vehicles on an airport
 surface, which also carries airborne traffic, as an IMM density
-(:class:`~fusion.tracker.density.imm_mixture.IMMMixtureDensity`; the IMM of Blom and
-Bar-Shalom 1988, Bar-Shalom, Li and Kirubarajan 2001 §11.6) with three modes, x east,
-y north (z up in 3-D), m, m/s, s:
+(:class:`~fusion.tracker.density.imm_mixture.IMMMixtureDensity`; the IMM of H. A. P. Blom
+and Y. Bar-Shalom, IEEE Trans. AC 33(8), 1988, and Bar-Shalom, Li and Kirubarajan,
+*Estimation with Applications to Tracking and Navigation*, 2001, ch. 11) with three
+modes, x east, y north (z up in 3-D), m, m/s, s:
 
 1. **CV** — nearly constant velocity (Bar-Shalom et al. 2001 §6.3.2; :mod:`fusion.models.cv`):
    F_T = [[1, T], [0, 1]], Q_T = q_cv [[T⁴/4, T³/2], [T³/2, T²]] per axis, q_cv =
@@ -18,15 +19,18 @@ y north (z up in 3-D), m, m/s, s:
    :mod:`fusion.models.coordinated_turn` (ẋ = v cos ψ, ẏ = v sin ψ, ψ̇ = ω; white
    tangential acceleration σ_a = ``surface_ct_sigma_a`` m/s² and turn-rate acceleration
    σ_ω = ``surface_ct_sigma_omega`` rad/s²): taxiway junctions of radius 30–60 m at
-   5–15 m/s (ω up to 0.3–0.4 rad/s, reached within a few seconds, so σ_ω is about three
-   times the airborne turn mode's) and, with the larger ω it allows, airborne turns.
+   5–15 m/s (ω up to 0.3–0.4 rad/s, reached within a few seconds: σ_ω = 0.2 rad/s² by
+   default, against the 0.03 of ``imm-cv-ct``'s airliner turns) and airborne turns.
 
 Π_T = ``surface_tpm`` (3 × 3, row-major, per ``imm_tpm_period`` s, fractional powers for
 other intervals: :class:`~.imm_mixture.ModeTransition`) encodes the dwell times: a stop
-lasts minutes (p_ss close to 1), a taxi leg tens of seconds, a turn a few seconds; a
-stopped target starts again in CV. New tracks start with ``surface_mu0``. Mixing is in
-the common layout of [Dikić] eq. 22 (the turn mode's (ψ, ω, v) against the velocities of
-the two CV-layout modes). Every other setting (memory, pruning, coasting, reachability,
+lasts minutes, a taxi leg tens of seconds, a turn a few seconds; a stopped target starts
+again in CV. The defaults (``TrackerConfig``) were chosen by measurement on the LEBL
+recordings (docs/how-to/airport-surface.md, "Surface motion"): a stop is left with 0.10
+per 4 s (a stickier 0.03 gave 2.10 track ids per aircraft against 1.85 on LEBL 2016
+fused). New tracks start with ``surface_mu0``. Mixing is in the common layout of
+[Dikić] eq. 22 (the turn mode's (ψ, ω, v) against the velocities of the two CV-layout
+modes). Every other setting (memory, pruning, coasting, reachability,
 gating) is the IMM density's; on a long coast (``imm_coast_after``) the stopped and turn
 modes take the CV mode's prediction, as the manoeuvre modes of ``imm-cv-ct`` do (keeping
 the stopped mode's own prediction instead measured the same on the LEBL recordings).
