@@ -138,7 +138,7 @@ def test_mode_probabilities_follow_a_stop_and_the_estimate_of_a_parked_target_is
     times, truth, plots, phase = _taxi(rng)
     est, mu_stop = _run("imm-surface", times, plots)
     ref, _ = _run("imm-cv-ct", times, plots)
-    truth, phase, k = truth[2:], phase[2:], np.arange(len(times) - 2)
+    truth, phase = truth[2:], phase[2:]
     stop = np.flatnonzero(phase == "stopped")
     moving = np.flatnonzero(phase != "stopped")
     settled = stop[stop >= stop[0] + 10]  # 10 s after the stop
@@ -147,13 +147,13 @@ def test_mode_probabilities_follow_a_stop_and_the_estimate_of_a_parked_target_is
     assert np.mean(mu_stop[after]) < 0.1
     taxi = moving[(moving > 10) & (moving < stop[0] - 8)]
     assert np.mean(mu_stop[taxi]) < 0.1
-    assert k[-1] > after[-1] - 1
     err = np.linalg.norm(est - truth, axis=1)
     err_ref = np.linalg.norm(ref - truth, axis=1)
     rms = lambda e, idx: math.sqrt(np.mean(e[idx] ** 2))  # noqa: E731
     still, still_ref = rms(err, settled), rms(err_ref, settled)
     assert still < 0.7 * still_ref, (still, still_ref)
     turn = np.flatnonzero(phase == "turn")
+    assert len(settled) > 100 and len(after) > 60 and len(taxi) > 20 and len(turn) > 5
     assert rms(err, turn) < 1.2 * rms(err_ref, turn), (rms(err, turn), rms(err_ref, turn))
 
 
