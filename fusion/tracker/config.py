@@ -285,6 +285,34 @@ class TrackerConfig(BaseModel):
         description="IMM: a plot is gated if any mode's gate holds it (per-mode, [MZD] §5) or if "
         "the gate of the mode-mixed prediction does (mixed)",
     )
+    # surface-movement IMM (motion = imm-surface; fusion/tracker/density/surface_motion.py)
+    # [IMPL] defaults chosen on the LEBL recordings (docs/how-to/airport-surface.md, "Surface
+    # motion"): modes CV (taxi and flight), stopped (damped velocity) and tight turn
+    # (coordinated turn); surface_tpm per imm_tpm_period.
+    surface_q_cv: float = Field(
+        4.0, ge=0.0, description="imm-surface: CV-mode acceleration variance, m²/s⁴"
+    )
+    surface_stop_q: float = Field(
+        0.01, ge=0.0, description="imm-surface: stopped-mode acceleration variance, m²/s⁴"
+    )
+    surface_stop_damping: float = Field(
+        1.0, gt=0.0, description="imm-surface: stopped-mode velocity damping β, 1/s"
+    )
+    surface_ct_sigma_a: float = Field(
+        1.0, ge=0.0, description="imm-surface: turn-mode tangential acceleration σ, m/s²"
+    )
+    surface_ct_sigma_omega: float = Field(
+        0.2, gt=0.0, description="imm-surface: turn-mode turn-rate acceleration σ, rad/s²"
+    )
+    surface_tpm: list[float] = Field(
+        [0.90, 0.05, 0.05, 0.10, 0.90, 0.0, 0.30, 0.05, 0.65],
+        description="imm-surface: 3x3 mode transition matrix per imm_tpm_period, row-major, "
+        "modes (CV, stopped, turn)",
+    )
+    surface_mu0: list[float] = Field(
+        [0.5, 0.3, 0.2],
+        description="imm-surface: mode probabilities of a new track (CV, stopped, turn)",
+    )
     reach_gate: bool = Field(
         True,
         description="IMM: a plot farther from the track's last fix than v_max × the time "
@@ -340,6 +368,13 @@ class TrackerConfig(BaseModel):
             raise ValueError(
                 f"imm_tpm has {len(self.imm_tpm)} entries and imm_mu0 = {self.imm_mu0}: need "
                 f"{r}x{r} = {r * r} transition probabilities and non-negative mode weights"
+            )
+        mu = self.surface_mu0
+        if len(self.surface_tpm) != 9 or len(mu) != 3 or min(mu) < 0 or sum(mu) <= 0:
+            raise ValueError(
+                f"surface_tpm has {len(self.surface_tpm)} entries and surface_mu0 = "
+                f"{self.surface_mu0}: need 3x3 = 9 transition probabilities and 3 "
+                "non-negative mode weights"
             )
         m_of_n = self.confirm_m_of_n
         if len(m_of_n) != 2 or not 1 <= m_of_n[0] <= m_of_n[1]:

@@ -15,7 +15,8 @@ skyfuse ships; anywhere before the ``TrackerConfig`` is made for others, e.g. a 
   GaussianMixtureDensity`), ``imm-cv-ct`` and ``imm-cv-singer``
   (:class:`.density.imm_mixture.IMMMixtureDensity`, an IMM inside every component); the
   filters of [MZD] and [Dikić]: ``singer``, ``imm-pcwpa``, ``imm-cv-singer-ct``
-  (:mod:`.density.source_motions`).
+  (:mod:`.density.source_motions`); for airport surfaces ``imm-surface`` (CV, stopped
+  and tight-turn modes, :mod:`.density.surface_motion`).
 
 A density factory is ``factory(config) -> TrackDensity`` (:mod:`.density.base`: it
 declares its own track-store columns, takes part in snapshots and says how it treats late
@@ -33,6 +34,8 @@ from .density.gaussian_mixture import GaussianMixtureDensity
 from .density.imm_mixture import IMMMixtureDensity, imm_density
 from .density.particles import ParticleDensity
 from .density.source_motions import imm_cv_singer_ct_density, imm_pcwpa_density, singer_density
+from .density.surface_motion import imm_surface_density
+from .density.surface_motion import warm_up as surface_warm_up
 
 ASSOCIATIONS: dict[str, Callable] = {}
 
@@ -156,4 +159,10 @@ register_motion(
     imm_cv_singer_ct_density,
     "IMM of CV, Singer and coordinated turn ([Dikić]; 3x3 imm_tpm)",
     _imm_warm,
+)
+register_motion(
+    "imm-surface",
+    imm_surface_density,
+    "IMM of CV, stopped (damped velocity) and tight turn, for airport surfaces",
+    surface_warm_up,
 )

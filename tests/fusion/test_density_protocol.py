@@ -228,6 +228,7 @@ CONFIGS = [
     ("lmits", "cv", {"depth": 2}),
     ("jits", "imm-cv-ct", {"depth": 1}),
     ("gnn", "imm-cv-singer", {}),
+    ("lmits", "imm-surface", {"depth": 1}),
     ("lmipf", "cv", {"particles": 64}),
     ("ipda", "test-kalman", {}),
 ]
