@@ -215,6 +215,20 @@ class TrackerConfig(BaseModel):
         "the highest taxi speed, 30 kt: parked and taxiing aircraft are not told apart by "
         "kinematics)",
     )
+    reid_live_gap: float | None = Field(
+        None,
+        gt=0.0,
+        description="Re-identification of a live track: a newly confirmed track that started "
+        "after the last plot of a confirmed track, at most this long before, s, and agrees "
+        "with it by the re-identification test takes its id and ends it "
+        "(fusion/tracker/reidentification.py, L1-L2); None: terminated tracks only",
+    )
+    reid_live_q: float = Field(
+        4.0,
+        ge=0.0,
+        description="Re-identification of a live track: reid_q for the prediction of its last "
+        "fix, m²/s³",
+    )
     reid_p: float = Field(
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )

@@ -51,6 +51,8 @@ Fresh ids still come from the tracker's counter and are never given twice.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 from skyfuse.fusion.association.gating import gate_threshold
@@ -153,6 +155,44 @@ def update_fix_columns(hit, t, x, P, fix_x, fix_P, fix_t, horizon, q):
             fix_t[h] = t[i]
 
 
+def fix_distances(test, x, P, t, xo, Po, to, eligible, q: float | None = None) -> np.ndarray:
+    """d² (m, n) of (R2) between new estimates x (m, d), P (m, d, d) at t (m,) ns and the
+    fixes xo (n, d), Po (n, d, d) at to (n,) ns predicted by (R1), for the ``eligible``
+    (m, n) pairs whose speeds pass (R1'') and whose prediction is informative (R1');
+    +inf elsewhere. ``test``: the parameters (``model``, ``q``, ``max_sigma``,
+    ``min_speed``), a :class:`TerminatedTracks`; ``q``: another q̃ for (R1)."""
+    m, n = len(x), len(xo)
+    d2 = np.full((m, n), np.inf)
+    if m == 0 or n == 0:
+        return d2
+    model = test.model
+    vel = [i + 1 for i in model.position_index[:2]]
+    fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= test.min_speed
+    fast_old = np.hypot(xo[:, vel[0]], xo[:, vel[1]]) >= test.min_speed
+    ii, jj = np.nonzero(eligible & fast_new[:, None] & fast_old[None, :])
+    if len(ii) == 0:
+        return d2
+    dt = (t[ii] - to[jj]) * NS
+    xp, Pp = _predict_fix(xo[jj], Po[jj], dt, test.q if q is None else q, model)
+    pos = list(model.position_index)
+    sharp = Pp[:, pos, pos].max(axis=1) <= test.max_sigma**2
+    ii, jj, xp, Pp = ii[sharp], jj[sharp], xp[sharp], Pp[sharp]
+    dx = x[ii] - xp
+    S = P[ii] + Pp
+    d2[ii, jj] = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
+    return d2
+
+
+def unique_pairs(ok: np.ndarray) -> np.ndarray:
+    """(R3) over the gated pairs ``ok`` (m, n): for each row, the one column it pairs
+    with when that column pairs with no other row, −1 otherwise."""
+    out = np.full(ok.shape[0], -1, np.int64)
+    unique = (ok.sum(axis=1) == 1)[:, None] & (ok.sum(axis=0) == 1)[None, :] & ok
+    rows, cols = np.nonzero(unique)
+    out[rows] = cols
+    return out
+
+
 class TerminatedTracks:
     """Bounded store of recently terminated confirmed tracks: a :class:`~.store.Table` of
     their former ids (n,), last fixes x (n, d), P (n, d, d) and fix times t (n,) ns, in
@@ -207,38 +247,14 @@ class TerminatedTracks:
         """d² (m, n) of (R2) between the new tracks' estimates x (m, d), P (m, d, d) at
         times t (m,) ns, started at ``born`` (m,) ns, and the stored tracks predicted by
         (R1); +inf where a new track started before the stored track's last fix."""
-        m, n = len(x), len(self)
-        d2 = np.full((m, n), np.inf)
-        if m == 0 or n == 0:
-            return d2
         old = self.rows
-        vel = [i + 1 for i in self.model.position_index[:2]]
-        fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= self.min_speed
-        fast_old = np.hypot(old.x[:, vel[0]], old.x[:, vel[1]]) >= self.min_speed
-        ok = (born[:, None] >= old.t[None, :]) & fast_new[:, None] & fast_old[None, :]
-        ii, jj = np.nonzero(ok)
-        if len(ii) == 0:
-            return d2
-        dt = (t[ii] - old.t[jj]) * NS
-        xo, Po = _predict_fix(old.x[jj], old.P[jj], dt, self.q, self.model)
-        pos = list(self.model.position_index)
-        sharp = Po[:, pos, pos].max(axis=1) <= self.max_sigma**2
-        ii, jj, xo, Po = ii[sharp], jj[sharp], xo[sharp], Po[sharp]
-        dx = x[ii] - xo
-        S = P[ii] + Po
-        d2[ii, jj] = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
-        return d2
+        eligible = born[:, None] >= old.t[None, :]
+        return fix_distances(self, x, P, t, old.x, old.P, old.t, eligible)
 
     def match(self, x: np.ndarray, P: np.ndarray, t: np.ndarray, born: np.ndarray) -> np.ndarray:
         """For each new track (rows of x), the index of the stored track it continues by
         (R1)-(R3), −1 for none; the matched stored tracks are removed by :meth:`take`."""
-        d2 = self.distances(x, P, t, born)
-        ok = d2 < self.gate
-        out = np.full(len(x), -1, np.int64)
-        unique = (ok.sum(axis=1) == 1)[:, None] & (ok.sum(axis=0) == 1)[None, :] & ok
-        rows, cols = np.nonzero(unique)
-        out[rows] = cols
-        return out
+        return unique_pairs(self.distances(x, P, t, born) < self.gate)
 
     def take(self, idx: np.ndarray) -> np.ndarray:
         """The ids of stored tracks ``idx`` (≥ 0), removed from the store."""
@@ -248,6 +264,17 @@ class TerminatedTracks:
         keep[idx] = False
         self.rows.keep(keep)
         return ids
+
+
+@dataclass
+class Continuations:
+    """What :meth:`Reidentification.reidentify` found for the newly confirmed rows (m,):
+    ``previous``, the id each had before taking a former track's id (−1: kept its own),
+    and ``ended``, the row of the live track it continues and that ends now (−1: none,
+    or the track continued had already terminated)."""
+
+    previous: np.ndarray
+    ended: np.ndarray
 
 
 def _first_fix(new) -> dict:
@@ -261,7 +288,7 @@ class Reidentification:
     terminated tracks awaiting a continuation (:class:`TerminatedTracks`)."""
 
     def __init__(self, cfg, model: ConstantVelocity, tracks, density) -> None:
-        self.q = cfg.reid_q
+        self.q, self.live_gap, self.live_q = cfg.reid_q, cfg.reid_live_gap, cfg.reid_live_q
         self.tracks, self.density = tracks, density
         self.terminated = TerminatedTracks(
             model, cfg.reid_max_gap, cfg.reid_q, cfg.reid_p, cfg.reid_max_sigma,
@@ -294,23 +321,45 @@ class Reidentification:
             tr = self.tracks
             self.terminated.add(tr.ids[rows], tr.fix_x[rows], tr.fix_P[rows], tr.fix_t[rows])
 
-    def reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray | None:
-        """Newly confirmed ``rows`` that continue a recently terminated track take its id
-        ((R1)-(R3)); returns their former ids (−1: not re-identified), or None when no
-        terminated track was a candidate."""
+    def reidentify(self, rows: np.ndarray, t_batch: int) -> Continuations | None:
+        """Newly confirmed ``rows`` that continue a recently terminated track, or a live
+        confirmed track without a plot since the new one started (L1-L2), take its id
+        ((R1)-(R3) over both kinds of candidates at once); None when no track was a
+        candidate. The live tracks continued are to end now (:class:`Continuations`)."""
         if len(rows) == 0:
             return None
         self.terminated.expire(t_batch)
-        if len(self.terminated) == 0:
+        live = self._coasting(rows, t_batch)
+        n_term = len(self.terminated)
+        if n_term == 0 and len(live) == 0:
             return None
-        previous = np.full(len(rows), -1, np.int64)
         tr = self.tracks
         x, P = self.density.estimate(rows)
-        j = self.terminated.match(x, P, tr.t_last[rows], tr.born[rows])
-        hit = j >= 0
-        previous[hit] = tr.ids[rows[hit]]
-        tr.ids[rows[hit]] = self.terminated.take(j[hit])
-        return previous
+        t, born = tr.t_last[rows], tr.born[rows]
+        d2 = np.hstack([
+            self.terminated.distances(x, P, t, born),
+            fix_distances(self.terminated, x, P, t, tr.fix_x[live], tr.fix_P[live],
+                          tr.fix_t[live], born[:, None] >= tr.last_update[live][None, :],
+                          self.live_q),
+        ])  # fmt: skip
+        j = unique_pairs(d2 < self.terminated.gate)
+        out = Continuations(np.full(len(rows), -1, np.int64), np.full(len(rows), -1, np.int64))
+        dead, alive = (j >= 0) & (j < n_term), j >= n_term
+        out.previous[dead | alive] = tr.ids[rows[dead | alive]]
+        tr.ids[rows[dead]] = self.terminated.take(j[dead])
+        out.ended[alive] = live[j[alive] - n_term]
+        tr.ids[rows[alive]] = tr.ids[out.ended[alive]]
+        return out
+
+    def _coasting(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
+        """The live confirmed tracks, other than ``rows``, whose last plot is at most
+        ``live_gap`` s before ``t_batch`` (L1); none when ``live_gap`` is None."""
+        if self.live_gap is None:
+            return np.zeros(0, np.int64)
+        tr = self.tracks
+        recent = (t_batch - tr.last_update) * NS <= self.live_gap
+        recent[rows] = False
+        return np.flatnonzero(recent & tr.confirmed)
 
     def to_snapshot(self) -> dict:
         """The terminated tracks (the fixes are track-store columns)."""
