@@ -47,6 +47,41 @@ Consumers see the ``terminated`` event of the old id when it ends, then a ``conf
 event of the same id with the reason ``re-identified (tentative id N)``: an id comes back
 only as the continuation of its track, within ``max_gap``, and never while it is alive.
 Fresh ids still come from the tracker's counter and are never given twice.
+
+**A live track continued** (``reid_live_gap``). Most splits of a track are not a
+termination followed by a new track but a new track started while the old one still
+lives and coasts: the plots after a coverage hole, a manoeuvre or an outlier that pulled
+the estimate fall outside the old track's gate and start a track of their own, and the
+old track only ends seconds after the new one is confirmed (measured on the LEBL
+multilateration: the old track's last plot 2 s before the new track's second plot, its
+fix then 80-360 m and 6-64 m/s off the new estimate). When a track is confirmed, the
+live confirmed tracks o are candidates too, with
+
+    (L1)  no plot of o since n started: o's last plot at or before n's start, and at most
+          ``reid_live_gap`` s before the batch (a track that keeps being detected is never
+          continued by another, so two aircraft both seen, taxiing in line or side by
+          side, keep their ids whatever their kinematics);
+    (L2)  (R1)-(R3) with o's last fix, predicted with ``reid_live_q`` instead of ``q``: the
+          error of a fix that an outlier pulled or a hole left is a velocity error the
+          fix's own covariance does not show, so the quiet-flight q̃ of a terminated
+          track would reject the continuation (the nine LEBL continuations had d² of
+          13.3-71 ≥ χ²₄(0.99) = 13.28 with q̃ = 4, 1.6-17 with 400); terminated and live
+          candidates enter (R3) together.
+
+The pairs are Bar-Shalom's (1981) track-to-track test; ending the continued track when
+its successor takes its number is track management in the sense of Blackman and Popoli,
+"Design and Analysis of Modern Tracking Systems", Artech House, 1999 (one track number
+per target: of two tracks of one target, the redundant one is deleted). In the same
+batch, consumers see the ``terminated`` event of the live track (reason ``continued by
+tentative id N``), then the ``confirmed`` event of the same id on the new track
+(``re-identified (tentative id N)``): an id is alive on one row at a time, and a picture
+rebuilt from the events never holds it twice; the track feed sees the id continue (its
+row moves to the new track's state). The continuing track adds the old one's scans
+with a plot (``updates``) and radar mask to its own, so the plot count of an id never
+goes back. Limit: a track whose aircraft stops being detected just as another aircraft
+close behind it at the same velocity is first seen (within ``reid_live_gap``, both
+faster than ``min_speed``) would be continued by the other's track; the LEBL and
+Barcelona recordings have no such case (no identity conflict, no id change added).
 """
 
 from __future__ import annotations
