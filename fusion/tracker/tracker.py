@@ -203,7 +203,7 @@ class Tracker:
         self.reid = (
             None
             if cfg.reid_max_gap is None
-            else Reidentification(cfg, self.model, self.tracks, self.density)
+            else Reidentification(cfg, self.model, self.tracks, self.density, self.chain)
         )
         self.oosm = OutOfSequence(self.density, self.tracks, cfg.oosm)
         self.identity = Identity(cfg, self.tracks, self.chain) if cfg.identity else None
@@ -495,7 +495,7 @@ class Tracker:
 
     def _take_over(self, rows, ended, previous, keep, t_batch, events) -> None:
         """The live tracks ``ended`` (rows, −1: none) that the newly confirmed ``rows``
-        continue (:mod:`.reidentification`, L1-L2) end now: their ``terminated`` event
+        continue (:mod:`.reidentification`, L1-L3) end now: their ``terminated`` event
         comes before the ``confirmed`` event of the same id on the new row, which adds
         their scans with a plot and radars to its own; ``keep`` drops them."""
         tr = self.tracks

@@ -270,3 +270,30 @@ def test_two_aircraft_close_together_keep_two_ids(offset):
     assert trk.totals.get("taken_over", 0) == 0
     out = trk.step(_mlat(40.0, np.array([v * 40, v * 40 + np.array(offset)])))
     assert out.confirmed.sum() == 2
+
+
+@pytest.mark.parametrize("level", [0.1, 1.0])
+def test_a_track_that_only_missed_a_few_scans_is_not_continued_by_a_neighbour(level):
+    # two aircraft side by side, 100 m apart at 150 m/s; the second is first seen at 10 s
+    # while the first misses three scans (P_D 0.7): kinematically the second's new track
+    # continues the first (d² ≈ 1 with reid_live_q), but the first keeps ψ ≈ 0.97 (L3)
+    trk = Tracker(TrackerConfig(reid_live_existence=level))
+    v, side = np.array([150.0, 0.0]), np.array([0.0, 100.0])
+
+    def plots_at(k):
+        first = v * k
+        if k < 10:
+            return first[None]
+        return (first + side)[None] if k < 13 else np.array([first, first + side])
+
+    seen, events, clashes = _replay(trk, plots_at, 30)
+    assert clashes == []
+    first_id = events[0][2]
+    out = trk.step(_mlat(30.0, np.array([v * 30, v * 30 + side])))
+    xy = out.states[:, [0, 2]]
+    on_first = out.ids[np.argmin(np.hypot(*(xy - v * 30).T))]
+    # with (L3) the first aircraft keeps its id throughout; without it, its id goes to
+    # the second aircraft's track and it gets a new one: the join (L3) prevents
+    assert bool(on_first == first_id) == (level < 1)
+    assert trk.totals.get("taken_over", 0) == (0 if level < 1 else 1)
+    assert len(seen) == 2
