@@ -215,6 +215,30 @@ class TrackerConfig(BaseModel):
         "the highest taxi speed, 30 kt: parked and taxiing aircraft are not told apart by "
         "kinematics)",
     )
+    reid_live_gap: float | None = Field(
+        10.0,
+        gt=0.0,
+        description="Re-identification of a live track: a newly confirmed track that started "
+        "after the last plot of a confirmed track, at most this long before, s, and agrees "
+        "with it by the re-identification test (with reid_live_q) takes its id and ends it "
+        "(fusion/tracker/reidentification.py, L1-L3; 10 s chosen by measurement on the LEBL "
+        "recording, 5-20 s measure the same); None: terminated tracks only",
+    )
+    reid_live_q: float = Field(
+        600.0,
+        ge=0.0,
+        description="Re-identification of a live track: reid_q for the prediction of its last "
+        "fix, m²/s³ (600: the fix of a track that an outlier pulled or a coverage hole ended "
+        "is 100-350 m and 20-60 m/s off within seconds, measured on LEBL; 600-2000 measure "
+        "the same)",
+    )
+    reid_live_existence: float = Field(
+        0.1,
+        gt=0.0,
+        le=1.0,
+        description="Re-identification of a live track: only a track whose existence is below "
+        "this may be continued (the tracker doubts it; LEBL continuations: 0.006-0.05)",
+    )
     reid_p: float = Field(
         0.99, gt=0.0, lt=1.0, description="Re-identification: chi² probability of the gate"
     )

@@ -47,9 +47,54 @@ Consumers see the ``terminated`` event of the old id when it ends, then a ``conf
 event of the same id with the reason ``re-identified (tentative id N)``: an id comes back
 only as the continuation of its track, within ``max_gap``, and never while it is alive.
 Fresh ids still come from the tracker's counter and are never given twice.
+
+**A live track continued** (``reid_live_gap``). Most splits of a track are not a
+termination followed by a new track but a new track started while the old one still
+lives and coasts: the plots after a coverage hole, a manoeuvre or an outlier that pulled
+the estimate fall outside the old track's gate and start a track of their own, and the
+old track only ends seconds after the new one is confirmed (measured on the LEBL
+multilateration: the old track's last plot 2 s before the new track's second plot, its
+fix then 80-360 m and 6-64 m/s off the new estimate). When a track is confirmed, the
+live confirmed tracks o are candidates too, with
+
+    (L1)  no plot of o since n started: o's last plot at or before n's start, and at most
+          ``reid_live_gap`` s before the batch (a track that keeps being detected is never
+          continued by another, so two aircraft both seen, taxiing in line or side by
+          side, keep their ids whatever their kinematics);
+    (L2)  (R1)-(R3) with o's last fix, predicted with ``reid_live_q`` instead of ``q``: the
+          error of a fix that an outlier pulled or a hole left is a velocity error the
+          fix's own covariance does not show, so the quiet-flight q̃ of a terminated
+          track would reject the continuation (the nine LEBL continuations had d² of
+          13.3-71 ≥ χ²₄(0.99) = 13.28 with q̃ = 4, 1.6-17 with 400); only a new track
+          that gates no terminated track is tested against the live ones, (R3) among
+          them (the wide live gate is no evidence against a tight terminated match:
+          tested jointly, the ambiguity cost four of seven terminated re-identifications
+          on a simulated regional run with the GNN tracker);
+    (L3)  o's existence ψ below ``reid_live_existence``: the tracker itself doubts the
+          old track (the nine LEBL continuations: ψ 0.006-0.05, the track about to end;
+          a track of a target in formation that missed a scan or two keeps ψ ≈ 0.6 and
+          is not continued by a neighbour's new track: measured on the thesis
+          five-target scenario, where without (L3) one such pair was joined).
+
+The pairs are Bar-Shalom's (1981) track-to-track test; ending the continued track when
+its successor takes its number is track management in the sense of Blackman and Popoli,
+"Design and Analysis of Modern Tracking Systems", Artech House, 1999 (one track number
+per target: of two tracks of one target, the redundant one is deleted). In the same
+batch, consumers see the ``terminated`` event of the live track (reason ``continued by
+tentative id N``), then the ``confirmed`` event of the same id on the new track
+(``re-identified (tentative id N)``): an id is alive on one row at a time, and a picture
+rebuilt from the events never holds it twice; the track feed sees the id continue (its
+row moves to the new track's state). The continuing track adds the old one's scans
+with a plot (``updates``) and radar mask to its own, so the plot count of an id never
+goes back. Limit: a track whose aircraft stops being detected just as another aircraft
+close behind it at the same velocity is first seen (within ``reid_live_gap``, both
+faster than ``min_speed``) would be continued by the other's track; the LEBL and
+Barcelona recordings have no such case (no identity conflict, no id change added).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -153,6 +198,44 @@ def update_fix_columns(hit, t, x, P, fix_x, fix_P, fix_t, horizon, q):
             fix_t[h] = t[i]
 
 
+def fix_distances(test, x, P, t, xo, Po, to, eligible, q: float | None = None) -> np.ndarray:
+    """d² (m, n) of (R2) between new estimates x (m, d), P (m, d, d) at t (m,) ns and the
+    fixes xo (n, d), Po (n, d, d) at to (n,) ns predicted by (R1), for the ``eligible``
+    (m, n) pairs whose speeds pass (R1'') and whose prediction is informative (R1');
+    +inf elsewhere. ``test``: the parameters (``model``, ``q``, ``max_sigma``,
+    ``min_speed``), a :class:`TerminatedTracks`; ``q``: another q̃ for (R1)."""
+    m, n = len(x), len(xo)
+    d2 = np.full((m, n), np.inf)
+    if m == 0 or n == 0:
+        return d2
+    model = test.model
+    vel = [i + 1 for i in model.position_index[:2]]
+    fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= test.min_speed
+    fast_old = np.hypot(xo[:, vel[0]], xo[:, vel[1]]) >= test.min_speed
+    ii, jj = np.nonzero(eligible & fast_new[:, None] & fast_old[None, :])
+    if len(ii) == 0:
+        return d2
+    dt = (t[ii] - to[jj]) * NS
+    xp, Pp = _predict_fix(xo[jj], Po[jj], dt, test.q if q is None else q, model)
+    pos = list(model.position_index)
+    sharp = Pp[:, pos, pos].max(axis=1) <= test.max_sigma**2
+    ii, jj, xp, Pp = ii[sharp], jj[sharp], xp[sharp], Pp[sharp]
+    dx = x[ii] - xp
+    S = P[ii] + Pp
+    d2[ii, jj] = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
+    return d2
+
+
+def unique_pairs(ok: np.ndarray) -> np.ndarray:
+    """(R3) over the gated pairs ``ok`` (m, n): for each row, the one column it pairs
+    with when that column pairs with no other row, −1 otherwise."""
+    out = np.full(ok.shape[0], -1, np.int64)
+    unique = (ok.sum(axis=1) == 1)[:, None] & (ok.sum(axis=0) == 1)[None, :] & ok
+    rows, cols = np.nonzero(unique)
+    out[rows] = cols
+    return out
+
+
 class TerminatedTracks:
     """Bounded store of recently terminated confirmed tracks: a :class:`~.store.Table` of
     their former ids (n,), last fixes x (n, d), P (n, d, d) and fix times t (n,) ns, in
@@ -207,38 +290,14 @@ class TerminatedTracks:
         """d² (m, n) of (R2) between the new tracks' estimates x (m, d), P (m, d, d) at
         times t (m,) ns, started at ``born`` (m,) ns, and the stored tracks predicted by
         (R1); +inf where a new track started before the stored track's last fix."""
-        m, n = len(x), len(self)
-        d2 = np.full((m, n), np.inf)
-        if m == 0 or n == 0:
-            return d2
         old = self.rows
-        vel = [i + 1 for i in self.model.position_index[:2]]
-        fast_new = np.hypot(x[:, vel[0]], x[:, vel[1]]) >= self.min_speed
-        fast_old = np.hypot(old.x[:, vel[0]], old.x[:, vel[1]]) >= self.min_speed
-        ok = (born[:, None] >= old.t[None, :]) & fast_new[:, None] & fast_old[None, :]
-        ii, jj = np.nonzero(ok)
-        if len(ii) == 0:
-            return d2
-        dt = (t[ii] - old.t[jj]) * NS
-        xo, Po = _predict_fix(old.x[jj], old.P[jj], dt, self.q, self.model)
-        pos = list(self.model.position_index)
-        sharp = Po[:, pos, pos].max(axis=1) <= self.max_sigma**2
-        ii, jj, xo, Po = ii[sharp], jj[sharp], xo[sharp], Po[sharp]
-        dx = x[ii] - xo
-        S = P[ii] + Po
-        d2[ii, jj] = np.einsum("pi,pi->p", dx, np.linalg.solve(S, dx[..., None])[..., 0])
-        return d2
+        eligible = born[:, None] >= old.t[None, :]
+        return fix_distances(self, x, P, t, old.x, old.P, old.t, eligible)
 
     def match(self, x: np.ndarray, P: np.ndarray, t: np.ndarray, born: np.ndarray) -> np.ndarray:
         """For each new track (rows of x), the index of the stored track it continues by
         (R1)-(R3), −1 for none; the matched stored tracks are removed by :meth:`take`."""
-        d2 = self.distances(x, P, t, born)
-        ok = d2 < self.gate
-        out = np.full(len(x), -1, np.int64)
-        unique = (ok.sum(axis=1) == 1)[:, None] & (ok.sum(axis=0) == 1)[None, :] & ok
-        rows, cols = np.nonzero(unique)
-        out[rows] = cols
-        return out
+        return unique_pairs(self.distances(x, P, t, born) < self.gate)
 
     def take(self, idx: np.ndarray) -> np.ndarray:
         """The ids of stored tracks ``idx`` (≥ 0), removed from the store."""
@@ -250,6 +309,17 @@ class TerminatedTracks:
         return ids
 
 
+@dataclass
+class Continuations:
+    """What :meth:`Reidentification.reidentify` found for the newly confirmed rows (m,):
+    ``previous``, the id each had before taking a former track's id (−1: kept its own),
+    and ``ended``, the row of the live track it continues and that ends now (−1: none,
+    or the track continued had already terminated)."""
+
+    previous: np.ndarray
+    ended: np.ndarray
+
+
 def _first_fix(new) -> dict:
     """A new track's fix: its initial state."""
     return {"fix_x": new.x, "fix_P": new.P, "fix_t": new.t}
@@ -258,10 +328,12 @@ def _first_fix(new) -> dict:
 class Reidentification:
     """The re-identification part of a tracker: the last informative fix of every live
     track (columns ``fix_x``, ``fix_P``, ``fix_t`` of the track store, (R1')) and the
-    terminated tracks awaiting a continuation (:class:`TerminatedTracks`)."""
+    terminated tracks awaiting a continuation (:class:`TerminatedTracks`); ``chain``: the
+    existence chain, for the existence of the live candidates (L3)."""
 
-    def __init__(self, cfg, model: ConstantVelocity, tracks, density) -> None:
-        self.q = cfg.reid_q
+    def __init__(self, cfg, model: ConstantVelocity, tracks, density, chain) -> None:
+        self.q, self.live_gap, self.live_q = cfg.reid_q, cfg.reid_live_gap, cfg.reid_live_q
+        self.live_existence, self.chain = cfg.reid_live_existence, chain
         self.tracks, self.density = tracks, density
         self.terminated = TerminatedTracks(
             model, cfg.reid_max_gap, cfg.reid_q, cfg.reid_p, cfg.reid_max_sigma,
@@ -294,23 +366,56 @@ class Reidentification:
             tr = self.tracks
             self.terminated.add(tr.ids[rows], tr.fix_x[rows], tr.fix_P[rows], tr.fix_t[rows])
 
-    def reidentify(self, rows: np.ndarray, t_batch: int) -> np.ndarray | None:
-        """Newly confirmed ``rows`` that continue a recently terminated track take its id
-        ((R1)-(R3)); returns their former ids (−1: not re-identified), or None when no
-        terminated track was a candidate."""
+    def reidentify(self, rows: np.ndarray, t_batch: int) -> Continuations | None:
+        """Newly confirmed ``rows`` that continue a recently terminated track ((R1)-(R3)),
+        or else a live confirmed track (L1-L3), take its id; None when no track was a
+        candidate. The live tracks continued are to end now (:class:`Continuations`)."""
         if len(rows) == 0:
             return None
         self.terminated.expire(t_batch)
-        if len(self.terminated) == 0:
+        live = self._coasting(rows, t_batch)
+        if len(self.terminated) == 0 and len(live) == 0:
             return None
-        previous = np.full(len(rows), -1, np.int64)
         tr = self.tracks
         x, P = self.density.estimate(rows)
-        j = self.terminated.match(x, P, tr.t_last[rows], tr.born[rows])
-        hit = j >= 0
-        previous[hit] = tr.ids[rows[hit]]
-        tr.ids[rows[hit]] = self.terminated.take(j[hit])
-        return previous
+        t, born = tr.t_last[rows], tr.born[rows]
+        out = Continuations(np.full(len(rows), -1, np.int64), np.full(len(rows), -1, np.int64))
+        gated = self.terminated.distances(x, P, t, born) < self.terminated.gate
+        j = unique_pairs(gated)
+        dead = j >= 0
+        out.previous[dead] = tr.ids[rows[dead]]
+        tr.ids[rows[dead]] = self.terminated.take(j[dead])
+        free = np.flatnonzero(~gated.any(axis=1))  # (L2): no terminated candidate at all
+        if len(live) and len(free):
+            d2 = fix_distances(
+                self.terminated,
+                x[free],
+                P[free],
+                t[free],
+                tr.fix_x[live],
+                tr.fix_P[live],
+                tr.fix_t[live],
+                born[free, None] >= tr.last_update[live][None, :],
+                self.live_q,
+            )
+            k = unique_pairs(d2 < self.terminated.gate)
+            hit = free[k >= 0]
+            out.ended[hit] = live[k[k >= 0]]
+            out.previous[hit] = tr.ids[rows[hit]]
+            tr.ids[rows[hit]] = tr.ids[out.ended[hit]]
+        return out
+
+    def _coasting(self, rows: np.ndarray, t_batch: int) -> np.ndarray:
+        """The live confirmed tracks, other than ``rows``, whose last plot is at most
+        ``live_gap`` s before ``t_batch`` (L1) and whose existence is below
+        ``live_existence`` (L3); none when ``live_gap`` is None."""
+        if self.live_gap is None:
+            return np.zeros(0, np.int64)
+        tr = self.tracks
+        recent = (t_batch - tr.last_update) * NS <= self.live_gap
+        recent[rows] = False
+        cand = np.flatnonzero(recent & tr.confirmed)
+        return cand[self.chain.existence(tr.exist[cand]) < self.live_existence]
 
     def to_snapshot(self) -> dict:
         """The terminated tracks (the fixes are track-store columns)."""

@@ -203,7 +203,7 @@ class Tracker:
         self.reid = (
             None
             if cfg.reid_max_gap is None
-            else Reidentification(cfg, self.model, self.tracks, self.density)
+            else Reidentification(cfg, self.model, self.tracks, self.density, self.chain)
         )
         self.oosm = OutOfSequence(self.density, self.tracks, cfg.oosm)
         self.identity = Identity(cfg, self.tracks, self.chain) if cfg.identity else None
@@ -479,11 +479,11 @@ class Tracker:
         rows = sel[conf & keep[sel]]
         tr.confirmed[rows] = True
         psi_rows = self.chain.existence(tr.exist[rows]) if len(rows) else np.zeros(0)
-        previous = None if self.reid is None else self.reid.reidentify(rows, t_batch)
-        if previous is None:
-            previous = np.full(len(rows), -1, np.int64)
-        else:
+        found = None if self.reid is None else self.reid.reidentify(rows, t_batch)
+        previous = np.full(len(rows), -1, np.int64) if found is None else found.previous
+        if found is not None:
             self._count("reidentified", int((previous >= 0).sum()))
+            self._take_over(rows, found.ended, previous, keep, t_batch, events)
         for r, old, psi_r in zip(rows, previous, psi_rows):
             why = "" if old < 0 else f"re-identified (tentative id {old})"
             events.append(
@@ -492,6 +492,26 @@ class Tracker:
         if self.identity is not None and len(rows):
             self.identity.confirmed(rows, t_batch)
             self.identity.flush(events, {})
+
+    def _take_over(self, rows, ended, previous, keep, t_batch, events) -> None:
+        """The live tracks ``ended`` (rows, −1: none) that the newly confirmed ``rows``
+        continue (:mod:`.reidentification`, L1-L3) end now: their ``terminated`` event
+        comes before the ``confirmed`` event of the same id on the new row, which adds
+        their scans with a plot and radars to its own; ``keep`` drops them."""
+        tr = self.tracks
+        hit = np.flatnonzero(ended >= 0)
+        if not len(hit):
+            return
+        old, new = ended[hit], rows[hit]
+        psi = self.chain.existence(tr.exist[old])
+        for o, tentative, p in zip(old, previous[hit], psi):
+            why = f"continued by tentative id {tentative}"
+            events.append(TrackEventRecord(t_batch, "terminated", int(tr.ids[o]), float(p),
+                                           reason=why))  # fmt: skip
+        tr.updates[new] += tr.updates[old]
+        tr.radar_mask[new] |= tr.radar_mask[old]
+        keep[old] = False
+        self._count("taken_over", len(hit))
 
     def _terminate(
         self,

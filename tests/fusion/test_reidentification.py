@@ -167,3 +167,133 @@ def test_still_aircraft_are_not_reidentified():
     fast = TerminatedTracks(ConstantVelocity(q=25.0), 180.0, q=4.0, min_speed=0.0)
     fast.add(np.array([5]), np.array([[0.0, 10.0, 0.0, 0.0]]), P, np.array([0]))
     assert np.isfinite(fast.distances(new, P, np.array([20 * S]), np.array([10 * S]))).all()
+
+
+def test_a_live_fix_is_predicted_with_its_own_q():
+    from skyfuse.fusion.tracker.reidentification import fix_distances
+
+    st = _store()
+    x0 = np.array([0.0, 100.0, 0.0, 0.0])
+    P0 = np.diag([10.0**2, 4.0**2, 10.0**2, 4.0**2])
+    dt, q_live = 5.0, 600.0
+    xn = np.array([100.0 * dt + 120.0, 110.0, -90.0, -25.0])
+    Pn = np.diag([15.0**2, 8.0**2, 15.0**2, 8.0**2])
+    ok = np.ones((1, 1), bool)
+    args = (xn[None], Pn[None], np.array([int(dt * S)]), x0[None], P0[None], np.array([0]), ok)
+    ref = {}
+    for q in (4.0, q_live):  # by hand, axis by axis as in the test above
+        d2 = 0.0
+        for a in range(2):
+            p, v = np.sqrt(P0[2 * a, 2 * a]), np.sqrt(P0[2 * a + 1, 2 * a + 1])
+            pp = p**2 + dt**2 * v**2 + q * dt**3 / 3 + Pn[2 * a, 2 * a]
+            pv = dt * v**2 + q * dt**2 / 2
+            vv = v**2 + q * dt + Pn[2 * a + 1, 2 * a + 1]
+            e = xn[2 * a : 2 * a + 2] - np.array([x0[2 * a] + dt * x0[2 * a + 1], x0[2 * a + 1]])
+            d2 += e @ np.linalg.solve(np.array([[pp, pv], [pv, vv]]), e)
+        ref[q] = d2
+    assert fix_distances(st, *args)[0, 0] == pytest.approx(ref[4.0], rel=1e-10)
+    assert fix_distances(st, *args, q=q_live)[0, 0] == pytest.approx(ref[q_live], rel=1e-10)
+    # 120 m and 25 m/s off after 5 s: outside the terminated-track gate, inside the live one
+    assert ref[4.0] > st.gate > ref[q_live]
+
+
+def _mlat(t_s, z, pd=0.7, sigma=10.0):
+    z = np.asarray(z, float).reshape(-1, 2)
+    R = np.repeat((sigma**2 * np.eye(2))[None], len(z), 0)
+    return MeasurementBatch(
+        time_ns=int(t_s * S), radar_id="M", z=z, R=R, p_detection=pd, clutter_density=1e-10
+    )
+
+
+def _replay(trk, plots_at, steps):
+    """Run ``trk`` over ``steps`` 1-s batches of ``plots_at(k)``; the confirmed ids seen,
+    the events, and a consumer's picture rebuilt from the events alone (an id confirmed
+    while the picture holds it is recorded as a clash)."""
+    seen, events, alive, clashes = set(), [], set(), []
+    for k in range(steps):
+        out = trk.step(_mlat(float(k), plots_at(k)))
+        assert len(np.unique(out.ids)) == len(out.ids)  # one row per id in every output
+        seen |= set(out.ids[out.confirmed].tolist())
+        for e in out.events:
+            events.append((k, e.kind, e.track_id, e.reason))
+            if e.kind == "confirmed":
+                if e.track_id in alive:
+                    clashes.append((k, e.track_id))
+                alive.add(e.track_id)
+            elif e.kind in ("terminated", "merged"):
+                alive.discard(e.track_id)
+        assert alive == set(out.ids[out.confirmed].tolist())
+    return seen, events, clashes
+
+
+@pytest.mark.parametrize("live", [True, False])
+def test_a_track_continued_while_it_coasts_keeps_its_id(live):
+    # one aircraft at 150 m/s, unseen for 4 s while it turns (velocity +(-30, 30) m/s):
+    # its plots then lie outside the coasting track's gate and start a new track before
+    # the old one ends. One aircraft: one id when the live take-over is on.
+    trk = Tracker(TrackerConfig(reid_live_gap=10.0 if live else None))
+    v0, v1 = np.array([150.0, 0.0]), np.array([120.0, 30.0])
+
+    def plots_at(k):
+        if 20 <= k < 24:
+            return np.zeros((0, 2))
+        return v0 * min(k, 19) + v1 * max(k - 19, 0)
+
+    seen, events, clashes = _replay(trk, plots_at, 60)
+    assert clashes == []
+    assert len(seen) == (1 if live else 2)
+    assert trk.totals.get("taken_over", 0) == (1 if live else 0)
+    if live:
+        (tid,) = seen
+        kinds = [(e[1], e[2]) for e in events]
+        # the old track's end comes before its id's confirmation on the new track
+        assert kinds == [("confirmed", tid), ("terminated", tid), ("confirmed", tid)]
+        assert events[1][0] == events[2][0]
+        assert events[1][3].startswith("continued by tentative id")
+        assert events[2][3].startswith("re-identified (tentative id")
+
+
+@pytest.mark.parametrize("offset", [(-60.0, 0.0), (0.0, 50.0)], ids=["in-line", "side-by-side"])
+def test_two_aircraft_close_together_keep_two_ids(offset):
+    # two aircraft at 20 m/s (above reid_min_speed: kinematics alone would not keep them
+    # apart), 60 m in line or 50 m side by side; the second is first seen at 10 s while
+    # the first keeps being detected, so it never continues the first (L1)
+    trk = Tracker(TrackerConfig())
+    v = np.array([20.0, 0.0])
+
+    def plots_at(k):
+        lead = v * k
+        return lead[None] if k < 10 else np.array([lead, lead + np.array(offset)])
+
+    seen, _, clashes = _replay(trk, plots_at, 40)
+    assert clashes == [] and len(seen) == 2
+    assert trk.totals.get("taken_over", 0) == 0
+    out = trk.step(_mlat(40.0, np.array([v * 40, v * 40 + np.array(offset)])))
+    assert out.confirmed.sum() == 2
+
+
+@pytest.mark.parametrize("level", [0.1, 1.0])
+def test_a_track_that_only_missed_a_few_scans_is_not_continued_by_a_neighbour(level):
+    # two aircraft side by side, 100 m apart at 150 m/s; the second is first seen at 10 s
+    # while the first misses three scans (P_D 0.7): kinematically the second's new track
+    # continues the first (d² ≈ 1 with reid_live_q), but the first keeps ψ ≈ 0.97 (L3)
+    trk = Tracker(TrackerConfig(reid_live_existence=level))
+    v, side = np.array([150.0, 0.0]), np.array([0.0, 100.0])
+
+    def plots_at(k):
+        first = v * k
+        if k < 10:
+            return first[None]
+        return (first + side)[None] if k < 13 else np.array([first, first + side])
+
+    seen, events, clashes = _replay(trk, plots_at, 30)
+    assert clashes == []
+    first_id = events[0][2]
+    out = trk.step(_mlat(30.0, np.array([v * 30, v * 30 + side])))
+    xy = out.states[:, [0, 2]]
+    on_first = out.ids[np.argmin(np.hypot(*(xy - v * 30).T))]
+    # with (L3) the first aircraft keeps its id throughout; without it, its id goes to
+    # the second aircraft's track and it gets a new one: the join (L3) prevents
+    assert bool(on_first == first_id) == (level < 1)
+    assert trk.totals.get("taken_over", 0) == (0 if level < 1 else 1)
+    assert len(seen) == 2
