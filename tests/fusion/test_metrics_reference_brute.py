@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference_brute_support import interp, presence_segments
 from skyfuse.fusion.metrics.reference_association import ReferenceSamples, TrackUpdates
 from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig, score_against_reference
 
@@ -60,18 +61,6 @@ def to_inputs(ref, upd):
 
 
 # ---- brute force ----------------------------------------------------------------------
-
-
-def interp(samples, t, max_gap):
-    """(x, y, ground) of an aircraft at t from its time-sorted samples, or None."""
-    for i in range(len(samples) - 1):
-        (t0, x0, y0, g0), (t1, x1, y1, g1) = samples[i], samples[i + 1]
-        if t0 <= t <= t1:
-            if t1 - t0 > max_gap:
-                return None
-            w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-            return x0 + w * (x1 - x0), y0 + w * (y1 - y0), (g0 if w < 0.5 else g1)
-    return None
 
 
 def brute(r: ReferenceSamples, u: TrackUpdates, cfg: ReferenceScoreConfig):
@@ -126,14 +115,7 @@ def brute_scores(r, u, cfg):
         first = {}
         for c in sorted(mine, key=lambda c: c[2]):
             first.setdefault(c[1], c[2])
-        segs, cur = [], [smp[0]]
-        for s in smp[1:]:
-            if s[0] - cur[-1][0] > cfg.max_reference_gap_s or s[3] != cur[-1][3]:
-                segs.append(cur)
-                cur = [s]
-            else:
-                cur.append(s)
-        segs.append(cur)
+        segs = presence_segments(smp, cfg.max_reference_gap_s)
         last_holder = None
         for seg in segs:
             g = seg[0][3]

@@ -6,13 +6,13 @@ speed."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference_brute_support import interp, presence_segments
 from skyfuse.fusion.metrics.reference_association import ReferenceSamples, TrackUpdates
 from skyfuse.fusion.metrics.reference_coverage import InputPlots, ScoreArea
 from skyfuse.fusion.metrics.reference_scores import ReferenceScoreConfig, score_against_reference
@@ -148,16 +148,6 @@ def scene(seed: int):
     return r, ip
 
 
-def interp(samples, t, max_gap):
-    for (t0, x0, y0, g0), (t1, x1, y1, g1) in itertools.pairwise(samples):
-        if t0 <= t <= t1:
-            if t1 - t0 > max_gap:
-                return None
-            w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-            return x0 + w * (x1 - x0), y0 + w * (y1 - y0), (g0 if w < 0.5 else g1)
-    return None
-
-
 def brute_input_windows(r: ReferenceSamples, p: InputPlots, cfg):
     """{aircraft: {ground: [windows, reported]}} with loops."""
     epoch = min(r.time_ns.min(), p.time_ns.min()) if len(p) else r.time_ns.min()
@@ -181,14 +171,7 @@ def brute_input_windows(r: ReferenceSamples, p: InputPlots, cfg):
         label.append(best)
     out = {}
     for k, smp in ac.items():
-        segs, cur = [], [smp[0]]
-        for s in smp[1:]:
-            if s[0] - cur[-1][0] > cfg.max_reference_gap_s or s[3] != cur[-1][3]:
-                segs.append(cur)
-                cur = [s]
-            else:
-                cur.append(s)
-        segs.append(cur)
+        segs = presence_segments(smp, cfg.max_reference_gap_s)
         counts = {True: [0, 0], False: [0, 0]}
         for seg in segs:
             g = seg[0][3]
